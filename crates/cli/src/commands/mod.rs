@@ -1,0 +1,13 @@
+//! One module per subcommand, each with `Args` and `run`.
+
+pub mod convert;
+pub mod distance;
+pub mod eval;
+pub mod extract;
+pub mod info;
+pub mod morph;
+pub mod normals;
+pub mod reconstruct;
+pub mod render;
+pub mod shell;
+pub mod unshell;

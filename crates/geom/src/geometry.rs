@@ -1,0 +1,151 @@
+//! Point clouds, polylines, triangle meshes, and the [`Geometry`] a file holds.
+
+use crate::Aabb;
+use glam::DVec3;
+
+/// Scattered points. Invariant: `normals` and `scalars`, when present, have
+/// one entry per position.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PointCloud {
+    pub positions: Vec<DVec3>,
+    /// Unit normals (or `None` when the input had none).
+    pub normals: Option<Vec<DVec3>>,
+    /// One optional scalar per point (e.g. scanner confidence).
+    pub scalars: Option<Vec<f64>>,
+}
+
+impl PointCloud {
+    pub fn new(positions: Vec<DVec3>) -> Self {
+        PointCloud {
+            positions,
+            normals: None,
+            scalars: None,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(&self.positions)
+    }
+}
+
+/// Curves as chains of indices into a shared vertex list. Invariant: every
+/// index is `< vertices.len()`; a closed curve repeats its first index last.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Polylines {
+    pub vertices: Vec<DVec3>,
+    pub lines: Vec<Vec<u32>>,
+}
+
+impl Polylines {
+    /// All segments as vertex-index pairs.
+    pub fn segments(&self) -> impl Iterator<Item = [u32; 2]> + '_ {
+        self.lines
+            .iter()
+            .flat_map(|l| l.windows(2).map(|w| [w[0], w[1]]))
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(&self.vertices)
+    }
+}
+
+/// Indexed triangle mesh. Invariant: every index is `< vertices.len()`;
+/// `normals`, when present, has one unit normal per vertex.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriMesh {
+    pub vertices: Vec<DVec3>,
+    pub triangles: Vec<[u32; 3]>,
+    pub normals: Option<Vec<DVec3>>,
+}
+
+impl TriMesh {
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(&self.vertices)
+    }
+
+    /// Corner positions of triangle `t`.
+    pub fn corners(&self, t: usize) -> [DVec3; 3] {
+        self.triangles[t].map(|i| self.vertices[i as usize])
+    }
+
+    /// Total surface area.
+    pub fn area(&self) -> f64 {
+        (0..self.triangles.len())
+            .map(|t| {
+                let [a, b, c] = self.corners(t);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
+    }
+}
+
+/// Everything one file can hold: vertices (with optional per-vertex normals
+/// and scalars), triangles and polylines over those vertices. A point cloud
+/// is a geometry without triangles or lines.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Geometry {
+    pub points: PointCloud,
+    pub triangles: Vec<[u32; 3]>,
+    pub lines: Vec<Vec<u32>>,
+}
+
+impl Geometry {
+    pub fn from_mesh(mesh: TriMesh) -> Self {
+        Geometry {
+            points: PointCloud {
+                positions: mesh.vertices,
+                normals: mesh.normals,
+                scalars: None,
+            },
+            triangles: mesh.triangles,
+            lines: Vec::new(),
+        }
+    }
+
+    pub fn from_points(points: PointCloud) -> Self {
+        Geometry {
+            points,
+            ..Default::default()
+        }
+    }
+
+    pub fn from_polylines(p: Polylines) -> Self {
+        Geometry {
+            points: PointCloud::new(p.vertices),
+            triangles: Vec::new(),
+            lines: p.lines,
+        }
+    }
+
+    pub fn is_mesh(&self) -> bool {
+        !self.triangles.is_empty()
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        self.points.bounds()
+    }
+
+    /// The triangles with their vertices (vertices used by no triangle stay).
+    pub fn to_mesh(&self) -> TriMesh {
+        TriMesh {
+            vertices: self.points.positions.clone(),
+            triangles: self.triangles.clone(),
+            normals: self.points.normals.clone(),
+        }
+    }
+
+    pub fn to_polylines(&self) -> Polylines {
+        Polylines {
+            vertices: self.points.positions.clone(),
+            lines: self.lines.clone(),
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! File formats. TODO(helper): PLY, OBJ, OFF, STL, XYZ readers/writers.

@@ -1,0 +1,28 @@
+//! surfrecon-geom: the geometry every surfrecon method reads and writes.
+//!
+//! - Plain types: [`PointCloud`] (positions, optional normals and scalars),
+//!   [`Polylines`] (curves), [`TriMesh`] (indexed triangles), [`Aabb`], and
+//!   [`Geometry`], the union a file may hold. All coordinates are `f64`
+//!   ([`DVec3`] from glam, re-exported).
+//! - File formats in [`io`]: PLY (ascii, binary LE/BE), OBJ, OFF, STL, XYZ,
+//!   chosen by extension; outputs are written atomically ([`io::write_atomic`]).
+//! - [`spatial::KdTree`]: k-nearest and radius queries shared by all methods.
+//! - [`normals`]: plane-fit estimation and globally consistent orientation.
+//! - [`metrics`]: Chamfer, Hausdorff, F-score, normal consistency, topology.
+//! - [`render`]: PNG previews of meshes and point clouds.
+//! - [`shapes`]: analytic test shapes and uniform surface sampling.
+
+pub mod aabb;
+pub mod error;
+pub mod geometry;
+pub mod io;
+pub mod metrics;
+pub mod normals;
+pub mod render;
+pub mod shapes;
+pub mod spatial;
+
+pub use aabb::Aabb;
+pub use error::{GeomError, Location};
+pub use geometry::{Geometry, PointCloud, Polylines, TriMesh};
+pub use glam::DVec3;

@@ -1,0 +1,14 @@
+//! surfrecon-grid: the fields every surfrecon method reads and writes.
+//!
+//! One generic code path for 2D and 3D: [`GridSpec<D>`] places nodes at
+//! `origin + spacing * index`, [`Field<D>`] stores one `f64` per node.
+//! Tools over grids (each in its own module): fast-sweeping distance,
+//! unsigned distance to points/segments/triangles, signed distance of a
+//! closed mesh, marching squares/cubes, sparse narrow-band storage, field
+//! files (NRRD, VTK) and thin shells.
+
+pub mod error;
+pub mod spec;
+
+pub use error::GridError;
+pub use spec::{Field, Field2, Field3, GridSpec};

@@ -1,0 +1,1 @@
+//! surfrecon-levelset: TODO(helper)

@@ -1,0 +1,1 @@
+//! surfrecon-svm: TODO(helper)
