@@ -1,0 +1,1 @@
+//! TODO(helper svm): the `--method svm` part of `surfrecon reconstruct`.
