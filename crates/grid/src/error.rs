@@ -12,6 +12,23 @@ pub enum GridError {
     },
     #[error("invalid grid: {0}")]
     Invalid(String),
+    /// A field or shell file that cannot be used: names the file, where in
+    /// it (when known) and the problem.
+    #[error("{}: {message}", path.display())]
+    FieldFile {
+        path: std::path::PathBuf,
+        message: String,
+    },
+    /// Reading or writing a field or shell file failed.
+    #[error("{}: {source}", path.display())]
+    FieldIo {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
     #[error(transparent)]
     Geom(#[from] surfrecon_geom::GeomError),
+    /// Data or a mesh that a computation cannot use (empty, non-finite
+    /// coordinates, bad indices, an open mesh where a closed one is needed).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
 }

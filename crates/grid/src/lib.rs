@@ -7,8 +7,15 @@
 //! closed mesh, marching squares/cubes, sparse narrow-band storage, field
 //! files (NRRD, VTK) and thin shells.
 
+pub mod distance;
 pub mod error;
+pub mod field_io;
+pub mod marching;
+pub mod sdf;
+pub mod shell;
+pub mod sparse;
 pub mod spec;
+pub mod sweep;
 
 pub use error::GridError;
-pub use spec::{Field, Field2, Field3, GridSpec};
+pub use spec::{Field, Field2, Field3, GridSize, GridSpec};

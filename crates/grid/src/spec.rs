@@ -1,4 +1,28 @@
 //! Regular grids in any dimension: node layout and per-node fields.
+//!
+//! Grids are placed over data bounds with [`GridSpec::from_bounds`] (sized by
+//! a resolution or a spacing, with padding) and checked against the
+//! machine's memory with [`GridSpec::check_memory`] before anything large is
+//! allocated.
+
+use crate::GridError;
+
+/// How to size a grid placed over data bounds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GridSize {
+    /// Number of cells along the longest axis of the bounds.
+    Resolution(usize),
+    /// Distance between neighbouring nodes.
+    Spacing(f64),
+}
+
+/// Grids with more nodes than this are refused outright as absurd, whatever
+/// the machine (2^40 nodes would be 8 TB of `f64`).
+const MAX_NODES: usize = 1 << 40;
+
+/// Share of the available memory a grid may claim: the rest of the process
+/// (data, meshes, temporary buffers) needs room too.
+const MEMORY_SHARE: f64 = 0.8;
 
 /// Geometry of a regular grid of `dims` nodes in `D` dimensions.
 ///
@@ -62,6 +86,145 @@ impl<const D: usize> GridSpec<D> {
     pub fn max_corner(&self) -> [f64; D] {
         std::array::from_fn(|a| self.origin[a] + self.spacing * (self.dims[a] - 1) as f64)
     }
+
+    /// A grid covering the box `min..max` plus `padding_cells` cells on every
+    /// side, sized by `size`. The data box is centred in the grid (the
+    /// rounding slack is split evenly). Refuses NaN or infinite bounds,
+    /// `max < min`, non-positive sizes, a zero-extent box sized by
+    /// resolution, and absurd node counts (overflow, more than 2^40 nodes).
+    pub fn from_bounds(
+        min: [f64; D],
+        max: [f64; D],
+        size: GridSize,
+        padding_cells: usize,
+    ) -> Result<Self, GridError> {
+        validate_bounds(&min, &max)?;
+        let extent: [f64; D] = std::array::from_fn(|a| max[a] - min[a]);
+        let spacing = spacing_for(&extent, size)?;
+        let mut dims = [0usize; D];
+        for a in 0..D {
+            let cells = (extent[a] / spacing * (1.0 - 1e-12)).ceil();
+            let nodes = cells + 1.0 + 2.0 * padding_cells as f64;
+            if !(nodes <= MAX_NODES as f64) {
+                return Err(too_many_nodes());
+            }
+            dims[a] = (nodes as usize).max(2);
+        }
+        checked_node_count(&dims)?;
+        let origin = std::array::from_fn(|a| {
+            let slack = (dims[a] - 1) as f64 * spacing - extent[a];
+            min[a] - 0.5 * slack
+        });
+        Ok(GridSpec {
+            origin,
+            spacing,
+            dims,
+        })
+    }
+
+    /// Bytes a grid with `bytes_per_node` bytes per node would take.
+    pub fn memory_estimate(&self, bytes_per_node: usize) -> f64 {
+        self.dims.iter().map(|&d| d as f64).product::<f64>() * bytes_per_node as f64
+    }
+
+    /// Refuse (with [`GridError::TooLarge`]) a grid that would need more than
+    /// 80% of the machine's available memory (MemAvailable in
+    /// /proc/meminfo, else MemTotal; unchecked when neither is readable).
+    /// The error names the estimate, the memory the machine has, and a
+    /// resolution that would fit.
+    pub fn check_memory(&self, bytes_per_node: usize) -> Result<(), GridError> {
+        match available_memory() {
+            Some(have) => self.check_memory_against(bytes_per_node, have),
+            None => Ok(()),
+        }
+    }
+
+    /// [`GridSpec::check_memory`] against a given amount of memory (bytes).
+    pub fn check_memory_against(&self, bytes_per_node: usize, have: f64) -> Result<(), GridError> {
+        let need = self.memory_estimate(bytes_per_node);
+        if need <= MEMORY_SHARE * have {
+            return Ok(());
+        }
+        let shrink = (MEMORY_SHARE * have / need).powf(1.0 / D as f64);
+        let longest_cells = self.dims.iter().max().map_or(1, |&d| d - 1);
+        let fits = ((longest_cells as f64 * shrink).floor() as usize).max(1);
+        Err(GridError::TooLarge {
+            dims: self.dims_string(),
+            need_mb: need / 1e6,
+            have_mb: have / 1e6,
+            suggestion: format!("--resolution {fits} or less"),
+        })
+    }
+
+    /// Dimensions as `"300x212x136"`.
+    pub fn dims_string(&self) -> String {
+        let parts: Vec<String> = self.dims.iter().map(|d| d.to_string()).collect();
+        parts.join("x")
+    }
+}
+
+fn validate_bounds<const D: usize>(min: &[f64; D], max: &[f64; D]) -> Result<(), GridError> {
+    for a in 0..D {
+        if !min[a].is_finite() || !max[a].is_finite() {
+            return Err(GridError::Invalid(format!(
+                "bounds must be finite numbers, got min {min:?}, max {max:?} (empty or non-finite data?)"
+            )));
+        }
+        if max[a] < min[a] {
+            return Err(GridError::Invalid(format!(
+                "bounds have max < min on axis {a}: min {min:?}, max {max:?}"
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn spacing_for<const D: usize>(extent: &[f64; D], size: GridSize) -> Result<f64, GridError> {
+    match size {
+        GridSize::Spacing(h) if h.is_finite() && h > 0.0 => Ok(h),
+        GridSize::Spacing(h) => Err(GridError::Invalid(format!(
+            "spacing must be a positive number, got {h}"
+        ))),
+        GridSize::Resolution(0) => Err(GridError::Invalid(
+            "resolution must be at least 1 cell".into(),
+        )),
+        GridSize::Resolution(n) if n > MAX_NODES => Err(too_many_nodes()),
+        GridSize::Resolution(n) => {
+            let longest = extent.iter().cloned().fold(0.0, f64::max);
+            if longest > 0.0 {
+                Ok(longest / n as f64)
+            } else {
+                Err(GridError::Invalid(
+                    "the data occupy a single point, so a resolution gives no spacing; give a spacing instead".into(),
+                ))
+            }
+        }
+    }
+}
+
+fn checked_node_count(dims: &[usize]) -> Result<usize, GridError> {
+    dims.iter()
+        .try_fold(1usize, |n, &d| n.checked_mul(d))
+        .filter(|&n| n <= MAX_NODES)
+        .ok_or_else(too_many_nodes)
+}
+
+fn too_many_nodes() -> GridError {
+    GridError::Invalid(format!(
+        "grid would have more than {MAX_NODES} nodes; use a coarser resolution or a larger spacing"
+    ))
+}
+
+/// Bytes of memory available to a new allocation: MemAvailable from
+/// /proc/meminfo, falling back to MemTotal; `None` off Linux.
+pub fn available_memory() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let field = |name: &str| -> Option<f64> {
+        let line = text.lines().find(|l| l.starts_with(name))?;
+        let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kb * 1024.0)
+    };
+    field("MemAvailable:").or_else(|| field("MemTotal:"))
 }
 
 /// One `f64` per node of a grid. Invariant: `values.len() == spec.node_count()`.
@@ -112,5 +275,73 @@ mod tests {
         assert_eq!(g.strides(), [1, 4, 20]);
         assert_eq!(g.position([1, 2, 3]), [0.5, 1.0, 1.5]);
         assert_eq!(g.max_corner(), [1.5, 2.0, 2.5]);
+    }
+
+    #[test]
+    fn from_bounds_by_resolution_covers_and_centres_the_data() {
+        let g = GridSpec::<3>::from_bounds(
+            [0.0, 0.0, 0.0],
+            [2.0, 1.0, 0.5],
+            GridSize::Resolution(20),
+            2,
+        )
+        .unwrap();
+        assert!((g.spacing - 0.1).abs() < 1e-15);
+        assert_eq!(g.dims, [25, 15, 10]);
+        let hi = g.max_corner();
+        for a in 0..3 {
+            let lo_gap = [0.0, 0.0, 0.0][a] - g.origin[a];
+            let hi_gap = hi[a] - [2.0, 1.0, 0.5][a];
+            assert!(lo_gap >= 2.0 * g.spacing - 1e-12);
+            assert!((lo_gap - hi_gap).abs() < 1e-12, "centred on axis {a}");
+        }
+    }
+
+    #[test]
+    fn from_bounds_by_spacing_and_degenerate_axes() {
+        let g = GridSpec::<2>::from_bounds([1.0, 5.0], [2.05, 5.0], GridSize::Spacing(0.5), 0)
+            .unwrap();
+        assert_eq!(g.spacing, 0.5);
+        assert_eq!(g.dims, [4, 2]);
+        assert!(g.origin[0] <= 1.0 && g.max_corner()[0] >= 2.05);
+        assert!(g.origin[1] <= 5.0 && g.max_corner()[1] >= 5.0);
+    }
+
+    #[test]
+    fn from_bounds_refuses_bad_input() {
+        let bad = [
+            GridSpec::<3>::from_bounds([f64::NAN; 3], [1.0; 3], GridSize::Resolution(8), 0),
+            GridSpec::<3>::from_bounds([1.0; 3], [0.0; 3], GridSize::Resolution(8), 0),
+            GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Resolution(0), 0),
+            GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Spacing(-1.0), 0),
+            GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Spacing(f64::NAN), 0),
+            GridSpec::<3>::from_bounds([0.0; 3], [0.0; 3], GridSize::Resolution(8), 1),
+            GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Spacing(1e-300), 0),
+            GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Resolution(usize::MAX), 0),
+        ];
+        for r in bad {
+            assert!(matches!(r, Err(GridError::Invalid(_))), "{r:?}");
+        }
+        let point = GridSpec::<3>::from_bounds([1.0; 3], [1.0; 3], GridSize::Spacing(0.1), 1);
+        assert_eq!(point.unwrap().dims, [3, 3, 3]);
+    }
+
+    #[test]
+    fn memory_check_refuses_with_a_fitting_suggestion() {
+        let g = GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Resolution(1000), 0)
+            .unwrap();
+        assert!(g.check_memory_against(8, 1e12).is_ok());
+        let err = g.check_memory_against(8, 1e9).unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.contains("1001x1001x1001"), "{msg}");
+        assert!(msg.contains("8024 MB") && msg.contains("1000 MB"), "{msg}");
+        let GridError::TooLarge { suggestion, .. } = err else {
+            panic!("wrong variant");
+        };
+        let n: usize = suggestion.split_whitespace().nth(1).unwrap().parse().unwrap();
+        let smaller =
+            GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Resolution(n), 0).unwrap();
+        assert!(smaller.check_memory_against(8, 1e9).is_ok());
+        assert!(n > 400, "suggestion {n} should not be needlessly small");
     }
 }

@@ -1,1 +1,27 @@
-//! surfrecon-levelset: TODO(helper)
+//! surfrecon-levelset: level-set surface reconstruction from points, curves
+//! and surface patches, in 2D and 3D by one generic code path (Zhao, Osher,
+//! Fedkiw: "Fast surface reconstruction using the level set method").
+//!
+//! Pipeline ([`reconstruct::reconstruct_field`], [`reconstruct::reconstruct_3d`],
+//! [`reconstruct::reconstruct_2d`]): unsigned distance d to the data on a
+//! padded grid → initial surface by an outer distance contour and the fast
+//! [`tagging`] algorithm → [`convection`] φ_t = ∇d·∇φ → weighted minimal
+//! surface [`flow`] → marching cubes (squares in 2D). Evolution runs on a
+//! narrow band ([`band`]) kept a signed distance by [`reinit`]; large grids
+//! are solved coarse-to-fine ([`multires`]).
+
+pub mod band;
+pub mod convection;
+pub mod error;
+pub mod flow;
+pub mod multires;
+pub mod reconstruct;
+pub mod reinit;
+pub mod tagging;
+
+pub use band::NarrowBand;
+pub use error::{LevelsetError, Result};
+pub use reconstruct::{
+    reconstruct_2d, reconstruct_3d, reconstruct_field, Input, ReconstructParams, Reconstruction2,
+    Reconstruction3, Report,
+};

@@ -1,1 +1,29 @@
-//! surfrecon-svm: TODO(helper)
+//! surfrecon-svm: implicit surfaces from oriented points by multi-scale
+//! support-vector regression, and dense warp fields between two shapes.
+//!
+//! f(x) = b + Σ β_i k(|x − c_i| / s) with the compactly supported Wu kernel
+//! ([`kernel`]) approximates the signed distance near the surface (negative
+//! inside). Entry points:
+//! - [`multiscale::fit`] fits an [`model::SvmModel`] to points + normals
+//!   (training set in [`training`], ε-insensitive or squared-loss solve in
+//!   [`regression`]);
+//! - [`selection::select_parameters`] picks the regularization by validation;
+//! - [`model::SvmModel`] evaluates f, ∇f and curvature, drops fine levels,
+//!   saves and loads models;
+//! - [`mesh::mesh_model`] extracts the zero set by surface-following
+//!   marching cubes;
+
+pub mod cells;
+pub mod error;
+pub mod kernel;
+pub mod mesh;
+pub mod model;
+pub mod multiscale;
+pub mod regression;
+pub mod selection;
+pub mod training;
+
+pub use error::SvmError;
+pub use model::SvmModel;
+pub use multiscale::{fit, FitOptions, FitReport};
+pub use regression::Loss;

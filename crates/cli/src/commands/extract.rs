@@ -1,13 +1,112 @@
-//! TODO(helper): implement this subcommand.
+//! `surfrecon extract`: the isosurface of a field file as a triangle mesh
+//! (3D fields, marching cubes) or as curves (2D fields, marching squares).
 
 use crate::context::Context;
+use anyhow::{bail, Context as _};
+use std::path::PathBuf;
+use surfrecon_geom::{io, metrics, Geometry};
+use surfrecon_grid::field_io::{read_field, AnyField};
+use surfrecon_grid::marching::{marching_cubes, marching_squares};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Input file.
-    pub input: std::path::PathBuf,
+    /// Field file (.nrrd or .vtk), 2D or 3D.
+    pub input: PathBuf,
+    /// Output: a mesh (.ply, .obj, .off, .stl) for a 3D field, curves
+    /// (.obj, written as `l` lines) for a 2D field.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Field value of the extracted level set.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub iso: f64,
 }
 
-pub fn run(_args: Args, _ctx: &Context) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet")
+pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
+    if !args.iso.is_finite() {
+        bail!("--iso must be a finite number, not {}", args.iso);
+    }
+    let field = read_field(&args.input).with_context(|| format!("cannot read field {}", args.input.display()))?;
+    check_crosses(&field, args.iso, &args)?;
+    let spinner = ctx.spinner("extracting");
+    let (geometry, summary) = match &field {
+        AnyField::D3(f) => {
+            let mesh = marching_cubes(f, args.iso);
+            let topo = metrics::topology(&mesh);
+            let shape = if topo.watertight {
+                "closed"
+            } else {
+                "open where it meets the grid boundary"
+            };
+            let summary = serde_json::json!({
+                "vertices": mesh.vertices.len(),
+                "triangles": mesh.triangles.len(),
+                "watertight": topo.watertight,
+                "components": topo.components,
+                "euler": topo.euler,
+            });
+            ctx.say(format!(
+                "{} triangles, {} vertices, {} component(s), {shape}",
+                mesh.triangles.len(),
+                mesh.vertices.len(),
+                topo.components
+            ));
+            (Geometry::from_mesh(mesh), summary)
+        }
+        AnyField::D2(f) => {
+            let curves = marching_squares(f, args.iso);
+            let closed = curves.lines.iter().filter(|l| l.len() > 2 && l.first() == l.last()).count();
+            let summary = serde_json::json!({
+                "vertices": curves.vertices.len(),
+                "curves": curves.lines.len(),
+                "closed_curves": closed,
+            });
+            ctx.say(format!(
+                "{} curve(s) ({closed} closed), {} vertices",
+                curves.lines.len(),
+                curves.vertices.len()
+            ));
+            (Geometry::from_polylines(curves), summary)
+        }
+    };
+    spinner.finish_and_clear();
+    write_output(&args, &field, &geometry)?;
+    ctx.say(format!("wrote {} in {:.2} s", args.output.display(), ctx.elapsed()));
+    ctx.emit_json(&serde_json::json!({
+        "command": "extract",
+        "input": args.input,
+        "output": args.output,
+        "dimension": field.dimension(),
+        "dims": field.dims(),
+        "iso": args.iso,
+        "result": summary,
+        "seconds": ctx.elapsed(),
+    }));
+    Ok(())
+}
+
+/// Refuse a level that the field never crosses: the result would be empty.
+fn check_crosses(field: &AnyField, iso: f64, args: &Args) -> anyhow::Result<()> {
+    let (lo, hi) = field
+        .values()
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    if !(lo < iso && hi >= iso) {
+        bail!(
+            "{}: the field never crosses iso {iso} (values range from {lo} to {hi}); choose --iso inside that range",
+            args.input.display()
+        );
+    }
+    Ok(())
+}
+
+fn write_output(args: &Args, field: &AnyField, geometry: &Geometry) -> anyhow::Result<()> {
+    let format = io::Format::from_path(&args.output)?;
+    if field.dimension() == 2 && !format.stores_lines() {
+        bail!(
+            "{}: a 2D field gives curves, which only .obj files hold (format {format} cannot)",
+            args.output.display()
+        );
+    }
+    io::write(&args.output, geometry).with_context(|| format!("cannot write {}", args.output.display()))?;
+    Ok(())
 }

@@ -1,13 +1,225 @@
-//! TODO(helper): implement this subcommand.
+//! `surfrecon reconstruct`: a closed surface (2D: closed curves) from points,
+//! curves and triangle patches. Level-set method by default (no normals
+//! needed); `--method svm` fits an SVM implicit surface to oriented points.
 
+use crate::commands::reconstruct_svm::{self, SvmArgs};
 use crate::context::Context;
+use anyhow::Context as _;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use surfrecon_geom::{io, Geometry};
+use surfrecon_levelset::{reconstruct_2d, reconstruct_3d, Input, ReconstructParams, Report};
+
+/// Reconstruction method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    /// Level-set method: distance, tagging, convection, minimal surface flow.
+    Levelset,
+    /// SVM implicit surface (needs or estimates normals).
+    Svm,
+}
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Input file.
-    pub input: std::path::PathBuf,
+    /// Input file: points, polylines and/or triangles (ply, obj, off, stl, xyz).
+    pub input: PathBuf,
+    /// Output mesh (3D) or polylines (2D); format by extension.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Reconstruction method.
+    #[arg(long, value_enum, default_value_t = Method::Levelset)]
+    pub method: Method,
+    /// Grid cells along the longest axis of the data [default: from the sampling density].
+    #[arg(long)]
+    pub resolution: Option<usize>,
+    /// Offset of the initial outer distance contour, in data units [default: from the sampling density].
+    #[arg(long)]
+    pub epsilon: Option<f64>,
+    /// Exponent of the weighted area energy (∫ d^p ds)^(1/p), p ≥ 1.
+    #[arg(long, default_value_t = 1.0)]
+    pub p: f64,
+    /// Maximum minimal surface flow steps per resolution level.
+    #[arg(long, default_value_t = 100)]
+    pub steps: usize,
+    /// Narrow band half-width in cells.
+    #[arg(long, default_value_t = 3.0)]
+    pub band: f64,
+    /// Resolution levels, coarse to fine [default: automatic].
+    #[arg(long)]
+    pub levels: Option<usize>,
+    /// Treat everything outside the data's bounding box as exterior (for very non-uniform data).
+    #[arg(long)]
+    pub bounding_box: bool,
+    /// Also write the signed distance field (.nrrd or .vtk).
+    #[arg(long, value_name = "F.nrrd")]
+    pub field: Option<PathBuf>,
+    /// Also write the thin shell of the field (nodes next to the surface).
+    #[arg(long, value_name = "S")]
+    pub shell: Option<PathBuf>,
+    /// Reconstruct closed curves in the xy plane (automatic when every z is equal).
+    #[arg(long = "2d")]
+    pub two_d: bool,
+    #[command(flatten)]
+    pub svm: SvmArgs,
 }
 
-pub fn run(_args: Args, _ctx: &Context) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet")
+pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
+    let geometry = io::read(&args.input)
+        .with_context(|| format!("cannot read {}", args.input.display()))?;
+    match args.method {
+        Method::Levelset => run_levelset(&args, &geometry, ctx),
+        Method::Svm => run_svm(&args, &geometry, ctx),
+    }
+}
+
+fn run_svm(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()> {
+    if args.field.is_some() || args.shell.is_some() || args.two_d {
+        anyhow::bail!("--field, --shell and --2d apply to --method levelset only");
+    }
+    let (mesh, summary) = match args.resolution {
+        None => reconstruct_svm::reconstruct(&geometry.points, &args.svm, ctx)?,
+        Some(n) => reconstruct_svm::reconstruct_with_resolution(&geometry.points, &args.svm, Some(n), ctx)?,
+    };
+    let (vertices, triangles) = (mesh.vertices.len(), mesh.triangles.len());
+    io::write(&args.output, &Geometry::from_mesh(mesh))
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    ctx.say(format!(
+        "reconstructed a surface with {vertices} vertices, {triangles} triangles (svm) -> {}",
+        args.output.display()
+    ));
+    ctx.emit_json(&json!({
+        "command": "reconstruct",
+        "method": "svm",
+        "input": args.input,
+        "output": args.output,
+        "output_counts": {"vertices": vertices, "triangles": triangles},
+        "svm": summary,
+    }));
+    Ok(())
+}
+
+fn params(args: &Args) -> ReconstructParams {
+    ReconstructParams {
+        resolution: args.resolution,
+        epsilon: args.epsilon,
+        p: args.p,
+        steps: args.steps,
+        band: args.band,
+        levels: args.levels,
+        bounding_box: args.bounding_box,
+        // The shell needs only the nodes next to the surface (in the band).
+        full_field: args.field.is_some(),
+        ..Default::default()
+    }
+}
+
+fn run_levelset(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()> {
+    let input = Input::from_geometry(geometry);
+    let planar = is_planar(&input);
+    let two_d = args.two_d || planar;
+    if planar && !args.two_d {
+        ctx.say("all z coordinates are equal: reconstructing closed curves in 2D");
+    }
+    let spinner = ctx.spinner("reconstructing");
+    let (output, report, counts) = if two_d {
+        let r = reconstruct_2d(&input, &params(args)).context("level-set reconstruction failed")?;
+        write_field_outputs(args, &r.field)?;
+        let counts = json!({"vertices": r.curves.vertices.len(), "curves": r.curves.lines.len()});
+        (Geometry::from_polylines(r.curves), r.report, counts)
+    } else {
+        let r = reconstruct_3d(&input, &params(args)).context("level-set reconstruction failed")?;
+        write_field_outputs(args, &r.field)?;
+        let counts = json!({"vertices": r.mesh.vertices.len(), "triangles": r.mesh.triangles.len()});
+        (Geometry::from_mesh(r.mesh), r.report, counts)
+    };
+    spinner.finish_and_clear();
+    io::write(&args.output, &output)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    summarize(args, &input, &report, counts, two_d, ctx);
+    Ok(())
+}
+
+/// Whether every datum lies in one plane z = const (2D data).
+fn is_planar(input: &Input) -> bool {
+    let mut zs = input
+        .points
+        .iter()
+        .chain(input.segments.iter().flatten())
+        .chain(input.triangles.iter().flatten())
+        .map(|v| v.z);
+    match zs.next() {
+        Some(z0) => zs.all(|z| z == z0),
+        None => false,
+    }
+}
+
+fn write_field_outputs<const D: usize>(
+    args: &Args,
+    field: &surfrecon_grid::Field<D>,
+) -> anyhow::Result<()> {
+    if let Some(path) = &args.field {
+        surfrecon_grid::field_io::write_field(path, field)
+            .with_context(|| format!("cannot write field {}", path.display()))?;
+    }
+    if let Some(path) = &args.shell {
+        write_shell(path, field)?;
+    }
+    Ok(())
+}
+
+fn write_shell<const D: usize>(path: &Path, field: &surfrecon_grid::Field<D>) -> anyhow::Result<()> {
+    let shell = surfrecon_grid::shell::Shell::from_field(field);
+    surfrecon_grid::shell::write_shell(path, &shell)
+        .with_context(|| format!("cannot write shell {}", path.display()))
+}
+
+fn summarize(
+    args: &Args,
+    input: &Input,
+    report: &Report,
+    counts: serde_json::Value,
+    two_d: bool,
+    ctx: &Context,
+) {
+    let dims: Vec<String> = report.dims.iter().map(|d| d.to_string()).collect();
+    let total: f64 = report.timings.iter().map(|(_, t)| t).sum();
+    ctx.say(format!(
+        "reconstructed {} on a {} grid (h = {:.4}, {} level(s)) in {:.2} s -> {}",
+        if two_d { "closed curves" } else { "a closed surface" },
+        dims.join("x"),
+        report.spacing,
+        report.levels,
+        total,
+        args.output.display()
+    ));
+    for (stage, t) in &report.timings {
+        ctx.detail(format!("  {stage:<12} {t:8.3} s"));
+    }
+    let stages: Vec<serde_json::Value> = report
+        .timings
+        .iter()
+        .map(|(s, t)| json!({"stage": s, "seconds": t}))
+        .collect();
+    let steps = |v: &[surfrecon_levelset::flow::EvolveStats]| -> Vec<serde_json::Value> {
+        v.iter()
+            .map(|s| json!({"steps": s.steps, "converged": s.converged, "energy": s.energy, "max_band": s.max_band}))
+            .collect()
+    };
+    ctx.emit_json(&json!({
+        "command": "reconstruct",
+        "method": "levelset",
+        "input": args.input,
+        "output": args.output,
+        "dimension": if two_d { 2 } else { 3 },
+        "data": {"points": input.points.len(), "segments": input.segments.len(), "triangles": input.triangles.len()},
+        "grid": {"dims": report.dims, "spacing": report.spacing, "nodes": report.dims.iter().product::<usize>(), "levels": report.levels},
+        "epsilon": report.epsilon,
+        "tagging": {"heap_pops": report.heap_pops, "inside_nodes": report.tagged_inside},
+        "band_nodes": report.band_nodes,
+        "convection": steps(&report.convection),
+        "flow": steps(&report.flow),
+        "timings": stages,
+        "seconds_total": total,
+        "output_counts": counts,
+    }));
 }

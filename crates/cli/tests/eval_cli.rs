@@ -1,0 +1,214 @@
+//! End-to-end tests of `surfrecon eval` and `surfrecon normals`: real files
+//! in a temporary directory, the real binary, its stdout/stderr and exit code.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
+use surfrecon_geom::{io, DVec3, Geometry, PointCloud};
+
+fn surfrecon(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
+        .args(args)
+        .output()
+        .expect("the surfrecon binary runs")
+}
+
+fn path_str(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn json_of(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout.clone()).unwrap();
+    assert_eq!(text.trim().lines().count(), 1, "one JSON object: {text}");
+    serde_json::from_str(text.trim()).unwrap()
+}
+
+fn write_sphere(dir: &Path, name: &str, radius: f64) -> PathBuf {
+    let path = dir.join(name);
+    let mesh = icosphere(DVec3::ZERO, radius, 4);
+    io::write(&path, &Geometry::from_mesh(mesh)).unwrap();
+    path
+}
+
+#[test]
+fn eval_json_scores_scaled_sphere() {
+    let dir = tempfile::tempdir().unwrap();
+    let reference = write_sphere(dir.path(), "ref.ply", 1.0);
+    let candidate = write_sphere(dir.path(), "cand.obj", 1.01);
+    let out = surfrecon(&[
+        "eval",
+        path_str(&candidate),
+        "--reference",
+        path_str(&reference),
+        "--samples",
+        "20000",
+        "--json",
+    ]);
+    let v = json_of(&out);
+    let keys = [
+        "chamfer_l1",
+        "chamfer_l2",
+        "hausdorff",
+        "fscore_0_5pct",
+        "fscore_1pct",
+        "normal_consistency",
+        "vertices",
+        "faces",
+        "watertight",
+        "manifold",
+        "components",
+        "euler",
+        "diagonal",
+    ];
+    assert_eq!(v.as_object().unwrap().len(), keys.len());
+    for k in keys {
+        assert!(v.get(k).is_some(), "missing {k}");
+    }
+    let chamfer = v["chamfer_l1"].as_f64().unwrap();
+    assert!((chamfer - 0.01).abs() < 0.0005, "{chamfer}");
+    assert_eq!(v["fscore_1pct"], 1.0);
+    assert_eq!(v["watertight"], true);
+    assert_eq!(v["manifold"], true);
+    assert_eq!(v["euler"], 2);
+    assert_eq!(v["components"], 1);
+    assert_eq!(v["faces"], 20 * 256);
+}
+
+#[test]
+fn eval_of_mesh_against_itself_prints_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("torus.off");
+    io::write(&mesh, &Geometry::from_mesh(torus(2.0, 0.5, 32, 16))).unwrap();
+    let out = surfrecon(&[
+        "eval",
+        path_str(&mesh),
+        "-r",
+        path_str(&mesh),
+        "--samples",
+        "5000",
+    ]);
+    assert!(out.status.success());
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(table.contains("chamfer L1"), "{table}");
+    assert!(table.contains("F-score @1%           1.0000"), "{table}");
+    assert!(table.contains("euler (V-E+F)         0"), "{table}");
+    assert!(table.contains("watertight            yes"), "{table}");
+}
+
+#[test]
+fn eval_accepts_point_sets() {
+    let dir = tempfile::tempdir().unwrap();
+    let reference = write_sphere(dir.path(), "ref.ply", 1.0);
+    let points = dir.path().join("points.xyz");
+    let cloud = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 3000, 1);
+    io::write(
+        &points,
+        &Geometry::from_points(PointCloud::new(cloud.positions)),
+    )
+    .unwrap();
+    let out = surfrecon(&[
+        "eval",
+        path_str(&points),
+        "-r",
+        path_str(&reference),
+        "--json",
+    ]);
+    let v = json_of(&out);
+    // The points lie on the mesh, but the mesh's samples only come within
+    // about half the point spacing (0.065) of the points.
+    let chamfer = v["chamfer_l1"].as_f64().unwrap();
+    assert!(chamfer > 0.0 && chamfer < 0.03, "{chamfer}");
+    assert_eq!(v["vertices"], 3000);
+    assert!(v["watertight"].is_null() && v["normal_consistency"].is_null());
+}
+
+#[test]
+fn eval_errors_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let reference = write_sphere(dir.path(), "ref.ply", 1.0);
+    let missing = dir.path().join("nope.ply");
+    let out = surfrecon(&["eval", path_str(&missing), "-r", path_str(&reference)]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        err.starts_with("error:") && err.contains("nope.ply"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+
+    let out = surfrecon(&[
+        "eval",
+        path_str(&reference),
+        "-r",
+        path_str(&reference),
+        "--samples",
+        "0",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+}
+
+#[test]
+fn normals_command_orients_outward() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("torus.xyz");
+    let output = dir.path().join("torus_normals.ply");
+    let cloud = sample_surface(&torus(2.0, 0.6, 96, 48), 6000, 3);
+    io::write(
+        &input,
+        &Geometry::from_points(PointCloud::new(cloud.positions.clone())),
+    )
+    .unwrap();
+    let out = surfrecon(&[
+        "normals",
+        path_str(&input),
+        "-o",
+        path_str(&output),
+        "-k",
+        "12",
+        "--json",
+    ]);
+    let v = json_of(&out);
+    assert_eq!(v["points"], 6000);
+    assert_eq!(v["oriented"], true);
+    let result = io::read(&output).unwrap();
+    assert_eq!(result.points.positions.len(), 6000);
+    let found = result.points.normals.expect("normals written");
+    let truth = cloud.normals.unwrap();
+    let outward = found
+        .iter()
+        .zip(&truth)
+        .filter(|(a, b)| a.dot(**b) > 0.0)
+        .count();
+    assert!(outward as f64 >= 0.99 * 6000.0, "{outward}");
+}
+
+#[test]
+fn normals_command_rejects_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("bad.xyz");
+    std::fs::write(&input, "0 0 0\n1 1 oops\n").unwrap();
+    let output = dir.path().join("out.ply");
+    let out = surfrecon(&["normals", path_str(&input), "-o", path_str(&output)]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("bad.xyz") && err.contains("line 2"), "{err}");
+    assert!(!output.exists());
+
+    let good = dir.path().join("good.xyz");
+    std::fs::write(&good, "0 0 0\n1 0 0\n0 1 0\n").unwrap();
+    let out = surfrecon(&[
+        "normals",
+        path_str(&good),
+        "-o",
+        path_str(&output),
+        "-k",
+        "2",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(!output.exists());
+}

@@ -1,0 +1,21 @@
+//! Isosurfaces: marching cubes (3D → indexed triangle mesh) and marching
+//! squares (2D → polylines), our own implementation.
+//!
+//! Both classify a node as positive when its value is `>= iso` (so a value
+//! exactly at iso is never "on" the surface and cannot create degenerate or
+//! non-manifold pieces), place one shared vertex per sign-changing edge by
+//! linear interpolation, and resolve ambiguous faces/cells with the
+//! asymptotic decider computed only from the face's four values, so cells
+//! sharing a face always agree. See [`tables`] for how the cube cases are
+//! generated and why the result is watertight and edge-manifold.
+
+mod cubes;
+mod squares;
+pub mod tables;
+
+pub(crate) use cubes::{cell_case, edge_vertex, loop_centre, Samples3};
+pub use cubes::marching_cubes;
+pub use squares::marching_squares;
+
+#[cfg(test)]
+pub(crate) mod tests;

@@ -1,0 +1,123 @@
+//! Narrow band: the level set function φ stored on the whole grid, plus the
+//! list of nodes near its zero set that evolution and reinitialization touch.
+//!
+//! Nodes outside the band hold ±`half_width` (sign = side of the surface), so
+//! every stencil may read any neighbour while all work stays proportional to
+//! the band size, i.e. to the surface area.
+
+use surfrecon_grid::{Field, GridSpec};
+
+/// Nodes this close to the grid border never join the band, so stencils
+/// (which reach two nodes away for mixed derivatives) need no bounds checks.
+pub(crate) const BORDER: usize = 2;
+
+/// φ with its active narrow band.
+#[derive(Clone, Debug)]
+pub struct NarrowBand<const D: usize> {
+    /// φ on every node: signed distance inside the band, ±`half_width` outside.
+    pub phi: Field<D>,
+    /// Linear indices of the band nodes (|φ| < `half_width`), ascending.
+    pub active: Vec<u32>,
+    /// Half-width of the band in world units.
+    pub half_width: f64,
+    /// Per-node stamp used by reinitialization to mark visited nodes
+    /// without clearing a whole-grid array each time.
+    pub(crate) marks: Vec<u32>,
+    pub(crate) epoch: u32,
+}
+
+impl<const D: usize> NarrowBand<D> {
+    /// A band from inside/outside labels (`true` = inside): φ = ∓`half_width`
+    /// everywhere, band = nodes next to a label change. Call
+    /// [`crate::reinit::reinitialize`] next to turn it into a signed distance.
+    pub fn from_inside(spec: GridSpec<D>, inside: &[bool], half_width: f64) -> Self {
+        let values = inside
+            .iter()
+            .map(|&i| if i { -half_width } else { half_width })
+            .collect();
+        let phi = Field { spec, values };
+        let active = sign_change_nodes(&phi);
+        NarrowBand {
+            marks: vec![0; spec.node_count()],
+            epoch: 0,
+            phi,
+            active,
+            half_width,
+        }
+    }
+
+    /// A band around the zero set of an arbitrary field (values beyond
+    /// `half_width` are clamped); reinitialize before evolving.
+    pub fn from_field(mut phi: Field<D>, half_width: f64) -> Self {
+        for v in &mut phi.values {
+            *v = v.clamp(-half_width, half_width);
+        }
+        let spec = phi.spec;
+        for l in 0..spec.node_count() {
+            if !is_inner(&spec, l) {
+                phi.values[l] = half_width;
+            }
+        }
+        let active = sign_change_nodes(&phi);
+        NarrowBand {
+            marks: vec![0; spec.node_count()],
+            epoch: 0,
+            phi,
+            active,
+            half_width,
+        }
+    }
+
+    /// Number of band nodes.
+    pub fn len(&self) -> usize {
+        self.active.len()
+    }
+
+    /// True when the band is empty (no surface).
+    pub fn is_empty(&self) -> bool {
+        self.active.is_empty()
+    }
+}
+
+/// Inner nodes (at least [`BORDER`] from the grid border) with a neighbour of
+/// the other sign, ascending.
+pub(crate) fn sign_change_nodes<const D: usize>(phi: &Field<D>) -> Vec<u32> {
+    let spec = phi.spec;
+    let strides = spec.strides();
+    (0..spec.node_count())
+        .filter(|&l| is_inner(&spec, l) && has_sign_change(&phi.values, l, &strides))
+        .map(|l| l as u32)
+        .collect()
+}
+
+/// Inside means φ ≤ 0 (so a zero value is never ambiguous).
+#[inline]
+pub(crate) fn inside(v: f64) -> bool {
+    v <= 0.0
+}
+
+#[inline]
+pub(crate) fn has_sign_change<const D: usize>(phi: &[f64], l: usize, strides: &[usize; D]) -> bool {
+    let s = inside(phi[l]);
+    strides
+        .iter()
+        .any(|&st| inside(phi[l - st]) != s || inside(phi[l + st]) != s)
+}
+
+/// Whether node `l` is far enough from the border for every stencil.
+#[inline]
+pub(crate) fn is_inner<const D: usize>(spec: &GridSpec<D>, l: usize) -> bool {
+    let idx = spec.unlinear(l);
+    (0..D).all(|a| idx[a] >= BORDER && idx[a] + BORDER < spec.dims[a])
+}
+
+/// Sum of `f` over `items`, in fixed-size chunks summed in order, so the
+/// result does not depend on the number of threads.
+pub(crate) fn det_sum<T: Sync>(items: &[T], f: impl Fn(&T) -> f64 + Sync) -> f64 {
+    use rayon::prelude::*;
+    let partial: Vec<f64> = items
+        .par_chunks(4096)
+        .map(|c| c.iter().map(&f).sum::<f64>())
+        .collect();
+    partial.iter().sum()
+}

@@ -1,0 +1,293 @@
+//! End-to-end reconstructions of shapes whose exact surface is known.
+
+use std::collections::HashMap;
+use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
+use surfrecon_geom::{DVec3, TriMesh};
+use surfrecon_levelset::{reconstruct_2d, reconstruct_3d, Input, ReconstructParams};
+
+/// Watertight (every edge in exactly two triangles, consistently oriented),
+/// Euler characteristic, connected components.
+fn topology(mesh: &TriMesh) -> (bool, i64, usize) {
+    let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
+            *edges.entry((a.min(b) + 0, a.max(b))).or_default() += 0;
+        }
+    }
+    let mut count: HashMap<(u32, u32), usize> = HashMap::new();
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let watertight = !mesh.triangles.is_empty()
+        && count.values().all(|&c| c == 2)
+        && edges.values().all(|&o| o == 0);
+    let used: std::collections::HashSet<u32> = mesh.triangles.iter().flatten().copied().collect();
+    let euler = used.len() as i64 - count.len() as i64 + mesh.triangles.len() as i64;
+    // Components by union-find over triangle edges.
+    let mut parent: Vec<u32> = (0..mesh.vertices.len() as u32).collect();
+    fn find(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            p[x as usize] = p[p[x as usize] as usize];
+            x = p[x as usize];
+        }
+        x
+    }
+    for t in &mesh.triangles {
+        for k in 1..3 {
+            let (a, b) = (find(&mut parent, t[0]), find(&mut parent, t[k]));
+            parent[a as usize] = b;
+        }
+    }
+    let roots: std::collections::HashSet<u32> = used.iter().map(|&v| find(&mut parent, v)).collect();
+    (watertight, euler, roots.len())
+}
+
+/// Mean two-sided distance between the mesh and an analytic surface given
+/// by its exact distance function and a dense sample of it.
+fn chamfer(mesh: &TriMesh, surface_distance: impl Fn(DVec3) -> f64, samples: &[DVec3]) -> f64 {
+    let to_surface: f64 =
+        mesh.vertices.iter().map(|&v| surface_distance(v).abs()).sum::<f64>() / mesh.vertices.len() as f64;
+    let tree = surfrecon_geom::spatial::KdTree::new(&mesh.vertices);
+    let to_mesh: f64 = samples
+        .iter()
+        .map(|&s| tree.nearest(s).unwrap().distance)
+        .sum::<f64>()
+        / samples.len() as f64;
+    0.5 * (to_surface + to_mesh)
+}
+
+fn params(resolution: usize) -> ReconstructParams {
+    ReconstructParams {
+        resolution: Some(resolution),
+        ..Default::default()
+    }
+}
+
+#[test]
+fn sphere_from_points() {
+    let points = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 4000, 1).positions;
+    let r = reconstruct_3d(&Input::from_points(points), &params(40)).unwrap();
+    let (watertight, euler, comps) = topology(&r.mesh);
+    let h = r.report.spacing;
+    let exact = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 5000, 2).positions;
+    let c = chamfer(&r.mesh, |v| v.length() - 1.0, &exact);
+    eprintln!("sphere: {:?} chamfer {c} h {h} report {:?}", (watertight, euler, comps), r.report);
+    assert!(watertight);
+    assert_eq!(euler, 2);
+    assert_eq!(comps, 1);
+    assert!(c < 0.5 * h, "chamfer {c} vs h {h}");
+}
+
+#[test]
+fn torus_from_points() {
+    let shape = torus(1.0, 0.4, 96, 48);
+    let points = sample_surface(&shape, 6000, 3).positions;
+    let r = reconstruct_3d(&Input::from_points(points), &params(48)).unwrap();
+    let (watertight, euler, comps) = topology(&r.mesh);
+    let h = r.report.spacing;
+    let exact = sample_surface(&shape, 5000, 4).positions;
+    let dist = |v: DVec3| (DVec3::new(v.x, v.y, 0.0).length() - 1.0).hypot(v.z) - 0.4;
+    let c = chamfer(&r.mesh, dist, &exact);
+    eprintln!("torus: {:?} chamfer {c} h {h} report {:?}", (watertight, euler, comps), r.report);
+    assert!(watertight);
+    assert_eq!(euler, 0);
+    assert_eq!(comps, 1);
+    assert!(c < 0.5 * h, "chamfer {c} vs h {h}");
+}
+
+#[test]
+fn circle_and_polygon_in_2d() {
+    let circle: Vec<DVec3> = (0..300)
+        .map(|i| {
+            let t = i as f64 / 300.0 * std::f64::consts::TAU;
+            DVec3::new(t.cos(), t.sin(), 0.0)
+        })
+        .collect();
+    let r = reconstruct_2d(&Input::from_points(circle), &params(80)).unwrap();
+    eprintln!("circle: {} lines report {:?}", r.curves.lines.len(), r.report);
+    assert_eq!(r.curves.lines.len(), 1);
+    let line = &r.curves.lines[0];
+    assert_eq!(line.first(), line.last(), "curve must be closed");
+    for &i in line {
+        let v = r.curves.vertices[i as usize];
+        assert!((v.length() - 1.0).abs() < r.report.spacing, "vertex at radius {}", v.length());
+    }
+}
+
+fn rng(seed: u64) -> rand_pcg::Pcg64 {
+    use rand::SeedableRng;
+    rand_pcg::Pcg64::seed_from_u64(seed)
+}
+
+fn torus_distance(v: DVec3) -> f64 {
+    (DVec3::new(v.x, v.y, 0.0).length() - 1.0).hypot(v.z) - 0.4
+}
+
+/// Points of the torus (R = 1, r = 0.4) in the patch around the outer
+/// equator at angle 0 that the hole test removes.
+fn in_hole(p: DVec3) -> bool {
+    let u = p.y.atan2(p.x);
+    u.abs() < 0.3 && p.z.abs() < 0.22 && p.x > 1.0
+}
+
+#[test]
+fn torus_hole_is_filled_smoothly() {
+    let shape = torus(1.0, 0.4, 96, 48);
+    let points: Vec<DVec3> = sample_surface(&shape, 7000, 5)
+        .positions
+        .into_iter()
+        .filter(|&p| !in_hole(p))
+        .collect();
+    let r = reconstruct_3d(&Input::from_points(points), &params(48)).unwrap();
+    let (watertight, euler, comps) = topology(&r.mesh);
+    let h = r.report.spacing;
+    let tree = surfrecon_geom::spatial::KdTree::new(&r.mesh.vertices);
+    let hole: Vec<DVec3> = sample_surface(&shape, 20000, 6)
+        .positions
+        .into_iter()
+        .filter(|&p| in_hole(p))
+        .collect();
+    let worst = hole
+        .iter()
+        .map(|&p| tree.nearest(p).unwrap().distance)
+        .fold(0.0, f64::max);
+    let in_hole_vertices: Vec<f64> = r
+        .mesh
+        .vertices
+        .iter()
+        .filter(|&&v| in_hole(v) || in_hole(v * 1.05))
+        .map(|&v| torus_distance(v))
+        .collect();
+    eprintln!(
+        "hole: {:?} worst {worst} h {h} hole vertices {} max dev {:?}",
+        (watertight, euler, comps),
+        in_hole_vertices.len(),
+        in_hole_vertices.iter().map(|d| d.abs()).fold(0.0, f64::max)
+    );
+    assert!(watertight);
+    assert_eq!(euler, 0, "still a torus");
+    assert_eq!(comps, 1);
+    assert!(!hole.is_empty() && worst < 2.0 * h, "hole covered: worst {worst}, h {h}");
+    // The patch is a smooth (minimal) surface: it bends with the torus but
+    // less, so it stays within the sagitta of the gap.
+    assert!(in_hole_vertices.iter().all(|d| d.abs() < 2.0 * h));
+}
+
+fn sphere_curves() -> surfrecon_geom::Polylines {
+    let mut vertices = Vec::new();
+    let mut lines = Vec::new();
+    let n = 120;
+    let mut circle = |f: &dyn Fn(f64) -> DVec3| {
+        let start = vertices.len() as u32;
+        vertices.extend((0..n).map(|i| f(i as f64 / n as f64 * std::f64::consts::TAU)));
+        let mut line: Vec<u32> = (start..start + n as u32).collect();
+        line.push(start);
+        lines.push(line);
+    };
+    for k in 0..4 {
+        let phi = k as f64 * std::f64::consts::PI / 4.0;
+        circle(&|t| DVec3::new(t.cos() * phi.cos(), t.cos() * phi.sin(), t.sin()));
+    }
+    for lat in [-50f64, 0.0, 50.0] {
+        let (c, s) = (lat.to_radians().cos(), lat.to_radians().sin());
+        circle(&|t| DVec3::new(c * t.cos(), c * t.sin(), s));
+    }
+    surfrecon_geom::Polylines { vertices, lines }
+}
+
+#[test]
+fn sphere_from_longitudes_and_latitudes() {
+    let curves = sphere_curves();
+    let input = Input::from_geometry(&surfrecon_geom::Geometry::from_polylines(curves));
+    let r = reconstruct_3d(&input, &params(40)).unwrap();
+    let (watertight, euler, comps) = topology(&r.mesh);
+    let h = r.report.spacing;
+    let worst = r.mesh.vertices.iter().map(|v| (v.length() - 1.0).abs()).fold(0.0, f64::max);
+    eprintln!("curves: {:?} worst {worst} h {h} report {:?}", (watertight, euler, comps), r.report);
+    assert!(watertight);
+    assert_eq!((euler, comps), (2, 1));
+    assert!(worst < 2.0 * h, "worst {worst} vs h {h}");
+}
+
+#[test]
+fn non_uniform_noisy_sphere_gives_one_closed_surface() {
+    use rand::Rng;
+    let mut g = rng(9);
+    // Box–Muller normal samples.
+    let mut gauss = |g: &mut rand_pcg::Pcg64| {
+        let (u, v): (f64, f64) = (g.random::<f64>().max(1e-300), g.random());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    };
+    let dense = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 8000, 7).positions;
+    // Density falls tenfold from the top half to the bottom half.
+    let sigma = 0.005 * (2.0 * 3f64.sqrt());
+    let points: Vec<DVec3> = dense
+        .into_iter()
+        .filter(|p| p.z > 0.0 || g.random::<f64>() < 0.1)
+        .collect::<Vec<_>>()
+        .into_iter()
+        .map(|p| p + sigma * DVec3::new(gauss(&mut g), gauss(&mut g), gauss(&mut g)))
+        .collect();
+    let r = reconstruct_3d(&Input::from_points(points), &params(40)).unwrap();
+    let (watertight, euler, comps) = topology(&r.mesh);
+    let worst = r.mesh.vertices.iter().map(|v| (v.length() - 1.0).abs()).fold(0.0, f64::max);
+    eprintln!("nonuniform: {:?} worst {worst} report {:?}", (watertight, euler, comps), r.report);
+    assert!(watertight);
+    assert_eq!((euler, comps), (2, 1));
+    assert!(worst < 3.0 * r.report.spacing);
+}
+
+#[test]
+fn polygon_in_2d() {
+    // Points along the edges of a triangle.
+    let corners = [DVec3::new(-1.0, -0.8, 0.0), DVec3::new(1.2, -0.6, 0.0), DVec3::new(0.1, 1.0, 0.0)];
+    let mut points = Vec::new();
+    for k in 0..3 {
+        let (a, b) = (corners[k], corners[(k + 1) % 3]);
+        points.extend((0..60).map(|i| a.lerp(b, i as f64 / 60.0)));
+    }
+    let r = reconstruct_2d(&Input::from_points(points.clone()), &params(80)).unwrap();
+    let h = r.report.spacing;
+    assert_eq!(r.curves.lines.len(), 1);
+    let line = &r.curves.lines[0];
+    assert_eq!(line.first(), line.last());
+    let edge_distance = |v: DVec3| {
+        (0..3)
+            .map(|k| {
+                let (a, b) = (corners[k], corners[(k + 1) % 3]);
+                let t = ((v - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+                (a + t * (b - a)).distance(v)
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let worst = line.iter().map(|&i| edge_distance(r.curves.vertices[i as usize])).fold(0.0, f64::max);
+    eprintln!("polygon: worst {worst} h {h}");
+    assert!(worst < h, "worst {worst} vs h {h}");
+}
+
+#[test]
+fn convection_alone_reaches_the_data() {
+    let points = sample_surface(&torus(1.0, 0.4, 96, 48), 6000, 11).positions;
+    let p = ReconstructParams {
+        steps: 0,
+        ..params(48)
+    };
+    let r = reconstruct_3d(&Input::from_points(points.clone()), &p).unwrap();
+    let h = r.report.spacing;
+    let tree = surfrecon_geom::spatial::KdTree::new(&points);
+    let near = r
+        .mesh
+        .vertices
+        .iter()
+        .filter(|&&v| tree.nearest(v).unwrap().distance < h)
+        .count();
+    let share = near as f64 / r.mesh.vertices.len() as f64;
+    eprintln!("convection: share {share} report {:?}", r.report);
+    assert!(r.report.flow.iter().all(|f| f.steps == 0));
+    assert!(share > 0.9, "only {share} of the vertices within h of the data");
+}

@@ -1,0 +1,241 @@
+//! Surface-following meshing of a fitted model: evaluate f only at grid
+//! nodes of cells near the zero set, found by growing from the cells that
+//! hold the data points, then run the grid crate's sparse marching cubes.
+//!
+//! Growth is breadth first over blocks of 4³ cells, in waves: every wave
+//! evaluates the nodes of its blocks in parallel (batched per block), and a
+//! cell on a block's rim passes growth on to the blocks it touches when its
+//! corners change sign or one of them is within a cell diagonal of zero
+//! (f approximates the signed distance, so any cell the surface crosses
+//! qualifies). Waves are sorted, so the result does not depend on the
+//! thread count.
+
+use crate::cells::{FastMap, FastSet};
+use crate::error::{Result, SvmError};
+use crate::model::SvmModel;
+use glam::DVec3;
+use surfrecon_geom::{Aabb, TriMesh};
+use surfrecon_grid::sparse::{marching_cubes_sparse, BlockGrid};
+use surfrecon_grid::{GridSize, GridSpec};
+
+/// How finely to mesh.
+#[derive(Clone, Copy, Debug)]
+pub struct MeshOptions {
+    /// Cells along the longest axis of the (padded) data bounds.
+    pub resolution: usize,
+    /// Extra room around the data bounds, relative to their diagonal, so
+    /// surfaces that bulge past the data (e.g. over holes) stay closed.
+    pub margin: f64,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        MeshOptions {
+            resolution: 128,
+            margin: 0.05,
+        }
+    }
+}
+
+/// Counts from a meshing run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshReport {
+    pub grid_dims: [usize; 3],
+    pub spacing: f64,
+    /// Cells visited by the surface-following growth.
+    pub cells_visited: usize,
+    /// Grid nodes where f was evaluated.
+    pub nodes_evaluated: usize,
+}
+
+/// Extract the zero set of `model` around `seeds` (usually the input
+/// points) inside `bounds` enlarged by the margin. Vertex normals are the
+/// normalized gradient of f (outward).
+pub fn mesh_model(
+    model: &SvmModel,
+    seeds: &[DVec3],
+    bounds: Aabb,
+    opts: &MeshOptions,
+) -> Result<(TriMesh, MeshReport)> {
+    crate::error::require_positive("resolution", opts.resolution as f64)?;
+    let padded = bounds.padded(opts.margin.max(0.0) * bounds.diagonal());
+    let spec = GridSpec::<3>::from_bounds(
+        padded.min.to_array(),
+        padded.max.to_array(),
+        GridSize::Resolution(opts.resolution),
+        1,
+    )?;
+    let values = follow_surface(model, seeds, &spec)?;
+    let report = MeshReport {
+        grid_dims: spec.dims,
+        spacing: spec.spacing,
+        cells_visited: values.cells_visited,
+        nodes_evaluated: values.nodes.len(),
+    };
+    let background = 2.0 * spec.spacing;
+    let grid = BlockGrid::from_nodes(spec, background, values.nodes)?;
+    let mut mesh = marching_cubes_sparse(&grid, 0.0);
+    mesh.normals = Some(
+        model
+            .gradients(&mesh.vertices)
+            .into_iter()
+            .map(|g| g.normalize_or_zero())
+            .collect(),
+    );
+    Ok((mesh, report))
+}
+
+struct Band {
+    nodes: Vec<([usize; 3], f64)>,
+    cells_visited: usize,
+}
+
+/// Cells per block edge: growth and evaluation go block by block, so the
+/// centres near a block are gathered once for all its nodes.
+const BLOCK: usize = 4;
+
+/// Node or block coordinates packed into one key (each < 2^21).
+fn pack(c: [usize; 3]) -> u64 {
+    c[0] as u64 | (c[1] as u64) << 21 | (c[2] as u64) << 42
+}
+
+/// Evaluate f on the nodes of every block reached by the growth.
+fn follow_surface(model: &SvmModel, seeds: &[DVec3], spec: &GridSpec<3>) -> Result<Band> {
+    if spec.dims.iter().any(|&n| n >= 1 << 21) {
+        return Err(SvmError::InvalidParameter {
+            name: "resolution",
+            message: format!("grid {:?} is too large to mesh", spec.dims),
+        });
+    }
+    let cell_dims = spec.dims.map(|n| n - 1);
+    let block_dims = cell_dims.map(|n| n.div_ceil(BLOCK));
+    let near = spec.spacing * 3f64.sqrt();
+    let mut frontier: Vec<[usize; 3]> = seeds
+        .iter()
+        .filter_map(|p| cell_of(spec, *p))
+        .map(|c| c.map(|i| i / BLOCK))
+        .collect();
+    frontier.sort_unstable();
+    frontier.dedup();
+    let mut visited = FastSet::default();
+    let mut values: FastMap<f64> = FastMap::default();
+    while !frontier.is_empty() {
+        visited.extend(frontier.iter().map(|b| pack(*b)));
+        evaluate_blocks(model, spec, &frontier, &mut values);
+        let mut next: Vec<[usize; 3]> = frontier
+            .iter()
+            .flat_map(|&b| blocks_reached(&values, b, cell_dims, block_dims, near))
+            .filter(|n| !visited.contains(&pack(*n)))
+            .collect();
+        next.sort_unstable();
+        next.dedup();
+        frontier = next;
+    }
+    let unpack = |k: u64| [(k & 0x1f_ffff) as usize, ((k >> 21) & 0x1f_ffff) as usize, (k >> 42) as usize];
+    let mut nodes: Vec<([usize; 3], f64)> = values.into_iter().map(|(k, v)| (unpack(k), v)).collect();
+    nodes.sort_unstable_by_key(|(i, _)| *i);
+    Ok(Band {
+        nodes,
+        cells_visited: visited.len() * BLOCK.pow(3),
+    })
+}
+
+/// The cell holding `p`, if inside the grid.
+fn cell_of(spec: &GridSpec<3>, p: DVec3) -> Option<[usize; 3]> {
+    let g = spec.to_grid(p.to_array());
+    let mut c = [0usize; 3];
+    for a in 0..3 {
+        if !(g[a] >= 0.0) || g[a] >= (spec.dims[a] - 1) as f64 {
+            return None;
+        }
+        c[a] = g[a] as usize;
+    }
+    Some(c)
+}
+
+/// Index range of the cells of block `b` along each axis.
+fn block_cells(b: [usize; 3], cell_dims: [usize; 3]) -> [std::ops::Range<usize>; 3] {
+    std::array::from_fn(|a| b[a] * BLOCK..((b[a] + 1) * BLOCK).min(cell_dims[a]))
+}
+
+fn cells_of(r: &[std::ops::Range<usize>; 3]) -> impl Iterator<Item = [usize; 3]> + '_ {
+    r[2].clone().flat_map(move |z| {
+        r[1].clone().flat_map(move |y| r[0].clone().map(move |x| [x, y, z]))
+    })
+}
+
+fn corners(c: [usize; 3]) -> impl Iterator<Item = [usize; 3]> {
+    (0..8).map(move |k| [c[0] + (k & 1), c[1] + ((k >> 1) & 1), c[2] + ((k >> 2) & 1)])
+}
+
+/// Evaluate the not yet known nodes of `blocks`, one group per block.
+fn evaluate_blocks(model: &SvmModel, spec: &GridSpec<3>, blocks: &[[usize; 3]], values: &mut FastMap<f64>) {
+    let cell_dims = spec.dims.map(|n| n - 1);
+    let mut claimed = FastSet::default();
+    let mut keys = Vec::new();
+    let mut positions = Vec::new();
+    let mut groups = Vec::new();
+    for &b in blocks {
+        let cells = block_cells(b, cell_dims);
+        // Nodes of the block: one more than its cells along each axis.
+        let nodes: [std::ops::Range<usize>; 3] = std::array::from_fn(|a| cells[a].start..cells[a].end + 1);
+        let mut group = Vec::new();
+        for n in cells_of(&nodes) {
+            let k = pack(n);
+            if !values.contains_key(&k) && claimed.insert(k) {
+                group.push(positions.len() as u32);
+                keys.push(k);
+                positions.push(DVec3::from_array(spec.position(n)));
+            }
+        }
+        groups.push(group);
+    }
+    let fresh = model.values_grouped(&positions, &groups);
+    values.extend(keys.into_iter().zip(fresh));
+}
+
+/// Blocks next to `b` that a near-surface cell of `b` touches (through a
+/// face, edge or corner of the cell).
+fn blocks_reached(
+    values: &FastMap<f64>,
+    b: [usize; 3],
+    cell_dims: [usize; 3],
+    block_dims: [usize; 3],
+    near: f64,
+) -> Vec<[usize; 3]> {
+    let mut out = Vec::new();
+    let range = block_cells(b, cell_dims);
+    for c in cells_of(&range) {
+        let on_rim = (0..3).any(|a| c[a] == range[a].start || c[a] + 1 == range[a].end);
+        if !on_rim || !is_near_surface(values, c, near) {
+            continue;
+        }
+        for k in 0..27usize {
+            let d = [k % 3, (k / 3) % 3, k / 9];
+            let n: Option<[usize; 3]> = (0..3)
+                .map(|a| (c[a] + d[a]).checked_sub(1).filter(|&v| v < cell_dims[a]))
+                .collect::<Option<Vec<_>>>()
+                .map(|v| [v[0], v[1], v[2]]);
+            if let Some(n) = n {
+                let nb = n.map(|i| i / BLOCK);
+                if nb != b && (0..3).all(|a| nb[a] < block_dims[a]) {
+                    out.push(nb);
+                }
+            }
+        }
+    }
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+fn is_near_surface(values: &FastMap<f64>, c: [usize; 3], near: f64) -> bool {
+    let (mut pos, mut neg, mut close) = (false, false, false);
+    for n in corners(c) {
+        let v = values[&pack(n)];
+        pos |= v >= 0.0;
+        neg |= v < 0.0;
+        close |= v.abs() <= near;
+    }
+    (pos && neg) || close
+}

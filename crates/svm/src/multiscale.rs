@@ -1,0 +1,250 @@
+//! The multi-scale fit: kernel widths diameter/2, /4, …; each level fits the
+//! residual of the coarser ones on base points from a box subdivision at
+//! that width, leaving out base points whose residual is already within the
+//! fitting accuracy. The offset b is the largest width, so f = b > 0 far
+//! from the data (outside positive, inside negative).
+
+use crate::error::{require_positive, Result, SvmError};
+use crate::cells::CellIndex;
+use crate::kernel::KernelMatrix;
+use crate::model::{Level, SvmModel};
+use crate::regression::{solve, Loss, RegressionParams};
+use crate::training::{box_representatives, SurfaceSamples, TrainingPoint};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Parameters of the multi-scale fit. Lengths are relative: `epsilon` and
+/// `accuracy` to the bounding-box diagonal, the rest to each level's width.
+#[derive(Clone, Copy, Debug)]
+pub struct FitOptions {
+    pub loss: Loss,
+    /// Box constraint per level: C_l = c · s_l (squared loss: ridge 1/C_l).
+    pub c: f64,
+    /// ε-insensitive tube width, relative to the diagonal.
+    pub epsilon: f64,
+    /// Fitting accuracy relative to the diagonal: base points whose residual
+    /// is within it are dropped; refinement stops when none is left.
+    pub accuracy: f64,
+    /// Off-surface distance y_l = offset_ratio · s_l.
+    pub offset_ratio: f64,
+    /// Box side of the base-point subdivision h_l = cell_ratio · s_l.
+    pub cell_ratio: f64,
+    /// No level narrower than this many median sample spacings: narrower
+    /// kernels would only fit noise between samples.
+    pub min_width_spacings: f64,
+    pub max_levels: usize,
+    /// Coordinate-descent sweeps per level at most.
+    pub max_sweeps: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            loss: Loss::EpsilonInsensitive,
+            c: 1.0,
+            epsilon: 5e-4,
+            accuracy: 1e-3,
+            offset_ratio: 0.25,
+            cell_ratio: 0.35,
+            min_width_spacings: 1.5,
+            max_levels: 16,
+            max_sweeps: 200,
+        }
+    }
+}
+
+impl FitOptions {
+    /// Error on a parameter outside its valid range.
+    pub fn validate(&self) -> Result<()> {
+        require_positive("c", self.c)?;
+        require_positive("accuracy", self.accuracy)?;
+        require_positive("offset_ratio", self.offset_ratio)?;
+        require_positive("cell_ratio", self.cell_ratio)?;
+        require_positive("min_width_spacings", self.min_width_spacings)?;
+        if !(self.epsilon.is_finite() && self.epsilon >= 0.0) {
+            return Err(SvmError::InvalidParameter {
+                name: "epsilon",
+                message: format!("must be a non-negative finite number, got {}", self.epsilon),
+            });
+        }
+        if self.max_levels == 0 || self.max_sweeps == 0 {
+            return Err(SvmError::InvalidParameter {
+                name: "max_levels/max_sweeps",
+                message: "must be at least 1".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// What one level did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelReport {
+    pub width: f64,
+    /// Base points proposed (surface representatives + off-surface points).
+    pub candidates: usize,
+    /// Base points left after dropping those already within the accuracy.
+    pub base_points: usize,
+    /// Kernel centres kept (base points with a non-zero coefficient).
+    pub centres: usize,
+    pub sweeps: usize,
+    pub seconds: f64,
+}
+
+/// Summary of a fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitReport {
+    pub levels: Vec<LevelReport>,
+    pub diameter: f64,
+    pub spacing: f64,
+    pub seconds: f64,
+}
+
+/// Fit an implicit function to oriented surface samples.
+pub fn fit(points: &[DVec3], normals: &[DVec3], opts: &FitOptions) -> Result<(SvmModel, FitReport)> {
+    opts.validate()?;
+    let start = Instant::now();
+    let samples = SurfaceSamples::new(points, normals)?;
+    let diameter = samples.diameter;
+    let mut model = SvmModel {
+        offset: diameter / 2.0,
+        levels: Vec::new(),
+    };
+    let mut reports = Vec::new();
+    let min_width = opts.min_width_spacings * samples.spacing;
+    let mut width = diameter / 2.0;
+    // Surface samples still being refined: all at first, then those within
+    // the previous level's width of one of its base points.
+    let mut active: Vec<usize> = (0..samples.points.len()).collect();
+    for _ in 0..opts.max_levels {
+        let (level, base, report) = fit_level(&samples, &active, &model, width, opts);
+        let added = report.base_points > 0;
+        reports.push(report);
+        if !added {
+            break;
+        }
+        if !level.centres.is_empty() {
+            model.levels.push(level);
+        }
+        active = near_base_points(&samples.points, &active, &base, width);
+        width /= 2.0;
+        if width < min_width {
+            break;
+        }
+    }
+    let report = FitReport {
+        levels: reports,
+        diameter,
+        spacing: samples.spacing,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok((model, report))
+}
+
+/// The samples of `active` within `width` of a base point: where the last
+/// level still found residuals above the accuracy. Everywhere else the
+/// function was already within the accuracy and that level did not change
+/// it, so finer levels only look here (adaptive box subdivision).
+fn near_base_points(points: &[DVec3], active: &[usize], base: &[DVec3], width: f64) -> Vec<usize> {
+    let index = CellIndex::new(base, width);
+    let w2 = width * width;
+    active
+        .par_iter()
+        .copied()
+        .filter(|&i| {
+            let p = points[i];
+            let mut near = false;
+            index.for_each_candidate(p, |slot| {
+                near |= base[index.order[slot] as usize].distance_squared(p) < w2;
+            });
+            near
+        })
+        .collect()
+}
+
+/// One level: propose base points among the `active` samples, drop the
+/// well-fitted ones, solve for the residual, keep the centres with non-zero
+/// coefficients. Also returns all base points (zero coefficients included).
+fn fit_level(
+    samples: &SurfaceSamples,
+    active: &[usize],
+    model: &SvmModel,
+    width: f64,
+    opts: &FitOptions,
+) -> (Level, Vec<DVec3>, LevelReport) {
+    let start = Instant::now();
+    let candidates = propose(samples, active, width, opts);
+    let tolerance = opts.accuracy * samples.diameter;
+    let positions: Vec<DVec3> = candidates.iter().map(|t| t.position).collect();
+    let residuals: Vec<f64> = model
+        .values(&positions)
+        .into_iter()
+        .zip(&candidates)
+        .map(|(f, t)| t.target - f)
+        .collect();
+    let (base, targets): (Vec<DVec3>, Vec<f64>) = candidates
+        .iter()
+        .zip(&residuals)
+        .filter(|(_, r)| r.abs() > tolerance)
+        .map(|(t, r)| (t.position, *r))
+        .unzip();
+    let kernel = KernelMatrix::build(&base, width);
+    let params = RegressionParams {
+        loss: opts.loss,
+        c: opts.c * width,
+        epsilon: opts.epsilon * samples.diameter,
+        tolerance: 0.1 * tolerance,
+        max_sweeps: opts.max_sweeps,
+    };
+    let solution = solve(&kernel, &targets, &params);
+    let (centres, coefficients): (Vec<DVec3>, Vec<f64>) = base
+        .iter()
+        .zip(&solution.coefficients)
+        .filter(|(_, b)| **b != 0.0)
+        .map(|(p, b)| (*p, *b))
+        .unzip();
+    let report = LevelReport {
+        width,
+        candidates: candidates.len(),
+        base_points: base.len(),
+        centres: centres.len(),
+        sweeps: solution.sweeps,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    (Level::new(width, centres, coefficients), base, report)
+}
+
+/// Base-point candidates of a level: one surface sample per box of side
+/// cell_ratio·s, each followed by its consistent off-surface points.
+fn propose(
+    samples: &SurfaceSamples,
+    active: &[usize],
+    width: f64,
+    opts: &FitOptions,
+) -> Vec<TrainingPoint> {
+    let h = opts.cell_ratio * width;
+    let points: Vec<DVec3> = active.iter().map(|&i| samples.points[i]).collect();
+    let reps: Vec<usize> = box_representatives(&points, samples.bounds.min, h)
+        .into_iter()
+        .map(|r| active[r])
+        .collect();
+    let y = opts.offset_ratio * width;
+    let off = samples.off_surface(&reps, y);
+    // Interleave surface and off-surface points by representative so rows
+    // of the kernel matrix stay spatially coherent.
+    let mut out = Vec::with_capacity(reps.len() + off.len());
+    let mut off_iter = off.into_iter().peekable();
+    for &i in &reps {
+        let p = samples.points[i];
+        out.push(TrainingPoint {
+            position: p,
+            target: 0.0,
+        });
+        while let Some(t) = off_iter.next_if(|t| t.position.distance(p) <= y * 1.000001) {
+            out.push(t);
+        }
+    }
+    out.extend(off_iter);
+    out
+}

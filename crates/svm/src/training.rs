@@ -1,0 +1,247 @@
+//! Training data: the oriented surface samples, box subdivision into base
+//! points, and off-surface points along the normals.
+//!
+//! Surface points get target 0. Off-surface points x ± y·n get target ±y
+//! (positive outside, negative inside), kept only if no surface point lies
+//! closer than 0.9·y: otherwise the surface bends back and ±y would not be
+//! within 10% of the true signed distance.
+
+use crate::error::{Result, SvmError};
+use glam::DVec3;
+use rayon::prelude::*;
+use surfrecon_geom::spatial::KdTree;
+use surfrecon_geom::Aabb;
+
+/// A position with the value f should take there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrainingPoint {
+    pub position: DVec3,
+    pub target: f64,
+}
+
+/// Validated oriented surface samples with a spatial index.
+pub struct SurfaceSamples {
+    pub points: Vec<DVec3>,
+    /// Unit outward normals, one per point.
+    pub normals: Vec<DVec3>,
+    pub tree: KdTree,
+    pub bounds: Aabb,
+    /// Bounding-box diagonal (the "diameter" every relative size refers to).
+    pub diameter: f64,
+    /// Median distance from a sample to its nearest other sample.
+    pub spacing: f64,
+}
+
+impl SurfaceSamples {
+    /// Check and index `points` with `normals` (normalized here); rejects
+    /// empty or mismatched input, non-finite values and zero normals.
+    pub fn new(points: &[DVec3], normals: &[DVec3]) -> Result<SurfaceSamples> {
+        if points.len() < 4 {
+            return Err(SvmError::InvalidInput(format!(
+                "need at least 4 surface points to fit, got {}",
+                points.len()
+            )));
+        }
+        if normals.len() != points.len() {
+            return Err(SvmError::InvalidInput(format!(
+                "{} points but {} normals",
+                points.len(),
+                normals.len()
+            )));
+        }
+        if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+            return Err(SvmError::InvalidInput(format!(
+                "point {i} has a non-finite coordinate"
+            )));
+        }
+        let normals = unit_normals(normals)?;
+        let bounds = Aabb::from_points(points);
+        let diameter = bounds.diagonal();
+        if !(diameter > 0.0) {
+            return Err(SvmError::InvalidInput(
+                "all points coincide: the input has no extent".into(),
+            ));
+        }
+        let tree = KdTree::new(points);
+        let spacing = median_spacing(points, &tree).max(diameter * 1e-9);
+        Ok(SurfaceSamples {
+            points: points.to_vec(),
+            normals,
+            tree,
+            bounds,
+            diameter,
+            spacing,
+        })
+    }
+
+    /// Off-surface points at distance `y` on both sides of each sample in
+    /// `reps`, interleaved (+ then −) in the order of `reps`, each passing
+    /// the 0.9·y consistency check.
+    pub fn off_surface(&self, reps: &[usize], y: f64) -> Vec<TrainingPoint> {
+        reps.par_iter()
+            .flat_map_iter(|&i| {
+                [1.0, -1.0].into_iter().filter_map(move |sign| {
+                    let position = self.points[i] + self.normals[i] * (sign * y);
+                    self.is_consistent(position, y).then_some(TrainingPoint {
+                        position,
+                        target: sign * y,
+                    })
+                })
+            })
+            .collect()
+    }
+
+    /// No surface sample lies closer to `position` than 0.9·y.
+    fn is_consistent(&self, position: DVec3, y: f64) -> bool {
+        self.tree
+            .nearest(position)
+            .is_none_or(|n| n.distance >= 0.9 * y)
+    }
+}
+
+fn unit_normals(normals: &[DVec3]) -> Result<Vec<DVec3>> {
+    normals
+        .iter()
+        .enumerate()
+        .map(|(i, n)| {
+            let len = n.length();
+            if len.is_finite() && len > 0.0 {
+                Ok(*n / len)
+            } else {
+                Err(SvmError::InvalidInput(format!(
+                    "normal {i} is zero or not finite: {n}"
+                )))
+            }
+        })
+        .collect()
+}
+
+/// Median nearest-neighbour distance over an evenly strided subset.
+fn median_spacing(points: &[DVec3], tree: &KdTree) -> f64 {
+    let stride = (points.len() / 2000).max(1);
+    let mut d: Vec<f64> = (0..points.len())
+        .step_by(stride)
+        .filter_map(|i| {
+            tree.knn(points[i], 2)
+                .into_iter()
+                .map(|n| n.distance)
+                .find(|&d| d > 0.0)
+        })
+        .collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    d.sort_unstable_by(f64::total_cmp);
+    d[d.len() / 2]
+}
+
+/// Box subdivision: cubes of side `h` from `origin`; one representative per
+/// occupied cube, the point nearest the mean of the cube's points (so a
+/// stray point sharing a cube with the surface is not chosen). Returned in
+/// Morton order of the cubes, which keeps neighbours close in memory.
+pub fn box_representatives(points: &[DVec3], origin: DVec3, h: f64) -> Vec<usize> {
+    let mut keyed: Vec<(u64, u32)> = points
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| (morton_key(*p, origin, h), i as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    let groups: Vec<&[(u64, u32)]> = keyed.chunk_by(|a, b| a.0 == b.0).collect();
+    groups
+        .par_iter()
+        .map(|g| representative(points, g))
+        .collect()
+}
+
+fn representative(points: &[DVec3], group: &[(u64, u32)]) -> usize {
+    let mean = group
+        .iter()
+        .map(|&(_, i)| points[i as usize])
+        .sum::<DVec3>()
+        / group.len() as f64;
+    group
+        .iter()
+        .map(|&(_, i)| i as usize)
+        .min_by(|&a, &b| {
+            points[a]
+                .distance_squared(mean)
+                .total_cmp(&points[b].distance_squared(mean))
+        })
+        .expect("groups are non-empty")
+}
+
+/// Interleaved bits of the cube coordinates (21 bits per axis).
+fn morton_key(p: DVec3, origin: DVec3, h: f64) -> u64 {
+    let c = ((p - origin) / h).floor();
+    let clamp = |v: f64| v.clamp(0.0, ((1u64 << 21) - 1) as f64) as u64;
+    spread(clamp(c.x)) | (spread(clamp(c.y)) << 1) | (spread(clamp(c.z)) << 2)
+}
+
+/// Spread the low 21 bits of `v` to every third bit.
+fn spread(v: u64) -> u64 {
+    let mut x = v & 0x1f_ffff;
+    x = (x | (x << 32)) & 0x1f00000000ffff;
+    x = (x | (x << 16)) & 0x1f0000ff0000ff;
+    x = (x | (x << 8)) & 0x100f00f00f00f00f;
+    x = (x | (x << 4)) & 0x10c30c30c30c30c3;
+    x = (x | (x << 2)) & 0x1249249249249249;
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
+
+    #[test]
+    fn off_surface_points_pass_the_consistency_check() {
+        let pc = sample_surface(&torus(1.0, 0.25, 64, 32), 3000, 1);
+        let s = SurfaceSamples::new(&pc.positions, pc.normals.as_ref().unwrap()).unwrap();
+        let reps: Vec<usize> = (0..pc.len()).collect();
+        // Inside the tube (radius 0.25) an offset of 0.3 would cross to the
+        // far wall: all inner points must be dropped, outer ones kept.
+        let pts = s.off_surface(&reps, 0.3);
+        assert!(pts.iter().all(|p| p.target > 0.0));
+        assert!(pts.len() > 1000);
+        for p in &pts {
+            let nearest = s.tree.nearest(p.position).unwrap().distance;
+            assert!(nearest >= 0.27);
+        }
+        let small = s.off_surface(&reps, 0.05);
+        let inside = small.iter().filter(|p| p.target < 0.0).count();
+        assert!(inside > 2500, "inside {inside}");
+    }
+
+    #[test]
+    fn box_representatives_pick_one_point_per_cube() {
+        let pc = sample_surface(&icosphere(DVec3::ZERO, 1.0, 3), 5000, 2);
+        let origin = DVec3::splat(-1.0);
+        let h = 0.25;
+        let reps = box_representatives(&pc.positions, origin, h);
+        let cube = |p: DVec3| ((p - origin) / h).floor().as_ivec3();
+        let mut cubes: Vec<_> = reps.iter().map(|&i| cube(pc.positions[i])).collect();
+        let n = cubes.len();
+        cubes.sort_by_key(|c| (c.x, c.y, c.z));
+        cubes.dedup();
+        assert_eq!(cubes.len(), n, "two representatives in one cube");
+        let mut all: Vec<_> = pc.positions.iter().map(|&p| cube(p)).collect();
+        all.sort_by_key(|c| (c.x, c.y, c.z));
+        all.dedup();
+        assert_eq!(all.len(), n, "an occupied cube without representative");
+    }
+
+    #[test]
+    fn rejects_bad_input() {
+        let p = vec![DVec3::ZERO; 5];
+        let n = vec![DVec3::Z; 5];
+        assert!(SurfaceSamples::new(&p[..3], &n[..3]).is_err());
+        assert!(SurfaceSamples::new(&p, &n[..4]).is_err());
+        assert!(SurfaceSamples::new(&p, &n).is_err()); // no extent
+        let mut q: Vec<DVec3> = (0..5).map(|i| DVec3::splat(i as f64)).collect();
+        let mut m = n.clone();
+        m[2] = DVec3::ZERO;
+        assert!(SurfaceSamples::new(&q, &m).is_err());
+        q[1].x = f64::NAN;
+        assert!(SurfaceSamples::new(&q, &n).is_err());
+    }
+}

@@ -1,0 +1,112 @@
+//! Fitting analytic shapes: f reproduces the signed distance near the
+//! surface, and the extracted mesh is closed and close to the shape.
+
+use surfrecon_geom::metrics::{evaluate, topology, EvalOptions, Surface};
+use surfrecon_geom::shapes::{cuboid, icosphere, sample_surface, torus};
+use surfrecon_geom::{DVec3, TriMesh};
+use surfrecon_svm::mesh::{mesh_model, MeshOptions};
+use surfrecon_svm::{fit, FitOptions, SvmModel};
+
+struct Case {
+    mesh: TriMesh,
+    signed_distance: fn(DVec3) -> f64,
+    samples: usize,
+    components: usize,
+    euler: i64,
+}
+
+fn sphere_sd(p: DVec3) -> f64 {
+    p.length() - 1.0
+}
+
+fn torus_sd(p: DVec3) -> f64 {
+    let ring = DVec3::new(p.x, p.y, 0.0).normalize_or(DVec3::X);
+    (p - ring).length() - 0.35
+}
+
+const HALF: DVec3 = DVec3::new(1.0, 0.6, 0.4);
+
+fn box_sd(p: DVec3) -> f64 {
+    let q = p.abs() - HALF;
+    q.max(DVec3::ZERO).length() + q.max_element().min(0.0)
+}
+
+/// Largest |f − sd| over held-out surface samples moved along their normals
+/// by up to 1% of the diagonal.
+fn worst_distance_error(model: &SvmModel, case: &Case, diag: f64) -> f64 {
+    let test = sample_surface(&case.mesh, 3000, 4242);
+    let mut worst: f64 = 0.0;
+    for (p, n) in test.positions.iter().zip(test.normals.as_ref().unwrap()) {
+        for t in [-0.01, -0.005, 0.0, 0.005, 0.01] {
+            let x = *p + *n * (t * diag);
+            worst = worst.max((model.value(x) - (case.signed_distance)(x)).abs());
+        }
+    }
+    worst
+}
+
+fn check(case: Case) {
+    let pc = sample_surface(&case.mesh, case.samples, 7);
+    let (model, report) = fit(&pc.positions, pc.normals.as_ref().unwrap(), &FitOptions::default())
+        .expect("fit");
+    let diag = report.diameter;
+    let err = worst_distance_error(&model, &case, diag);
+    assert!(err < 0.01 * diag, "|f - sd| up to {:.3}% of the diagonal", 100.0 * err / diag);
+
+    let opts = MeshOptions {
+        resolution: 96,
+        ..Default::default()
+    };
+    let (mesh, _) = mesh_model(&model, &pc.positions, pc.bounds(), &opts).expect("mesh");
+    let topo = topology(&mesh);
+    assert!(topo.watertight, "{topo:?}");
+    assert_eq!(topo.components, case.components, "{topo:?}");
+    assert_eq!(topo.euler, case.euler, "{topo:?}");
+    let eval = evaluate(
+        &Surface::Mesh(mesh),
+        &Surface::Mesh(case.mesh.clone()),
+        &EvalOptions {
+            samples: 30_000,
+            seed: 1,
+        },
+    )
+    .unwrap();
+    assert!(
+        eval.chamfer_l1 < 0.005 * diag,
+        "Chamfer {:.4}% of the diagonal",
+        100.0 * eval.chamfer_l1 / diag
+    );
+}
+
+#[test]
+fn sphere_is_fitted_within_one_percent_and_meshed_closed() {
+    check(Case {
+        mesh: icosphere(DVec3::ZERO, 1.0, 5),
+        signed_distance: sphere_sd,
+        samples: 5000,
+        components: 1,
+        euler: 2,
+    });
+}
+
+#[test]
+fn torus_is_fitted_within_one_percent_and_meshed_closed() {
+    check(Case {
+        mesh: torus(1.0, 0.35, 192, 96),
+        signed_distance: torus_sd,
+        samples: 8000,
+        components: 1,
+        euler: 0,
+    });
+}
+
+#[test]
+fn box_with_sharp_edges_is_fitted_within_one_percent_and_meshed_closed() {
+    check(Case {
+        mesh: cuboid(-HALF, HALF),
+        signed_distance: box_sd,
+        samples: 20000,
+        components: 1,
+        euler: 2,
+    });
+}
