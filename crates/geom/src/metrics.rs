@@ -168,6 +168,7 @@ struct Samples {
 }
 
 fn samples_of(s: &Surface, count: usize, seed: u64, role: &str) -> Result<Samples, GeomError> {
+    check_surface(s, role)?;
     let cloud = match s {
         Surface::Mesh(m) => shapes::sample_surface(m, count, seed),
         Surface::Points(p) => p.clone(),
@@ -183,6 +184,35 @@ fn samples_of(s: &Surface, count: usize, seed: u64, role: &str) -> Result<Sample
         positions: cloud.positions,
         normals: cloud.normals,
     })
+}
+
+/// Reject what would make the metrics meaningless (non-finite coordinates)
+/// or could not be sampled (triangles naming missing vertices).
+fn check_surface(s: &Surface, role: &str) -> Result<(), GeomError> {
+    let positions = match s {
+        Surface::Mesh(m) => &m.vertices,
+        Surface::Points(p) => &p.positions,
+    };
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(GeomError::InvalidInput(format!(
+            "{role} point {i} has a non-finite coordinate"
+        )));
+    }
+    if let Surface::Mesh(m) = s {
+        let n = m.vertices.len();
+        if let Some((t, tri)) = m
+            .triangles
+            .iter()
+            .enumerate()
+            .find(|(_, tri)| tri.iter().any(|&i| i as usize >= n))
+        {
+            return Err(GeomError::InvalidInput(format!(
+                "{role} triangle {t} refers to vertex {} but there are only {n} vertices",
+                tri.iter().max().unwrap_or(&0)
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Distances from samples to a surface, with the normal agreement at each.
@@ -814,6 +844,24 @@ mod tests {
         let err = evaluate(&flat, &mesh, &options(100)).unwrap_err();
         assert!(
             err.to_string().contains("candidate mesh has no area"),
+            "{err}"
+        );
+        let broken = Surface::Mesh(TriMesh {
+            vertices: vec![DVec3::ZERO, DVec3::X, DVec3::Y],
+            triangles: vec![[0, 1, 2], [0, 1, 7]],
+            normals: None,
+        });
+        let err = evaluate(&mesh, &broken, &options(100)).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("reference triangle 1 refers to vertex 7"),
+            "{err}"
+        );
+        let nan = Surface::Points(PointCloud::new(vec![DVec3::ZERO, DVec3::NAN]));
+        let err = evaluate(&nan, &mesh, &options(100)).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("candidate point 1 has a non-finite"),
             "{err}"
         );
     }

@@ -30,20 +30,70 @@ const FALLBACK_NORMAL: DVec3 = DVec3::Z;
 /// see [`orient_normals`]. Degenerate neighbourhoods (duplicates, collinear
 /// points) still give a finite unit vector. Points must be finite.
 pub fn estimate_normals(points: &[DVec3], k: usize) -> Vec<DVec3> {
-    let tree = KdTree::new(points);
     let k = k.max(3);
-    points
-        .par_iter()
-        .map(|&p| {
-            let neighbours: Vec<DVec3> = tree.knn(p, k).iter().map(|n| points[n.index]).collect();
-            plane_normal(&neighbours)
+    normals_from_table(points, &KnnTable::build(points, k), k)
+}
+
+/// [`estimate_normals`] followed by [`orient_normals`] with the same `k`,
+/// sharing one neighbour search (about a third faster than the two calls).
+pub fn estimate_oriented_normals(points: &[DVec3], k: usize) -> Vec<DVec3> {
+    let fit_k = k.max(3);
+    // One more than either step needs: orientation skips the point itself.
+    let table = KnnTable::build(points, fit_k.max(k.saturating_add(1)));
+    let mut normals = normals_from_table(points, &table, fit_k);
+    orient_with_table(points, &mut normals, &table, k);
+    normals
+}
+
+/// Plane-fit normals from the first `k` entries of each table row.
+fn normals_from_table(points: &[DVec3], table: &KnnTable, k: usize) -> Vec<DVec3> {
+    (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            let row = table.row(i);
+            let nearest = &row[..k.min(row.len())];
+            fit_normal(nearest.iter().map(|&j| points[j as usize]))
         })
         .collect()
+}
+
+/// The nearest neighbours of every point (itself included, nearest first),
+/// `width` per point (fewer only when there are fewer points), flat.
+struct KnnTable {
+    width: usize,
+    indices: Vec<u32>,
+}
+
+impl KnnTable {
+    fn build(points: &[DVec3], k: usize) -> Self {
+        let tree = KdTree::new(points);
+        let width = k.min(points.len());
+        let mut indices = vec![0u32; width * points.len()];
+        if width > 0 {
+            indices
+                .par_chunks_mut(width)
+                .zip(points.par_iter())
+                .for_each(|(row, &p)| {
+                    for (slot, n) in row.iter_mut().zip(tree.knn(p, width)) {
+                        *slot = n.index as u32;
+                    }
+                });
+        }
+        KnnTable { width, indices }
+    }
+
+    fn row(&self, i: usize) -> &[u32] {
+        &self.indices[i * self.width..(i + 1) * self.width]
+    }
 }
 
 /// Unit normal of the least-squares plane through `points` (any sign);
 /// [`FALLBACK_NORMAL`] when they do not determine one.
 pub fn plane_normal(points: &[DVec3]) -> DVec3 {
+    fit_normal(points.iter().copied())
+}
+
+fn fit_normal<I: Iterator<Item = DVec3> + Clone>(points: I) -> DVec3 {
     let Some(cov) = covariance(points) else {
         return FALLBACK_NORMAL;
     };
@@ -60,14 +110,17 @@ pub fn plane_normal(points: &[DVec3]) -> DVec3 {
 /// that its largest entry is 1 (the eigenvectors do not change, and tiny or
 /// huge coordinates cannot underflow or overflow). `None` when all points
 /// coincide or the input is empty or not finite.
-fn covariance(points: &[DVec3]) -> Option<[[f64; 3]; 3]> {
-    if points.is_empty() {
+fn covariance<I: Iterator<Item = DVec3> + Clone>(points: I) -> Option<[[f64; 3]; 3]> {
+    let (sum, count) = points
+        .clone()
+        .fold((DVec3::ZERO, 0usize), |(s, c), p| (s + p, c + 1));
+    if count == 0 {
         return None;
     }
-    let mean = points.iter().copied().sum::<DVec3>() / points.len() as f64;
+    let mean = sum / count as f64;
     let mut c = [[0.0; 3]; 3];
     for p in points {
-        let d = (*p - mean).to_array();
+        let d = (p - mean).to_array();
         for (r, row) in c.iter_mut().enumerate() {
             for (col, v) in row.iter_mut().enumerate() {
                 *v += d[r] * d[col];
@@ -172,8 +225,19 @@ fn transpose3(x: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
 pub fn orient_normals(points: &[DVec3], normals: &mut [DVec3], k: usize) {
     let n = points.len().min(normals.len());
     let points = &points[..n];
-    let normals = &mut normals[..n];
-    let graph = NeighbourGraph::build(points, k);
+    orient_with_table(
+        points,
+        &mut normals[..n],
+        &KnnTable::build(points, k + 1),
+        k,
+    );
+}
+
+/// [`orient_normals`] over a precomputed neighbour table (rows of at least
+/// `k + 1` entries unless the cloud is smaller).
+fn orient_with_table(points: &[DVec3], normals: &mut [DVec3], table: &KnnTable, k: usize) {
+    let n = points.len();
+    let graph = NeighbourGraph::build(table, k);
     let mut visited = vec![false; n];
     // Lightest edge weight (as bits) seen so far into each unreached point.
     let mut best_weight = vec![u64::MAX; n];
@@ -288,36 +352,33 @@ struct NeighbourGraph {
 }
 
 impl NeighbourGraph {
-    fn build(points: &[DVec3], k: usize) -> Self {
-        let tree = KdTree::new(points);
-        let knn: Vec<Vec<u32>> = points
-            .par_iter()
-            .enumerate()
-            .map(|(i, &p)| {
-                tree.knn(p, k + 1)
-                    .iter()
-                    .filter(|n| n.index != i)
-                    .take(k)
-                    .map(|n| n.index as u32)
-                    .collect()
-            })
-            .collect();
-        let mut degree = vec![0usize; points.len()];
-        for (i, list) in knn.iter().enumerate() {
-            degree[i] += list.len();
-            for &j in list {
+    /// Each point joined to its `k` nearest others from `table`.
+    fn build(table: &KnnTable, k: usize) -> Self {
+        let n = table.indices.len().checked_div(table.width).unwrap_or(0);
+        let others = |i: usize| {
+            table
+                .row(i)
+                .iter()
+                .copied()
+                .filter(move |&j| j as usize != i)
+                .take(k)
+        };
+        let mut degree = vec![0usize; n];
+        for i in 0..n {
+            for j in others(i) {
+                degree[i] += 1;
                 degree[j as usize] += 1;
             }
         }
-        let mut offsets = Vec::with_capacity(points.len() + 1);
+        let mut offsets = Vec::with_capacity(n + 1);
         offsets.push(0);
         for d in &degree {
             offsets.push(offsets.last().unwrap() + d);
         }
-        let mut fill = offsets[..points.len()].to_vec();
-        let mut targets = vec![0u32; offsets[points.len()]];
-        for (i, list) in knn.iter().enumerate() {
-            for &j in list {
+        let mut fill = offsets[..n].to_vec();
+        let mut targets = vec![0u32; offsets[n]];
+        for i in 0..n {
+            for j in others(i) {
                 targets[fill[i]] = j;
                 fill[i] += 1;
                 targets[fill[j as usize]] = i as u32;
@@ -460,6 +521,24 @@ mod tests {
     }
 
     #[test]
+    fn noisy_torus_normals_point_outward() {
+        let cloud = sample_surface(&torus(2.0, 0.6, 96, 48), 8000, 21);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(22);
+        // Noise of 1% of the tube radius along random directions.
+        let noisy: Vec<DVec3> = cloud
+            .positions
+            .iter()
+            .map(|p| {
+                let r = DVec3::new(rng.random(), rng.random(), rng.random()) - DVec3::splat(0.5);
+                *p + 0.012 * r
+            })
+            .collect();
+        let found = estimate_oriented_normals(&noisy, 20);
+        let fraction = outward_fraction(&found, cloud.normals.as_ref().unwrap());
+        assert!(fraction >= 0.99, "{fraction}");
+    }
+
+    #[test]
     fn separate_pieces_are_each_oriented_outward() {
         let mut mesh = icosphere(DVec3::ZERO, 1.0, 3);
         let other = icosphere(DVec3::new(10.0, 0.0, -3.0), 0.5, 3);
@@ -469,6 +548,22 @@ mod tests {
             .extend(other.triangles.iter().map(|t| t.map(|i| i + offset)));
         let (found, truth) = oriented_samples(&mesh, 4000, 10);
         assert!(outward_fraction(&found, &truth) >= 0.99);
+    }
+
+    #[test]
+    fn combined_estimate_and_orient_matches_separate_calls() {
+        let cloud = sample_surface(&torus(1.5, 0.5, 64, 32), 3000, 4);
+        let combined = estimate_oriented_normals(&cloud.positions, 12);
+        let mut separate = estimate_normals(&cloud.positions, 12);
+        orient_normals(&cloud.positions, &mut separate, 12);
+        for (a, b) in combined.iter().zip(&separate) {
+            assert!(a.dot(*b) > 1.0 - 1e-9);
+        }
+        assert!(outward_fraction(&combined, cloud.normals.as_ref().unwrap()) >= 0.99);
+        assert_eq!(
+            estimate_oriented_normals(&cloud.positions[..2], usize::MAX).len(),
+            2
+        );
     }
 
     #[test]

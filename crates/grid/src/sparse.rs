@@ -440,13 +440,38 @@ const SPAN: usize = BLOCK + 1;
 /// when all are on one side of `iso`, so the block has no crossing.
 fn gather_block(grid: &BlockGrid<3>, iso: f64, lo: [usize; 3], nodes: [usize; 3]) -> Option<Vec<f64>> {
     let mut vals = vec![0.0; SPAN * SPAN * SPAN];
+    let coord = lo.map(|l| l / BLOCK);
+    // The block itself and the (up to 7) blocks whose first node layer
+    // closes its cells; copied block by block, no per-node lookup.
+    for o in 0..8 {
+        let off = [o & 1, (o >> 1) & 1, o >> 2];
+        let range: [std::ops::Range<usize>; 3] =
+            std::array::from_fn(|a| if off[a] == 0 { 0..nodes[a].min(BLOCK) } else { BLOCK..nodes[a] });
+        if range.iter().any(|r| r.is_empty()) {
+            continue;
+        }
+        let source: [usize; 3] = std::array::from_fn(|a| coord[a] + off[a]);
+        let block = grid.tile_value(source).is_none().then(|| {
+            let l = grid.block_linear(source);
+            &grid.blocks[grid.table[l] as usize].values
+        });
+        let tile = grid.tile_value(source).unwrap_or(0.0);
+        for z in range[2].clone() {
+            for y in range[1].clone() {
+                for x in range[0].clone() {
+                    vals[x + SPAN * (y + SPAN * z)] = match block {
+                        Some(b) => b[local_index([x - off[0] * BLOCK, y - off[1] * BLOCK, z - off[2] * BLOCK])],
+                        None => tile,
+                    };
+                }
+            }
+        }
+    }
     let mut positive = 0usize;
     for z in 0..nodes[2] {
         for y in 0..nodes[1] {
             for x in 0..nodes[0] {
-                let v = grid.get([lo[0] + x, lo[1] + y, lo[2] + z]);
-                positive += (v >= iso) as usize;
-                vals[x + SPAN * (y + SPAN * z)] = v;
+                positive += (vals[x + SPAN * (y + SPAN * z)] >= iso) as usize;
             }
         }
     }

@@ -10,6 +10,7 @@ use crate::tagging::{tag, BoundingBox};
 use std::time::Instant;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, Polylines, TriMesh};
+use surfrecon_grid::distance::{self, DataSet};
 use surfrecon_grid::{Field, Field2, Field3, GridSize, GridSpec};
 
 /// The data to reconstruct from: any mix of points, segments (curves) and
@@ -420,40 +421,14 @@ fn evolve_level<const D: usize>(
     report.flow.push(stats);
 }
 
-/// Unsigned distance from every node to the data.
-///
-/// TEMPORARY FALLBACK until `surfrecon_grid::distance` is exported: nearest
-/// neighbour among the data points plus samples at most h/4 apart on
-/// segments and triangles, one k-d tree query per node.
+/// Unsigned distance from every node to the data (grid crate: exact near
+/// the data, closest-datum sweeping elsewhere; O(nodes + data)).
 fn unsigned_distance<const D: usize>(input: &Input, spec: GridSpec<D>) -> Result<Field<D>> {
-    use rayon::prelude::*;
-    let step = spec.spacing * 0.25;
-    let mut samples: Vec<DVec3> = input.points.clone();
-    for s in &input.segments {
-        let n = ((s[1] - s[0]).length() / step).ceil().max(1.0) as usize;
-        samples.extend((0..=n).map(|i| s[0].lerp(s[1], i as f64 / n as f64)));
-    }
-    for t in &input.triangles {
-        let longest = (t[1] - t[0]).length().max((t[2] - t[0]).length()).max((t[2] - t[1]).length());
-        let n = (longest / step).ceil().max(1.0) as usize;
-        for i in 0..=n {
-            for j in 0..=n - i {
-                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                samples.push(t[0] + u * (t[1] - t[0]) + v * (t[2] - t[0]));
-            }
-        }
-    }
-    if D == 2 {
-        samples.iter_mut().for_each(|p| p.z = 0.0);
-    }
-    let tree = KdTree::new(&samples);
-    let values = (0..spec.node_count())
-        .into_par_iter()
-        .map(|l| {
-            let p = spec.position(spec.unlinear(l));
-            let q = DVec3::new(p[0], p[1], if D == 3 { p[2] } else { 0.0 });
-            tree.nearest(q).map_or(f64::INFINITY, |n| n.distance)
-        })
-        .collect();
-    Ok(Field { spec, values })
+    let project = |v: &DVec3| -> [f64; D] { std::array::from_fn(|a| v[a]) };
+    let data = DataSet::<D> {
+        points: input.points.iter().map(project).collect(),
+        segments: input.segments.iter().map(|s| s.each_ref().map(project)).collect(),
+        triangles: input.triangles.iter().map(|t| t.each_ref().map(project)).collect(),
+    };
+    Ok(distance::unsigned_distance(&data, &spec)?.field)
 }

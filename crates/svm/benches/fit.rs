@@ -13,6 +13,19 @@ use surfrecon_svm::{fit, FitOptions};
 
 const DEFAULT_MESH: &str = "/work/shared/data/stanford_bunny/reconstruction/bun_zipper.ply";
 
+/// CPU seconds (user + system) of this process so far, from /proc.
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let after = stat.rsplit(')').next().unwrap_or("");
+    let f: Vec<f64> = after.split_whitespace().filter_map(|v| v.parse().ok()).collect();
+    // Fields 14 and 15 of stat (utime, stime) are 11 and 12 after the ')'.
+    f.get(11).zip(f.get(12)).map_or(0.0, |(u, s)| (u + s) / 100.0)
+}
+
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg").unwrap_or_default().split_whitespace().next().unwrap_or("?").to_string()
+}
+
 fn main() {
     let path = std::env::args()
         .skip(1)
@@ -33,9 +46,12 @@ fn main() {
     for (name, n, paper_s, paper_centres, target_s) in cases {
         let pc = sample_surface(&mesh, n, 11);
         let normals = pc.normals.as_ref().expect("sampled normals");
-        let t = Instant::now();
+        let load = load_average();
+        let (t, cpu) = (Instant::now(), cpu_seconds());
         let (model, report) = fit(&pc.positions, normals, &FitOptions::default()).expect("fit");
         let secs = t.elapsed().as_secs_f64();
+        let cpu = cpu_seconds() - cpu;
+        println!("  (load average before: {load}; CPU time {cpu:.2} s over {} threads)", rayon::current_num_threads());
         println!(
             "{name}: {n} points, fit {secs:.2} s (target < {target_s} s; paper {paper_s} s, ratio {:.1}x), \
              {} centres (paper {paper_centres}), {} levels",
@@ -49,12 +65,13 @@ fn main() {
                 l.width, l.candidates, l.base_points, l.centres, l.sweeps, l.seconds
             );
         }
-        let t = Instant::now();
+        let (t, cpu) = (Instant::now(), cpu_seconds());
         let opts = MeshOptions { resolution: 256, ..Default::default() };
         let (m, r) = mesh_model(&model, &pc.positions, pc.bounds(), &opts).expect("mesh");
         println!(
-            "  mesh at 256: {:.2} s, {} nodes evaluated, {} triangles",
+            "  mesh at 256: {:.2} s (CPU {:.2} s), {} nodes evaluated, {} triangles",
             t.elapsed().as_secs_f64(),
+            cpu_seconds() - cpu,
             r.nodes_evaluated,
             m.triangles.len()
         );

@@ -134,6 +134,18 @@ impl CellIndex {
         }
     }
 
+    /// Whether any stored point lies in the 27 cells around `q`.
+    pub fn any_in_neighbourhood(&self, q: DVec3) -> bool {
+        if self.map.is_empty() || !q.is_finite() {
+            return false;
+        }
+        let c = self.cell_of(q);
+        (0..27).any(|k: i64| {
+            let n = [c[0].saturating_add(k % 3 - 1), c[1].saturating_add((k / 3) % 3 - 1), c[2].saturating_add(k / 9 - 1)];
+            self.key(n).is_some_and(|key| self.map.contains_key(&key))
+        })
+    }
+
     /// Call `f(slot)` for every stored point in the 27 cells around `q`;
     /// `slot` indexes [`CellIndex::order`]. Callers check the distance.
     #[inline]

@@ -212,15 +212,16 @@ fn blocks_reached(
         }
         for k in 0..27usize {
             let d = [k % 3, (k / 3) % 3, k / 9];
-            let n: Option<[usize; 3]> = (0..3)
-                .map(|a| (c[a] + d[a]).checked_sub(1).filter(|&v| v < cell_dims[a]))
-                .collect::<Option<Vec<_>>>()
-                .map(|v| [v[0], v[1], v[2]]);
-            if let Some(n) = n {
-                let nb = n.map(|i| i / BLOCK);
-                if nb != b && (0..3).all(|a| nb[a] < block_dims[a]) {
-                    out.push(nb);
+            let mut nb = [0usize; 3];
+            let mut inside = true;
+            for a in 0..3 {
+                match (c[a] + d[a]).checked_sub(1) {
+                    Some(v) if v < cell_dims[a] => nb[a] = v / BLOCK,
+                    _ => inside = false,
                 }
+            }
+            if inside && nb != b && (0..3).all(|a| nb[a] < block_dims[a]) {
+                out.push(nb);
             }
         }
     }

@@ -35,6 +35,7 @@ const VERSION: u32 = 1;
 /// memory); the order carries no meaning.
 pub struct Level {
     pub width: f64,
+    inverse_width: f64,
     pub centres: Vec<DVec3>,
     pub coefficients: Vec<f64>,
     index: CellIndex,
@@ -52,6 +53,7 @@ impl Level {
         debug_assert!(index.order.iter().enumerate().all(|(i, &o)| o as usize == i));
         Level {
             width,
+            inverse_width: 1.0 / width,
             centres,
             coefficients,
             index,
@@ -192,7 +194,7 @@ impl SvmModel {
     /// index of `points` must appear in exactly one group.
     pub fn values_grouped(&self, points: &[DVec3], groups: &[Vec<u32>]) -> Vec<f64> {
         self.batched(points, groups, self.offset, |sum, x, c, b, l| {
-            *sum += b * wu(c.distance(x) / l.width)
+            *sum += b * wu(c.distance(x) * l.inverse_width)
         })
     }
 

@@ -142,24 +142,17 @@ pub fn fit(points: &[DVec3], normals: &[DVec3], opts: &FitOptions) -> Result<(Sv
     Ok((model, report))
 }
 
-/// The samples of `active` within `width` of a base point: where the last
-/// level still found residuals above the accuracy. Everywhere else the
-/// function was already within the accuracy and that level did not change
-/// it, so finer levels only look here (adaptive box subdivision).
+/// The samples of `active` in a box of side `width` next to (or holding) a
+/// box with a base point: where the last level still found residuals above
+/// the accuracy. Everywhere else the function was already within the
+/// accuracy and that level barely changed it, so finer levels only look
+/// here (adaptive box subdivision).
 fn near_base_points(points: &[DVec3], active: &[usize], base: &[DVec3], width: f64) -> Vec<usize> {
     let index = CellIndex::new(base, width);
-    let w2 = width * width;
     active
         .par_iter()
         .copied()
-        .filter(|&i| {
-            let p = points[i];
-            let mut near = false;
-            index.for_each_candidate(p, |slot| {
-                near |= base[index.order[slot] as usize].distance_squared(p) < w2;
-            });
-            near
-        })
+        .filter(|&i| index.any_in_neighbourhood(points[i]))
         .collect()
 }
 

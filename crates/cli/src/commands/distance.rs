@@ -35,6 +35,11 @@ pub struct Args {
     /// Signed distance (negative inside) of a closed triangle mesh.
     #[arg(long)]
     pub signed: bool,
+    /// With --signed: accept a mesh with holes or non-manifold edges; the
+    /// sign then follows the generalized winding number (inside where the
+    /// surface wraps a point more than halfway).
+    #[arg(long, requires = "signed")]
+    pub allow_open: bool,
     /// Only compute distances within this distance of the data (same units
     /// as the data); nodes farther away store the band value (±band when
     /// signed). Much faster than the full field.
@@ -144,7 +149,14 @@ fn signed_field(geometry: &Geometry, size: GridSize, args: &Args) -> anyhow::Res
         );
     }
     let mesh = geometry.to_mesh();
-    check_closed(&mesh).with_context(|| format!("cannot sign {}", args.input.display()))?;
+    if !args.allow_open {
+        check_closed(&mesh).with_context(|| {
+            format!(
+                "cannot sign {} (--allow-open signs it by winding number anyway)",
+                args.input.display()
+            )
+        })?;
+    }
     let data = DataSet::<3>::from_mesh(&mesh)
         .with_context(|| format!("bad mesh in {}", args.input.display()))?;
     let spec = grid_over(&data, size, args)?;

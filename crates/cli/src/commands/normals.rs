@@ -46,16 +46,14 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         args.input.display()
     ));
 
-    let spinner = ctx.spinner("fitting planes");
+    let spinner = ctx.spinner("estimating normals");
     let start = Instant::now();
-    let mut found = normals::estimate_normals(points, args.k);
-    let estimate_seconds = start.elapsed().as_secs_f64();
-    let start = Instant::now();
-    if !args.no_orient {
-        spinner.set_message("orienting");
-        normals::orient_normals(points, &mut found, args.k);
-    }
-    let orient_seconds = start.elapsed().as_secs_f64();
+    let found = if args.no_orient {
+        normals::estimate_normals(points, args.k)
+    } else {
+        normals::estimate_oriented_normals(points, args.k)
+    };
+    let normals_seconds = start.elapsed().as_secs_f64();
     spinner.finish_and_clear();
 
     let count = points.len();
@@ -79,8 +77,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         "points": count,
         "k": args.k,
         "oriented": !args.no_orient,
-        "estimate_seconds": estimate_seconds,
-        "orient_seconds": orient_seconds,
+        "normals_seconds": normals_seconds,
         "seconds": ctx.elapsed(),
     }));
     Ok(())
