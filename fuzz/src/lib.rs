@@ -13,7 +13,11 @@ pub fn check(data: &[u8], format: Format) {
         return; // an empty solid parses, but STL output needs triangles
     }
     let encodings: &[Encoding] = match format {
-        Format::Ply => &[Encoding::Ascii, Encoding::BinaryLittleEndian, Encoding::BinaryBigEndian],
+        Format::Ply => &[
+            Encoding::Ascii,
+            Encoding::BinaryLittleEndian,
+            Encoding::BinaryBigEndian,
+        ],
         // Binary STL rounds to 32-bit floats; the ascii form is exact.
         // Text-only formats ignore the encoding.
         _ => &[Encoding::Ascii],
@@ -26,6 +30,9 @@ pub fn check(data: &[u8], format: Format) {
         }
         let again = read_bytes(&bytes, format, "fuzz-rewrite")
             .unwrap_or_else(|e| panic!("written {format} not readable: {e}"));
-        assert_eq!(again, geometry, "{format} {encoding:?} round trip changed the geometry");
+        assert_eq!(
+            again, geometry,
+            "{format} {encoding:?} round trip changed the geometry"
+        );
     }
 }

@@ -52,7 +52,11 @@ fn extract_3d_field_gives_watertight_mesh_and_json() {
     write_field(&field, &sphere_field(30)).unwrap();
     let mesh = dir.path().join("sphere.ply");
     let out = surfrecon(&["--json", "extract", path_str(&field), "-o", path_str(&mesh)]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(summary["result"]["watertight"], true);
     assert_eq!(summary["result"]["euler"], 2);
@@ -60,8 +64,19 @@ fn extract_3d_field_gives_watertight_mesh_and_json() {
     assert!(topo.watertight && topo.edge_manifold && topo.vertex_manifold);
     // A shifted level: --iso takes negative values.
     let inner = dir.path().join("inner.obj");
-    let out = surfrecon(&["extract", path_str(&field), "-o", path_str(&inner), "--iso", "-0.2"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = surfrecon(&[
+        "extract",
+        path_str(&field),
+        "-o",
+        path_str(&inner),
+        "--iso",
+        "-0.2",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let r = io::read(&inner).unwrap().bounds().size().x / 2.0;
     assert!((r - 0.4).abs() < 0.02, "radius {r}");
 }
@@ -73,7 +88,11 @@ fn extract_2d_field_gives_closed_obj_curves() {
     write_field(&field, &circle_field()).unwrap();
     let curves = dir.path().join("circle.obj");
     let out = surfrecon(&["extract", path_str(&field), "-o", path_str(&curves)]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let geom = io::read(&curves).unwrap();
     assert_eq!(geom.lines.len(), 1);
     assert_eq!(geom.lines[0].first(), geom.lines[0].last());
@@ -91,9 +110,19 @@ fn bad_inputs_fail_with_one_clear_line() {
     let field = dir.path().join("sphere.nrrd");
     write_field(&field, &sphere_field(10)).unwrap();
     let mesh = dir.path().join("m.ply");
-    let out = surfrecon(&["extract", path_str(&field), "-o", path_str(&mesh), "--iso", "5"]);
+    let out = surfrecon(&[
+        "extract",
+        path_str(&field),
+        "-o",
+        path_str(&mesh),
+        "--iso",
+        "5",
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("never crosses"), "{err}");
+    assert!(
+        !out.status.success() && err.contains("never crosses"),
+        "{err}"
+    );
     assert!(!mesh.exists());
     let broken = dir.path().join("broken.nrrd");
     let bytes = std::fs::read(&field).unwrap();
@@ -103,7 +132,10 @@ fn bad_inputs_fail_with_one_clear_line() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1));
         assert_eq!(err.lines().count(), 1, "{err}");
-        assert!(err.starts_with("error:") && err.contains("broken.nrrd") && err.contains("truncated"), "{err}");
+        assert!(
+            err.starts_with("error:") && err.contains("broken.nrrd") && err.contains("truncated"),
+            "{err}"
+        );
     }
     let out = surfrecon(&["unshell", path_str(&field), "-o", path_str(&mesh)]);
     assert!(!out.status.success());
@@ -117,12 +149,20 @@ fn shell_then_unshell_restores_the_field_near_the_surface() {
     write_field(&field, &original).unwrap();
     let shell = dir.path().join("sdf.shell");
     let out = surfrecon(&["--json", "shell", path_str(&field), "-o", path_str(&shell)]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(summary["size_ratio"].as_f64().unwrap() > 5.0, "{summary}");
     let rebuilt = dir.path().join("rebuilt.vtk");
     let out = surfrecon(&["unshell", path_str(&shell), "-o", path_str(&rebuilt)]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let AnyField::D3(back) = read_field(&rebuilt).unwrap() else {
         panic!("expected a 3D field");
     };

@@ -10,7 +10,7 @@ use std::hint::black_box;
 use std::time::Instant;
 use surfrecon_geom::normals::{estimate_normals, estimate_oriented_normals, orient_normals};
 use surfrecon_geom::shapes::{sample_surface, torus};
-use surfrecon_geom::spatial::KdTree;
+use surfrecon_geom::spatial::{CellGrid, KdTree};
 
 const REFERENCE_BUILD_S: f64 = 0.3;
 const REFERENCE_KNN_US: f64 = 5.5;
@@ -69,6 +69,8 @@ fn main() {
         single_us / parallel_us
     );
 
+    radius_queries(&points, &tree, build);
+
     let (estimate, mut normals) = timed(|| estimate_normals(&points, K));
     println!(
         "estimate_normals      {estimate:8.3} s      ({:.2} us/point)",
@@ -96,4 +98,37 @@ fn main() {
             100.0 * outward as f64 / n as f64
         );
     }
+}
+
+/// Fixed-radius queries (radius chosen for about 16 neighbours): k-d tree
+/// against the uniform cell grid (cell size = radius), one thread.
+fn radius_queries(points: &[surfrecon_geom::DVec3], tree: &KdTree, tree_build: f64) {
+    let area = 4.0 * std::f64::consts::PI.powi(2) * 2.0 * 0.6;
+    let radius = (16.0 * area / (std::f64::consts::PI * points.len() as f64)).sqrt();
+    let grid_build = best_of(3, || CellGrid::new(points, radius));
+    println!(
+        "cell grid build       {grid_build:8.3} s      ({:.2}x faster than the kd-tree build)",
+        tree_build / grid_build
+    );
+    let grid = CellGrid::new(points, radius);
+    let queries = &points[..points.len().min(200_000)];
+    let count =
+        |f: &dyn Fn(surfrecon_geom::DVec3) -> usize| queries.iter().map(|&q| f(q)).sum::<usize>();
+    let found = count(&|q| tree.within(q, radius).len());
+    let tree_time = best_of(2, || count(&|q| tree.within(q, radius).len()));
+    let grid_time = best_of(2, || {
+        count(&|q| {
+            let mut n = 0;
+            grid.for_each_within(q, radius, |_| n += 1);
+            n
+        })
+    });
+    let per = |t: f64| t / queries.len() as f64 * 1e6;
+    println!(
+        "radius {radius:.4}: kd-tree {:.3} us/query, cell grid {:.3} us/query ({:.2}x), {:.1} neighbours on average",
+        per(tree_time),
+        per(grid_time),
+        tree_time / grid_time,
+        found as f64 / queries.len() as f64
+    );
 }

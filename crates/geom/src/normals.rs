@@ -31,18 +31,83 @@ const FALLBACK_NORMAL: DVec3 = DVec3::Z;
 /// points) still give a finite unit vector. Points must be finite.
 pub fn estimate_normals(points: &[DVec3], k: usize) -> Vec<DVec3> {
     let k = k.max(3);
-    normals_from_table(points, &KnnTable::build(points, k), k)
+    let sorted = SpatialOrder::new(points);
+    let table = KnnTable::build(&sorted.points, k);
+    sorted.restore(&normals_from_table(&sorted.points, &table, k))
 }
 
 /// [`estimate_normals`] followed by [`orient_normals`] with the same `k`,
 /// sharing one neighbour search (about a third faster than the two calls).
 pub fn estimate_oriented_normals(points: &[DVec3], k: usize) -> Vec<DVec3> {
     let fit_k = k.max(3);
+    let sorted = SpatialOrder::new(points);
     // One more than either step needs: orientation skips the point itself.
-    let table = KnnTable::build(points, fit_k.max(k.saturating_add(1)));
-    let mut normals = normals_from_table(points, &table, fit_k);
-    orient_with_table(points, &mut normals, &table, k);
-    normals
+    let table = KnnTable::build(&sorted.points, fit_k.max(k.saturating_add(1)));
+    let mut normals = normals_from_table(&sorted.points, &table, fit_k);
+    orient_with_table(&sorted.points, &mut normals, &table, k);
+    sorted.restore(&normals)
+}
+
+/// The points reordered along a Z-order (Morton) curve. Neighbours in space
+/// then sit near each other in memory, so neighbour searches and the tree
+/// walk stay in cache: on a million points in random order this is several
+/// times faster.
+struct SpatialOrder {
+    /// `order[i]` is the input index of the i-th reordered point.
+    order: Vec<u32>,
+    points: Vec<DVec3>,
+}
+
+impl SpatialOrder {
+    fn new(points: &[DVec3]) -> Self {
+        let bounds = crate::Aabb::from_points(points);
+        let extent = bounds.size().max_element();
+        // 21 bits per axis fill a 63-bit key.
+        let scale = if extent > 0.0 {
+            2097151.0 / extent
+        } else {
+            0.0
+        };
+        let key = |p: DVec3| {
+            // `as` saturates, so even non-finite input gives some key.
+            let q = ((p - bounds.min) * scale).to_array().map(|c| c as u64);
+            spread_bits(q[0]) | spread_bits(q[1]) << 1 | spread_bits(q[2]) << 2
+        };
+        let mut keyed: Vec<(u64, u32)> = points
+            .par_iter()
+            .enumerate()
+            .map(|(i, &p)| (key(p), i as u32))
+            .collect();
+        keyed.par_sort_unstable();
+        let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
+        let points = order.iter().map(|&i| points[i as usize]).collect();
+        SpatialOrder { order, points }
+    }
+
+    /// The same values reordered like the points.
+    fn gather(&self, values: &[DVec3]) -> Vec<DVec3> {
+        self.order.iter().map(|&i| values[i as usize]).collect()
+    }
+
+    /// Values computed for the reordered points, back in input order.
+    fn restore(&self, values: &[DVec3]) -> Vec<DVec3> {
+        let mut out = vec![DVec3::ZERO; values.len()];
+        for (v, &i) in values.iter().zip(&self.order) {
+            out[i as usize] = *v;
+        }
+        out
+    }
+}
+
+/// The low 21 bits of `x` moved to every third bit (bit i to bit 3i).
+fn spread_bits(x: u64) -> u64 {
+    let mut x = x & 0x1f_ffff;
+    x = (x | x << 32) & 0x001f_0000_0000_ffff;
+    x = (x | x << 16) & 0x001f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x << 2) & 0x1249_2492_4924_9249;
+    x
 }
 
 /// Plane-fit normals from the first `k` entries of each table row.
@@ -224,13 +289,11 @@ fn transpose3(x: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
 /// used. Deterministic for any thread count.
 pub fn orient_normals(points: &[DVec3], normals: &mut [DVec3], k: usize) {
     let n = points.len().min(normals.len());
-    let points = &points[..n];
-    orient_with_table(
-        points,
-        &mut normals[..n],
-        &KnnTable::build(points, k + 1),
-        k,
-    );
+    let sorted = SpatialOrder::new(&points[..n]);
+    let mut sorted_normals = sorted.gather(&normals[..n]);
+    let table = KnnTable::build(&sorted.points, k.saturating_add(1));
+    orient_with_table(&sorted.points, &mut sorted_normals, &table, k);
+    normals[..n].copy_from_slice(&sorted.restore(&sorted_normals));
 }
 
 /// [`orient_normals`] over a precomputed neighbour table (rows of at least
@@ -432,6 +495,16 @@ mod tests {
             assert!(vectors[0].dot(vectors[1]).abs() < 1e-12);
             assert!(vectors[0].dot(vectors[2]).abs() < 1e-12);
             assert!(vectors[1].dot(vectors[2]).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn spread_bits_interleaves() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(6);
+        for _ in 0..100 {
+            let x: u64 = rng.random::<u64>() & 0x1f_ffff;
+            let naive = (0..21).fold(0u64, |acc, b| acc | ((x >> b) & 1) << (3 * b));
+            assert_eq!(spread_bits(x), naive);
         }
     }
 

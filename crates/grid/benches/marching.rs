@@ -108,9 +108,15 @@ fn dense(field: &Field3, n: usize) -> f64 {
         mesh.triangles.len() as f64 / secs / 1e6,
         cells / secs / 1e6
     );
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
     let (secs1, _) = one.install(|| best_of(1, || marching_cubes(field, 0.0)));
-    println!("  1 thread: {secs1:.3} s (parallel speed-up {:.2}x)", secs1 / secs);
+    println!(
+        "  1 thread: {secs1:.3} s (parallel speed-up {:.2}x)",
+        secs1 / secs
+    );
     compare_skimage(field, n, secs, mesh.triangles.len());
     secs
 }
@@ -149,7 +155,10 @@ fn compare_skimage(field: &Field3, n: usize, ours: f64, triangles: usize) {
                 );
             }
         }
-        Ok(o) => println!("  scikit-image failed: {}", String::from_utf8_lossy(&o.stderr)),
+        Ok(o) => println!(
+            "  scikit-image failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+        ),
         Err(e) => println!("  cannot run python: {e}"),
     }
     let _ = std::fs::remove_file(&path);
@@ -189,19 +198,22 @@ fn narrow_band_1024() {
     for bz in 0..bd[2] {
         for by in 0..bd[1] {
             for bx in 0..bd[0] {
-                let centre = DVec3::new(bx as f64 + 0.5, by as f64 + 0.5, bz as f64 + 0.5) * (BLOCK as f64 * h);
+                let centre = DVec3::new(bx as f64 + 0.5, by as f64 + 0.5, bz as f64 + 0.5)
+                    * (BLOCK as f64 * h);
                 if ((centre - c).length() - r).abs() < reach {
                     grid.allocate([bx * BLOCK, by * BLOCK, bz * BLOCK]);
                 }
             }
         }
     }
-    grid.blocks_mut().par_iter_mut().for_each(|b: &mut Block<3>| {
-        for l in 0..Block::<3>::LEN {
-            let p = DVec3::from_array(spec.position(b.node(l)));
-            b.values[l] = ((p - c).length() - r).clamp(-band, band);
-        }
-    });
+    grid.blocks_mut()
+        .par_iter_mut()
+        .for_each(|b: &mut Block<3>| {
+            for l in 0..Block::<3>::LEN {
+                let p = DVec3::from_array(spec.position(b.node(l)));
+                b.values[l] = ((p - c).length() - r).clamp(-band, band);
+            }
+        });
     grid.fill_tile_signs();
     let build = t.elapsed().as_secs_f64();
     let (secs, mesh) = best_of(1, || marching_cubes_sparse(&grid, 0.0));
@@ -233,7 +245,11 @@ fn thin_shell(n: usize) {
             .map(|(a, b)| (a - b).abs() / h)
             .fold(0.0, f64::max)
     };
-    let signs_ok = field.values.iter().zip(&back.values).all(|(a, b)| (*a < 0.0) == (*b < 0.0));
+    let signs_ok = field
+        .values
+        .iter()
+        .zip(&back.values)
+        .all(|(a, b)| (*a < 0.0) == (*b < 0.0));
     println!(
         "thin shell {n}^3: {} shell nodes, {:.2} MB vs {:.1} MB NRRD ({:.0}x smaller), built in {:.3} s, rebuilt in {:.2} s; signs identical: {signs_ok}; max error (h) within 1h / 3h / all: {:.3} / {:.3} / {:.3}",
         shell.indices.len(),

@@ -489,15 +489,19 @@ fn exact_band<const D: usize>(data: &DataSet<D>, spec: &GridSpec<D>, radius: f64
         });
 }
 
-/// Stage 2: closest-datum fast sweeping with locking. A node tries the
-/// candidates (datum + foot point) of all its 3^D - 1 neighbours, axis and
-/// diagonal (diagonals matter: a Voronoi cell can be too thin to hold an
-/// axis-connected chain of nodes), and keeps the nearest foot point. Sweeps
-/// run in the 2^D alternating orders, so a candidate travels along any
-/// direction within a round. Only "open" nodes are evaluated: every node at
-/// first, then the neighbours of nodes that changed; the exact band is
-/// final. A sweep that changes nothing leaves every node closed, i.e. each
-/// has tried the current candidate of every neighbour: a fixed point.
+/// Stage 2: closest-datum fast sweeping. A node tries the candidates
+/// (datum + foot point) of its neighbours, axis and diagonal (diagonals
+/// matter: a Voronoi cell can be too thin to hold an axis-connected chain
+/// of nodes), and adopts the nearest datum. Sweeps run in the 2^D
+/// alternating orders, so a candidate travels in every direction.
+///
+/// The first round uses only the 2^D - 1 upwind neighbours of each order
+/// (cheap, and it carries nearly every node to its final datum). Then
+/// sweeps with locking follow: every node is open once, later only the
+/// neighbours of nodes that changed; an open node tries all 3^D - 1
+/// neighbours. A sweep that changes nothing leaves every node closed, i.e.
+/// each has tried the current candidate of every neighbour: a fixed point.
+/// Nodes of the exact band are final throughout.
 fn propagate_closest<const D: usize>(
     data: &DataSet<D>,
     spec: &GridSpec<D>,
@@ -506,73 +510,37 @@ fn propagate_closest<const D: usize>(
 ) -> usize {
     let stencil = Stencil::new(spec);
     let final_below = radius * radius;
-    let Nodes {
-        values,
-        closest,
-        feet,
-    } = nodes;
-    let points = data.points.len();
-    let mut open: Vec<bool> = values.par_iter().map(|&v| !(v <= final_below)).collect();
     let mut sweeps = 0;
-    let t_s = std::time::Instant::now();
+    for order in 0..1usize << D {
+        sweeps += 1;
+        for_each_node_ordered(&spec.dims, order, |l, idx| {
+            if !(nodes.values[l] <= final_below) {
+                let room = stencil.room(idx);
+                update_node(data, spec, nodes, l, idx, room, &stencil.upwind[order]);
+            }
+        });
+    }
+    let mut open: Vec<bool> = nodes.values.par_iter().map(|&v| !(v <= final_below)).collect();
     for _ in 0..MAX_ROUNDS {
         for order in 0..1usize << D {
             sweeps += 1;
             let mut changed = false;
-            let mut evals = 0usize;
             for_each_node_ordered(&spec.dims, order, |l, idx| {
                 if !open[l] {
                     return;
                 }
-                evals += 1;
                 open[l] = false;
                 let room = stencil.room(idx);
-                let p = spec.position(*idx);
-                let (mut best, mut from) = (values[l], l);
-                let mut tried = closest[l];
-                for &(down, up, offset, step) in &stencil.all {
-                    if !room.allows(down, up) {
-                        continue;
-                    }
-                    let n = (l as isize + offset) as usize;
-                    let c = closest[n];
-                    if c == NO_DATUM || c == tried || c == closest[from] {
-                        continue;
-                    }
-                    tried = c;
-                    let mut d2 = dist2(&p, &feet[n]);
-                    if c as usize >= points {
-                        // The foot of `n` is within `step` of this node's
-                        // foot on the same (convex) datum, so the exact
-                        // distance is at least sqrt(d2) - step.
-                        if d2.sqrt() - step >= best.sqrt() {
-                            continue;
-                        }
-                        d2 = data.distance_squared(c as usize, &p);
-                    }
-                    if d2 < best || (d2 == best && c < closest[from]) {
-                        (best, from) = (d2, n);
-                    }
-                }
-                if from != l {
-                    // Own exact foot on the adopted datum: copying the
-                    // neighbour's would let feet lag along long segments
-                    // and large triangles.
-                    let c = closest[from];
-                    let foot = data.closest_point(c as usize, &p);
-                    values[l] = dist2(&p, &foot);
-                    closest[l] = c;
-                    feet[l] = foot;
+                if update_node(data, spec, nodes, l, idx, room, &stencil.all) {
                     changed = true;
                     for &(down, up, offset, _) in &stencil.all {
                         if room.allows(down, up) {
                             let n = (l as isize + offset) as usize;
-                            open[n] = !(values[n] <= final_below);
+                            open[n] = !(nodes.values[n] <= final_below);
                         }
                     }
                 }
             });
-            if std::env::var("SR_DEBUG").is_ok() { eprintln!("sweep {sweeps} {changed} {:?} evals {evals}", t_s.elapsed()); }
             if !changed {
                 return sweeps;
             }
@@ -581,12 +549,68 @@ fn propagate_closest<const D: usize>(
     sweeps
 }
 
+/// Try the candidates of the neighbours `offsets` of node `l`; adopt the
+/// nearest datum if it beats the node's own. Returns whether it changed.
+#[inline(always)]
+fn update_node<const D: usize>(
+    data: &DataSet<D>,
+    spec: &GridSpec<D>,
+    nodes: &mut Nodes<D>,
+    l: usize,
+    idx: &[usize; D],
+    room: Room,
+    offsets: &[(usize, usize, isize, f64)],
+) -> bool {
+    let points = data.points.len();
+    let p = spec.position(*idx);
+    let (mut best, mut best_id) = (nodes.values[l], nodes.closest[l]);
+    let mut tried = best_id;
+    let interior = room.is_full::<D>();
+    for &(down, up, offset, step) in offsets {
+        if !interior && !room.allows(down, up) {
+            continue;
+        }
+        let n = (l as isize + offset) as usize;
+        let c = nodes.closest[n];
+        if c == NO_DATUM || c == tried || c == best_id {
+            continue;
+        }
+        tried = c;
+        let mut d2 = dist2(&p, &nodes.feet[n]);
+        if c as usize >= points {
+            // The foot of `n` is within `step` of this node's foot on the
+            // same (convex) datum, so the exact distance is at least
+            // sqrt(d2) - step.
+            if d2.sqrt() - step >= best.sqrt() {
+                continue;
+            }
+            d2 = data.distance_squared(c as usize, &p);
+        }
+        if d2 < best || (d2 == best && c < best_id) {
+            (best, best_id) = (d2, c);
+        }
+    }
+    if best_id == nodes.closest[l] {
+        return false;
+    }
+    // Own exact foot on the adopted datum: copying the neighbour's would let
+    // feet lag along long segments and large triangles.
+    let foot = data.closest_point(best_id as usize, &p);
+    nodes.values[l] = dist2(&p, &foot);
+    nodes.closest[l] = best_id;
+    nodes.feet[l] = foot;
+    true
+}
+
 /// The 3^D - 1 neighbour offsets of a node (axis and diagonal).
 struct Stencil<const D: usize> {
     dims: [usize; D],
     /// Axes stepped down along (bit mask), axes stepped up along, linear
     /// offset and length of the step, per neighbour.
     all: Vec<(usize, usize, isize, f64)>,
+    /// Per sweep order, the 2^D - 1 neighbours on the side the sweep comes
+    /// from (order bit a set: axis a runs backwards).
+    upwind: Vec<Vec<(usize, usize, isize, f64)>>,
 }
 
 /// Which axes a node may step down (bit set: index > 0) and up along.
@@ -597,6 +621,13 @@ struct Room {
 }
 
 impl Room {
+    /// Every step is possible (the node is not on the grid boundary).
+    #[inline(always)]
+    fn is_full<const D: usize>(self) -> bool {
+        let all = (1 << D) - 1;
+        self.down == all && self.up == all
+    }
+
     #[inline(always)]
     fn allows(self, down: usize, up: usize) -> bool {
         down & !self.down == 0 && up & !self.up == 0
@@ -628,9 +659,19 @@ impl<const D: usize> Stencil<D> {
                 all.push((down, up, offset, spec.spacing * axes.sqrt()));
             }
         }
+        let upwind = (0..1usize << D)
+            .map(|order| {
+                let (backward, forward) = (order, !order & ((1 << D) - 1));
+                all.iter()
+                    .filter(|&&(down, up, _, _)| down & !forward == 0 && up & !backward == 0)
+                    .copied()
+                    .collect()
+            })
+            .collect();
         Stencil {
             dims: spec.dims,
             all,
+            upwind,
         }
     }
 

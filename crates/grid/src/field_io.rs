@@ -90,7 +90,10 @@ fn file_error(path: &Path, message: impl Into<String>) -> GridError {
 
 /// Write `field` (2D or 3D) to `path` in the format of its extension,
 /// atomically (a failed write leaves no partial file).
-pub fn write_field<const D: usize>(path: impl AsRef<Path>, field: &Field<D>) -> Result<(), GridError> {
+pub fn write_field<const D: usize>(
+    path: impl AsRef<Path>,
+    field: &Field<D>,
+) -> Result<(), GridError> {
     let path = path.as_ref();
     let format = FieldFormat::from_path(path)?;
     check_writable(path, field)?;
@@ -126,13 +129,19 @@ fn check_writable<const D: usize>(path: &Path, field: &Field<D>) -> Result<(), G
 }
 
 fn join<T: std::fmt::Display>(items: impl IntoIterator<Item = T>, sep: &str) -> String {
-    items.into_iter().map(|x| x.to_string()).collect::<Vec<_>>().join(sep)
+    items
+        .into_iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(sep)
 }
 
 fn write_nrrd<const D: usize>(w: &mut dyn Write, field: &Field<D>) -> std::io::Result<()> {
     let spec = &field.spec;
     let directions = (0..D).map(|a| {
-        let v: Vec<f64> = (0..D).map(|b| if a == b { spec.spacing } else { 0.0 }).collect();
+        let v: Vec<f64> = (0..D)
+            .map(|b| if a == b { spec.spacing } else { 0.0 })
+            .collect();
         format!("({})", join(v, ","))
     });
     writeln!(w, "NRRD0004")?;
@@ -150,7 +159,11 @@ fn write_nrrd<const D: usize>(w: &mut dyn Write, field: &Field<D>) -> std::io::R
     write_values(w, &field.values, f64::to_le_bytes)
 }
 
-fn write_values(w: &mut dyn Write, values: &[f64], encode: fn(f64) -> [u8; 8]) -> std::io::Result<()> {
+fn write_values(
+    w: &mut dyn Write,
+    values: &[f64],
+    encode: fn(f64) -> [u8; 8],
+) -> std::io::Result<()> {
     let mut buf = Vec::with_capacity(8 * 4096);
     for chunk in values.chunks(4096) {
         buf.clear();
@@ -171,8 +184,16 @@ fn write_vtk<const D: usize>(w: &mut dyn Write, field: &Field<D>) -> std::io::Re
     writeln!(w, "surfrecon field")?;
     writeln!(w, "BINARY")?;
     writeln!(w, "DATASET STRUCTURED_POINTS")?;
-    writeln!(w, "DIMENSIONS {}", pad(spec.dims.map(|n| n.to_string()).to_vec(), "1"))?;
-    writeln!(w, "ORIGIN {}", pad(spec.origin.map(|x| x.to_string()).to_vec(), "0"))?;
+    writeln!(
+        w,
+        "DIMENSIONS {}",
+        pad(spec.dims.map(|n| n.to_string()).to_vec(), "1")
+    )?;
+    writeln!(
+        w,
+        "ORIGIN {}",
+        pad(spec.origin.map(|x| x.to_string()).to_vec(), "0")
+    )?;
     writeln!(w, "SPACING {0} {0} {0}", spec.spacing)?;
     writeln!(w, "POINT_DATA {}", spec.node_count())?;
     writeln!(w, "SCALARS values double 1")?;
@@ -233,7 +254,9 @@ impl RawField {
             return Err(src.err(format!("value {i} is NaN")));
         }
         if !(spacing > 0.0 && spacing.is_finite()) || origin.iter().any(|o| !o.is_finite()) {
-            return Err(src.err(format!("spacing {spacing} or origin {origin:?} is not usable")));
+            return Err(src.err(format!(
+                "spacing {spacing} or origin {origin:?} is not usable"
+            )));
         }
         Ok(match dims.len() {
             2 => AnyField::D2(Field {
@@ -259,12 +282,15 @@ impl RawField {
 /// Header lines of a text header, with 1-based numbers, and the byte
 /// offset where the data starts: after the line `is_last` accepts, or
 /// (NRRD) after the first empty line when `stop_at_empty`.
+/// Numbered header lines and where the data starts (if the header ended).
+type Header<'a> = (Vec<(usize, &'a str)>, Option<usize>);
+
 fn header_lines<'a>(
     bytes: &'a [u8],
     src: &Source,
     stop_at_empty: bool,
     mut is_last: impl FnMut(&str) -> bool,
-) -> Result<(Vec<(usize, &'a str)>, Option<usize>), GridError> {
+) -> Result<Header<'a>, GridError> {
     let mut lines = Vec::new();
     let mut pos = 0;
     while pos < bytes.len() {
@@ -340,15 +366,32 @@ fn decode_binary(
     }
     let body = &data[start..start + need];
     Ok(match (scalar, little) {
-        (Scalar::F64, true) => body.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect(),
-        (Scalar::F64, false) => body.chunks_exact(8).map(|c| f64::from_be_bytes(c.try_into().unwrap())).collect(),
-        (Scalar::F32, true) => body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap()) as f64).collect(),
-        (Scalar::F32, false) => body.chunks_exact(4).map(|c| f32::from_be_bytes(c.try_into().unwrap()) as f64).collect(),
+        (Scalar::F64, true) => body
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect(),
+        (Scalar::F64, false) => body
+            .chunks_exact(8)
+            .map(|c| f64::from_be_bytes(c.try_into().unwrap()))
+            .collect(),
+        (Scalar::F32, true) => body
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()) as f64)
+            .collect(),
+        (Scalar::F32, false) => body
+            .chunks_exact(4)
+            .map(|c| f32::from_be_bytes(c.try_into().unwrap()) as f64)
+            .collect(),
     })
 }
 
 /// Decode `count` whitespace-separated numbers from text starting at `start`.
-fn decode_ascii(data: &[u8], start: usize, count: usize, src: &Source) -> Result<Vec<f64>, GridError> {
+fn decode_ascii(
+    data: &[u8],
+    start: usize,
+    count: usize,
+    src: &Source,
+) -> Result<Vec<f64>, GridError> {
     let text = std::str::from_utf8(&data[start.min(data.len())..])
         .map_err(|_| src.err(format!("byte {start}: ASCII data is not text")))?;
     let mut values = Vec::with_capacity(count.min(1 << 28));
@@ -362,7 +405,10 @@ fn decode_ascii(data: &[u8], start: usize, count: usize, src: &Source) -> Result
         values.push(v);
     }
     if values.len() < count {
-        return Err(src.err(format!("data truncated: {} values, expected {count}", values.len())));
+        return Err(src.err(format!(
+            "data truncated: {} values, expected {count}",
+            values.len()
+        )));
     }
     Ok(values)
 }
@@ -398,16 +444,39 @@ fn parse_nrrd(bytes: &[u8], src: &Source) -> Result<RawField, GridError> {
     let data_start = header_end(data_start, src)?;
     let raw = nrrd_geometry(&h).map_err(|m| src.err(m))?;
     let count: usize = raw.dims.iter().product();
-    let scalar = h.scalar.ok_or_else(|| src.err("header has no `type` field"))?;
-    let values = match h.encoding.ok_or_else(|| src.err("header has no `encoding` field"))? {
+    let scalar = h
+        .scalar
+        .ok_or_else(|| src.err("header has no `type` field"))?;
+    let values = match h
+        .encoding
+        .ok_or_else(|| src.err("header has no `encoding` field"))?
+    {
         Encoding::Ascii => decode_ascii(bytes, data_start, count, src)?,
-        Encoding::Raw => decode_binary(bytes, data_start, count, scalar, nrrd_little(&h, scalar, src)?, src)?,
+        Encoding::Raw => decode_binary(
+            bytes,
+            data_start,
+            count,
+            scalar,
+            nrrd_little(&h, scalar, src)?,
+            src,
+        )?,
         Encoding::Gzip => {
             let mut inflated = Vec::new();
             flate2::read::MultiGzDecoder::new(&bytes[data_start..])
                 .read_to_end(&mut inflated)
-                .map_err(|e| src.err(format!("byte {data_start}: gzip data cannot be decompressed: {e}")))?;
-            decode_binary(&inflated, 0, count, scalar, nrrd_little(&h, scalar, src)?, src)?
+                .map_err(|e| {
+                    src.err(format!(
+                        "byte {data_start}: gzip data cannot be decompressed: {e}"
+                    ))
+                })?;
+            decode_binary(
+                &inflated,
+                0,
+                count,
+                scalar,
+                nrrd_little(&h, scalar, src)?,
+                src,
+            )?
         }
     };
     Ok(RawField { values, ..raw })
@@ -423,7 +492,10 @@ fn nrrd_little(h: &NrrdHeader, scalar: Scalar, src: &Source) -> Result<bool, Gri
 
 fn parse_numbers<T: std::str::FromStr>(s: &str, what: &str) -> Result<Vec<T>, String> {
     s.split_whitespace()
-        .map(|t| t.parse().map_err(|_| format!("{what}: {t:?} is not a number")))
+        .map(|t| {
+            t.parse()
+                .map_err(|_| format!("{what}: {t:?} is not a number"))
+        })
         .collect()
 }
 
@@ -435,7 +507,11 @@ fn parse_vector(s: &str) -> Result<Vec<f64>, String> {
         .ok_or_else(|| format!("expected a vector like (1,0,0), found {s:?}"))?;
     inner
         .split(',')
-        .map(|t| t.trim().parse().map_err(|_| format!("{t:?} is not a number")))
+        .map(|t| {
+            t.trim()
+                .parse()
+                .map_err(|_| format!("{t:?} is not a number"))
+        })
         .collect()
 }
 
@@ -448,11 +524,22 @@ fn nrrd_field(h: &mut NrrdHeader, key: &str, value: &str) -> Result<(), String> 
                 other => return Err(format!("type {other:?} not supported (float or double)")),
             })
         }
-        "dimension" => h.dimension = Some(value.parse().map_err(|_| format!("bad dimension {value:?}"))?),
+        "dimension" => {
+            h.dimension = Some(
+                value
+                    .parse()
+                    .map_err(|_| format!("bad dimension {value:?}"))?,
+            )
+        }
         "sizes" => h.sizes = Some(parse_numbers(value, "sizes")?),
         "spacings" => h.spacings = Some(parse_numbers(value, "spacings")?),
         "space directions" => {
-            h.directions = Some(value.split_whitespace().map(parse_vector).collect::<Result<_, _>>()?)
+            h.directions = Some(
+                value
+                    .split_whitespace()
+                    .map(parse_vector)
+                    .collect::<Result<_, _>>()?,
+            )
         }
         "space origin" => h.origin = Some(parse_vector(value)?),
         "encoding" => {
@@ -460,7 +547,11 @@ fn nrrd_field(h: &mut NrrdHeader, key: &str, value: &str) -> Result<(), String> 
                 "raw" => Encoding::Raw,
                 "ascii" | "text" | "txt" => Encoding::Ascii,
                 "gzip" | "gz" => Encoding::Gzip,
-                other => return Err(format!("encoding {other:?} not supported (raw, ascii or gzip)")),
+                other => {
+                    return Err(format!(
+                        "encoding {other:?} not supported (raw, ascii or gzip)"
+                    ))
+                }
             })
         }
         "endian" => {
@@ -510,7 +601,9 @@ fn nrrd_geometry(h: &NrrdHeader) -> Result<RawField, String> {
     let spacing = uniform_spacing(&spacing_per_axis)?;
     let mut origin = h.origin.clone().unwrap_or_else(|| vec![0.0; d]);
     if origin.len() < d || origin[d..].iter().any(|&x| x != 0.0) {
-        return Err(format!("space origin {origin:?} does not match dimension {d}"));
+        return Err(format!(
+            "space origin {origin:?} does not match dimension {d}"
+        ));
     }
     origin.truncate(d);
     Ok(RawField {
@@ -528,7 +621,9 @@ fn uniform_spacing(per_axis: &[f64]) -> Result<f64, String> {
         return Err(format!("spacing {h} is not positive"));
     }
     if per_axis.iter().any(|&s| ((s - h) / h).abs() > 1e-9) {
-        return Err(format!("spacings {per_axis:?} differ between axes (only uniform grids are supported)"));
+        return Err(format!(
+            "spacings {per_axis:?} differ between axes (only uniform grids are supported)"
+        ));
     }
     Ok(h)
 }
@@ -564,14 +659,21 @@ fn parse_vtk(bytes: &[u8], src: &Source) -> Result<RawField, GridError> {
     }
     let data_start = header_end(data_start, src)?;
     if !saw_scalars {
-        return Err(src.err("no `SCALARS` point data found (only scalar structured points are supported)"));
+        return Err(
+            src.err("no `SCALARS` point data found (only scalar structured points are supported)")
+        );
     }
     let raw = vtk_geometry(&h).map_err(|m| src.err(m))?;
     let count: usize = raw.dims.iter().product();
     if h.points != Some(count) {
-        return Err(src.err(format!("POINT_DATA {:?} does not match {count} grid points", h.points)));
+        return Err(src.err(format!(
+            "POINT_DATA {:?} does not match {count} grid points",
+            h.points
+        )));
     }
-    let scalar = h.scalar.ok_or_else(|| src.err("SCALARS line has no type"))?;
+    let scalar = h
+        .scalar
+        .ok_or_else(|| src.err("SCALARS line has no type"))?;
     let values = if h.binary {
         decode_binary(bytes, data_start, count, scalar, false, src)?
     } else {
@@ -590,19 +692,33 @@ fn vtk_line(h: &mut VtkHeader, line: &str) -> Result<(), String> {
     match key.to_ascii_uppercase().as_str() {
         "ASCII" => h.binary = false,
         "BINARY" => h.binary = true,
-        "DATASET" if rest.first().map(|s| s.to_ascii_uppercase()) != Some("STRUCTURED_POINTS".into()) => {
-            return Err(format!("dataset {rest_str:?} not supported (STRUCTURED_POINTS only)"))
+        "DATASET"
+            if rest.first().map(|s| s.to_ascii_uppercase()) != Some("STRUCTURED_POINTS".into()) =>
+        {
+            return Err(format!(
+                "dataset {rest_str:?} not supported (STRUCTURED_POINTS only)"
+            ))
         }
         "DATASET" => {}
         "DIMENSIONS" => h.dims = Some(parse_numbers(&rest_str, "DIMENSIONS")?),
         "ORIGIN" => h.origin = Some(parse_numbers(&rest_str, "ORIGIN")?),
         "SPACING" | "ASPECT_RATIO" => h.spacing = Some(parse_numbers(&rest_str, "SPACING")?),
-        "POINT_DATA" => h.points = Some(rest_str.parse().map_err(|_| format!("bad POINT_DATA {rest_str:?}"))?),
+        "POINT_DATA" => {
+            h.points = Some(
+                rest_str
+                    .parse()
+                    .map_err(|_| format!("bad POINT_DATA {rest_str:?}"))?,
+            )
+        }
         "SCALARS" => {
             h.scalar = Some(match rest.get(1).copied() {
                 Some("double") => Scalar::F64,
                 Some("float") => Scalar::F32,
-                other => return Err(format!("SCALARS type {other:?} not supported (float or double)")),
+                other => {
+                    return Err(format!(
+                        "SCALARS type {other:?} not supported (float or double)"
+                    ))
+                }
             });
             if rest.get(2).is_some_and(|&c| c != "1") {
                 return Err("SCALARS with more than one component are not supported".into());
@@ -619,8 +735,10 @@ fn vtk_line(h: &mut VtkHeader, line: &str) -> Result<(), String> {
 
 fn vtk_geometry(h: &VtkHeader) -> Result<RawField, String> {
     let dims = h.dims.clone().ok_or("no DIMENSIONS line")?;
-    if dims.len() != 3 || dims.iter().any(|&n| n == 0) {
-        return Err(format!("DIMENSIONS {dims:?} must be three positive numbers"));
+    if dims.len() != 3 || dims.contains(&0) {
+        return Err(format!(
+            "DIMENSIONS {dims:?} must be three positive numbers"
+        ));
     }
     let origin = h.origin.clone().unwrap_or_else(|| vec![0.0; 3]);
     let spacing = h.spacing.clone().unwrap_or_else(|| vec![1.0; 3]);
@@ -629,7 +747,9 @@ fn vtk_geometry(h: &VtkHeader) -> Result<RawField, String> {
     }
     let d = if dims[2] == 1 { 2 } else { 3 };
     if dims[..d].iter().any(|&n| n < 2) {
-        return Err(format!("DIMENSIONS {dims:?}: need at least 2 nodes along x and y"));
+        return Err(format!(
+            "DIMENSIONS {dims:?}: need at least 2 nodes along x and y"
+        ));
     }
     Ok(RawField {
         dims: dims[..d].to_vec(),
@@ -650,7 +770,9 @@ mod tests {
             spacing: 0.125,
             dims: [5, 4, 3],
         };
-        let values = (0..spec.node_count()).map(|l| (l as f64).sin() * 1e3 + 1e-9).collect();
+        let values = (0..spec.node_count())
+            .map(|l| (l as f64).sin() * 1e3 + 1e-9)
+            .collect();
         Field { spec, values }
     }
 
@@ -706,8 +828,13 @@ mod tests {
         check(&write_bytes(&dir, "ascii.nrrd", ascii.as_bytes()));
         let mut gz = nrrd_header("type: double\nencoding: gzip\nendian: little").into_bytes();
         let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-        enc.write_all(&expect.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<_>>())
-            .unwrap();
+        enc.write_all(
+            &expect
+                .iter()
+                .flat_map(|v| v.to_le_bytes())
+                .collect::<Vec<_>>(),
+        )
+        .unwrap();
         gz.extend(enc.finish().unwrap());
         check(&write_bytes(&dir, "gz.nrrd", &gz));
     }
@@ -730,7 +857,9 @@ mod tests {
     /// The error for `bytes` stored as `name` mentions the file and `needle`.
     fn assert_fails(name: &str, bytes: &[u8], needle: &str) {
         let dir = tempfile::tempdir().unwrap();
-        let msg = read_field(write_bytes(&dir, name, bytes)).unwrap_err().to_string();
+        let msg = read_field(write_bytes(&dir, name, bytes))
+            .unwrap_err()
+            .to_string();
         assert!(msg.contains(name) && msg.contains(needle), "{name}: {msg}");
     }
 
@@ -744,8 +873,16 @@ mod tests {
         };
         assert_fails("t.nrrd", &good[..good.len() - 3], "truncated");
         assert_fails("m.nrrd", b"NRRX0004\n", "not a NRRD");
-        assert_fails("s.nrrd", nrrd_header("type: short\nencoding: raw").as_bytes(), "short");
-        assert_fails("e.nrrd", nrrd_header("type: double\nencoding: bzip2").as_bytes(), "bzip2");
+        assert_fails(
+            "s.nrrd",
+            nrrd_header("type: short\nencoding: raw").as_bytes(),
+            "short",
+        );
+        assert_fails(
+            "e.nrrd",
+            nrrd_header("type: double\nencoding: bzip2").as_bytes(),
+            "bzip2",
+        );
         assert_fails("l.nrrd", b"NRRD0004\ntype: double\nnonsense\n\n", "line 3");
         assert_fails(
             "r.nrrd",
@@ -753,15 +890,31 @@ mod tests {
             "axis-aligned",
         );
         assert_fails("u.nrrd", b"NRRD0004\ntype: double\ndimension: 2\nsizes: 2 2\nspacings: 1 2\nencoding: ascii\n\n1 2 3 4\n", "differ");
-        assert_fails("n.nrrd", (nrrd_header("type: double\nencoding: ascii") + "1 nan 2 3").as_bytes(), "NaN");
-        assert_fails("f.nrrd", (nrrd_header("type: double\nencoding: ascii") + "1 2 3").as_bytes(), "truncated");
-        assert_fails("x.nrrd", (nrrd_header("type: double\nencoding: ascii") + "1 2 3 4 5").as_bytes(), "more than");
+        assert_fails(
+            "n.nrrd",
+            (nrrd_header("type: double\nencoding: ascii") + "1 nan 2 3").as_bytes(),
+            "NaN",
+        );
+        assert_fails(
+            "f.nrrd",
+            (nrrd_header("type: double\nencoding: ascii") + "1 2 3").as_bytes(),
+            "truncated",
+        );
+        assert_fails(
+            "x.nrrd",
+            (nrrd_header("type: double\nencoding: ascii") + "1 2 3 4 5").as_bytes(),
+            "more than",
+        );
         let mut gz = nrrd_header("type: double\nencoding: gzip\nendian: little").into_bytes();
         gz.extend(b"not gzip at all");
         assert_fails("g.nrrd", &gz, "gzip");
         let vtk = "# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 1\nPOINT_DATA 5\nSCALARS v double 1\nLOOKUP_TABLE default\n1 2 3 4\n";
         assert_fails("p.vtk", vtk.as_bytes(), "POINT_DATA");
-        assert_fails("d.vtk", b"# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\n", "POLYDATA");
+        assert_fails(
+            "d.vtk",
+            b"# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\n",
+            "POLYDATA",
+        );
         assert_fails("q.vtk", b"hello", "legacy VTK");
         assert_fails("z.vtk", b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 1\nPOINT_DATA 4\nSCALARS v double\nLOOKUP_TABLE default\n\x00\x01", "truncated");
         assert_fails("k.raw", b"", "unknown field format");
@@ -771,14 +924,20 @@ mod tests {
     fn missing_file_and_unwritable_target_fail_cleanly() {
         let dir = tempfile::tempdir().unwrap();
         let missing = dir.path().join("none.nrrd");
-        assert!(matches!(read_field(&missing), Err(GridError::FieldIo { .. })));
+        assert!(matches!(
+            read_field(&missing),
+            Err(GridError::FieldIo { .. })
+        ));
         let target = dir.path().join("no/such/dir/f.vtk");
         assert!(write_field(&target, &field3()).is_err());
         assert!(!target.exists());
         let mut bad = field2();
         bad.values[3] = f64::NAN;
         let p = dir.path().join("nan.nrrd");
-        assert!(write_field(&p, &bad).unwrap_err().to_string().contains("NaN"));
+        assert!(write_field(&p, &bad)
+            .unwrap_err()
+            .to_string()
+            .contains("NaN"));
         assert!(!p.exists());
     }
 }

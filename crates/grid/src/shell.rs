@@ -144,7 +144,11 @@ impl<const D: usize> Shell<D> {
         let n = self.spec.node_count() as u64;
         let invalid = |m: String| Err(GridError::Invalid(format!("shell: {m}")));
         if self.indices.len() != self.values.len() {
-            return invalid(format!("{} indices for {} values", self.indices.len(), self.values.len()));
+            return invalid(format!(
+                "{} indices for {} values",
+                self.indices.len(),
+                self.values.len()
+            ));
         }
         if let Some(w) = self.indices.windows(2).find(|w| w[1] <= w[0]) {
             return invalid(format!("indices not ascending ({} then {})", w[0], w[1]));
@@ -208,7 +212,10 @@ fn write_varint(out: &mut Vec<u8>, mut x: u64) {
 }
 
 /// Write `shell` to `path` (atomically: a failed write leaves no file).
-pub fn write_shell<const D: usize>(path: impl AsRef<Path>, shell: &Shell<D>) -> Result<(), GridError> {
+pub fn write_shell<const D: usize>(
+    path: impl AsRef<Path>,
+    shell: &Shell<D>,
+) -> Result<(), GridError> {
     if D != 2 && D != 3 {
         return Err(GridError::Invalid(format!("shells are 2D or 3D, not {D}D")));
     }
@@ -277,7 +284,10 @@ fn decode(bytes: &[u8]) -> DecodeResult<AnyShell> {
     }
     let version = r.u32("version")?;
     if version != VERSION {
-        return Err((8, format!("shell format version {version} not supported (expected {VERSION})")));
+        return Err((
+            8,
+            format!("shell format version {version} not supported (expected {VERSION})"),
+        ));
     }
     match r.u32("dimension")? {
         2 => Ok(AnyShell::D2(decode_body::<2>(&mut r)?)),
@@ -302,22 +312,33 @@ fn decode_body<const D: usize>(r: &mut Reader) -> DecodeResult<Shell<D>> {
     let at = r.pos;
     let spacing = r.f64("spacing")?;
     if !(spacing > 0.0 && spacing.is_finite()) || origin.iter().any(|o| !o.is_finite()) {
-        return Err((at, format!("unusable spacing {spacing} or origin {origin:?}")));
+        return Err((
+            at,
+            format!("unusable spacing {spacing} or origin {origin:?}"),
+        ));
     }
     let nodes = dims.iter().try_fold(1u64, |c, &n| c.checked_mul(n as u64));
     let nodes = nodes.ok_or((at, "grid size overflows".to_string()))?;
     let count_at = r.pos;
     let count = r.u64("node count")?;
     if count > nodes || count > (r.bytes.len() - r.pos) as u64 {
-        return Err((count_at, format!("{count} shell nodes cannot fit (grid has {nodes}, file is too short)")));
+        return Err((
+            count_at,
+            format!("{count} shell nodes cannot fit (grid has {nodes}, file is too short)"),
+        ));
     }
     let mut indices = Vec::with_capacity(count as usize);
     let mut prev = 0u64;
     for i in 0..count {
         let at = r.pos;
         let delta = r.varint()?;
-        let l = prev.checked_add(delta).filter(|&l| l < nodes && (i == 0 || delta > 0));
-        let l = l.ok_or((at, format!("node index {i} is out of order or beyond the grid")))?;
+        let l = prev
+            .checked_add(delta)
+            .filter(|&l| l < nodes && (i == 0 || delta > 0));
+        let l = l.ok_or((
+            at,
+            format!("node index {i} is out of order or beyond the grid"),
+        ))?;
         indices.push(l);
         prev = l;
     }
@@ -331,10 +352,20 @@ fn decode_body<const D: usize>(r: &mut Reader) -> DecodeResult<Shell<D>> {
         values.push(v);
     }
     if r.pos != r.bytes.len() {
-        return Err((r.pos, format!("{} unexpected bytes after the values", r.bytes.len() - r.pos)));
+        return Err((
+            r.pos,
+            format!(
+                "{} unexpected bytes after the values",
+                r.bytes.len() - r.pos
+            ),
+        ));
     }
     Ok(Shell {
-        spec: GridSpec { origin, spacing, dims },
+        spec: GridSpec {
+            origin,
+            spacing,
+            dims,
+        },
         indices,
         values,
     })
@@ -360,7 +391,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("f.shell");
         write_shell(&path, &shell).unwrap();
-        assert_eq!(std::fs::metadata(&path).unwrap().len() as usize, shell.encoded_len());
+        assert_eq!(
+            std::fs::metadata(&path).unwrap().len() as usize,
+            shell.encoded_len()
+        );
         let back = match (read_shell(&path).unwrap(), D) {
             (AnyShell::D3(s), 3) => s.rebuild().unwrap().values,
             (AnyShell::D2(s), 2) => s.rebuild().unwrap().values,
@@ -368,7 +402,10 @@ mod tests {
         };
         let h = field.spec.spacing;
         for &l in &shell.indices {
-            assert_eq!(back[l as usize].to_bits(), field.values[l as usize].to_bits());
+            assert_eq!(
+                back[l as usize].to_bits(),
+                field.values[l as usize].to_bits()
+            );
         }
         let mut worst = 0.0f64;
         for (a, b) in field.values.iter().zip(&back) {
@@ -386,7 +423,10 @@ mod tests {
         let c = DVec3::new(0.02, -0.01, 0.03);
         let sphere = sample3(spec, |p| (p - c).length() - 0.6);
         let shell_err = check_rebuild(&sphere, 1.0);
-        assert!(shell_err < 0.1, "sphere error within 1 h of the surface: {shell_err} h");
+        assert!(
+            shell_err < 0.1,
+            "sphere error within 1 h of the surface: {shell_err} h"
+        );
         check_rebuild(&sample3(spec, torus), 1.0);
         // Shell much smaller than the field.
         let shell = Shell::from_field(&sphere);

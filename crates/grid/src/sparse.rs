@@ -13,8 +13,8 @@
 //! block-local indices with [`Block::node`] / [`BlockGrid::locate`], and read
 //! neighbours across block borders with [`BlockGrid::neighbour`].
 
-use crate::marching::{cell_case, edge_vertex, loop_centre, Samples3};
 use crate::marching::tables::{cube_table, EDGE_CORNERS};
+use crate::marching::{cell_case, edge_vertex, loop_centre, Samples3};
 use crate::{Field, GridError, GridSpec};
 use rayon::prelude::*;
 use surfrecon_geom::{DVec3, TriMesh};
@@ -44,14 +44,18 @@ impl<const D: usize> Block<D> {
     /// Global node index of local linear index `local`.
     #[inline]
     pub fn node(&self, local: usize) -> [usize; D] {
-        std::array::from_fn(|a| (self.coord[a] << BLOCK_SHIFT) + ((local >> (BLOCK_SHIFT as usize * a)) & (BLOCK - 1)))
+        std::array::from_fn(|a| {
+            (self.coord[a] << BLOCK_SHIFT) + ((local >> (BLOCK_SHIFT as usize * a)) & (BLOCK - 1))
+        })
     }
 }
 
 /// Local linear index inside a block of a global node index.
 #[inline]
 fn local_index<const D: usize>(idx: [usize; D]) -> usize {
-    (0..D).fold(0, |l, a| l | ((idx[a] & (BLOCK - 1)) << (BLOCK_SHIFT as usize * a)))
+    (0..D).fold(0, |l, a| {
+        l | ((idx[a] & (BLOCK - 1)) << (BLOCK_SHIFT as usize * a))
+    })
 }
 
 /// A grid whose values live in `8^D` blocks allocated on demand.
@@ -85,7 +89,10 @@ impl<const D: usize> BlockGrid<D> {
                 table: vec![TILE_OUTSIDE; c],
                 blocks: Vec::new(),
             }),
-            _ => Err(GridError::Invalid(format!("too many blocks for grid {:?}", spec.dims))),
+            _ => Err(GridError::Invalid(format!(
+                "too many blocks for grid {:?}",
+                spec.dims
+            ))),
         }
     }
 
@@ -115,13 +122,16 @@ impl<const D: usize> BlockGrid<D> {
 
     /// Bytes held by values and the block table.
     pub fn memory_bytes(&self) -> usize {
-        self.blocks.len() * (Block::<D>::LEN * 8 + std::mem::size_of::<Block<D>>()) + self.table.len() * 4
+        self.blocks.len() * (Block::<D>::LEN * 8 + std::mem::size_of::<Block<D>>())
+            + self.table.len() * 4
     }
 
     /// Linear index of block coordinates.
     #[inline]
     fn block_linear(&self, coord: [usize; D]) -> usize {
-        (0..D).rev().fold(0, |l, a| l * self.block_dims[a] + coord[a])
+        (0..D)
+            .rev()
+            .fold(0, |l, a| l * self.block_dims[a] + coord[a])
     }
 
     /// Index into [`Self::blocks`] of the block holding node `idx`, if allocated.
@@ -182,7 +192,11 @@ impl<const D: usize> BlockGrid<D> {
         match self.table[b] {
             slot if slot < TILE_INSIDE => slot as usize,
             tile => {
-                let fill = if tile == TILE_INSIDE { -self.background } else { self.background };
+                let fill = if tile == TILE_INSIDE {
+                    -self.background
+                } else {
+                    self.background
+                };
                 self.blocks.push(Block {
                     coord,
                     values: vec![fill; Block::<D>::LEN],
@@ -197,6 +211,16 @@ impl<const D: usize> BlockGrid<D> {
     pub fn set(&mut self, idx: [usize; D], v: f64) {
         let b = self.allocate(idx);
         self.blocks[b].values[local_index(idx)] = v;
+    }
+
+    /// Every stored node inside the grid as (node index, value), block by
+    /// block (padding past the grid's far side left out).
+    pub fn iter_nodes(&self) -> impl Iterator<Item = ([usize; D], f64)> + '_ {
+        self.blocks.iter().flat_map(move |b| {
+            (0..Block::<D>::LEN)
+                .map(move |l| (b.node(l), b.values[l]))
+                .filter(move |(idx, _)| self.in_grid(*idx))
+        })
     }
 
     /// Whether node `idx` lies in the grid (blocks pad past its far side).
@@ -251,7 +275,11 @@ impl<const D: usize> BlockGrid<D> {
     fn fill_unset_nodes(&mut self, given: Vec<[usize; D]>) {
         let mut queue: std::collections::VecDeque<[usize; D]> = given.into();
         while let Some(idx) = queue.pop_front() {
-            let fill = if self.get(idx) < 0.0 { -self.background } else { self.background };
+            let fill = if self.get(idx) < 0.0 {
+                -self.background
+            } else {
+                self.background
+            };
             for a in 0..D {
                 for step in [-1isize, 1] {
                     let mut n = idx;
@@ -366,11 +394,17 @@ impl<const D: usize> BlockGrid<D> {
                 continue;
             }
             let axis = (0..D).find(|&a| nb[a] != blk.coord[a]).unwrap_or(0);
-            let face = if nb[axis] > blk.coord[axis] { BLOCK - 1 } else { 0 };
+            let face = if nb[axis] > blk.coord[axis] {
+                BLOCK - 1
+            } else {
+                0
+            };
             let (mut neg, mut total) = (0usize, 0usize);
             for local in 0..Block::<D>::LEN {
                 let idx = blk.node(local);
-                if (local >> (BLOCK_SHIFT as usize * axis)) & (BLOCK - 1) == face && self.in_grid(idx) {
+                if (local >> (BLOCK_SHIFT as usize * axis)) & (BLOCK - 1) == face
+                    && self.in_grid(idx)
+                {
                     total += 1;
                     neg += (blk.values[local] < 0.0) as usize;
                 }
@@ -399,7 +433,10 @@ impl Samples3 for BlockGrid<3> {
 /// vertices ordered by grid edge. Parallel over blocks, deterministic.
 pub fn marching_cubes_sparse(grid: &BlockGrid<3>, iso: f64) -> TriMesh {
     let visit = blocks_to_visit(grid);
-    let parts: Vec<BlockMesh> = visit.par_iter().map(|&c| block_mesh(grid, iso, c)).collect();
+    let parts: Vec<BlockMesh> = visit
+        .par_iter()
+        .map(|&c| block_mesh(grid, iso, c))
+        .collect();
     merge_block_meshes(parts)
 }
 
@@ -438,15 +475,25 @@ const SPAN: usize = BLOCK + 1;
 
 /// Values of the nodes of a block's cells (`SPAN³`, x fastest); `None`
 /// when all are on one side of `iso`, so the block has no crossing.
-fn gather_block(grid: &BlockGrid<3>, iso: f64, lo: [usize; 3], nodes: [usize; 3]) -> Option<Vec<f64>> {
+fn gather_block(
+    grid: &BlockGrid<3>,
+    iso: f64,
+    lo: [usize; 3],
+    nodes: [usize; 3],
+) -> Option<Vec<f64>> {
     let mut vals = vec![0.0; SPAN * SPAN * SPAN];
     let coord = lo.map(|l| l / BLOCK);
     // The block itself and the (up to 7) blocks whose first node layer
     // closes its cells; copied block by block, no per-node lookup.
     for o in 0..8 {
         let off = [o & 1, (o >> 1) & 1, o >> 2];
-        let range: [std::ops::Range<usize>; 3] =
-            std::array::from_fn(|a| if off[a] == 0 { 0..nodes[a].min(BLOCK) } else { BLOCK..nodes[a] });
+        let range: [std::ops::Range<usize>; 3] = std::array::from_fn(|a| {
+            if off[a] == 0 {
+                0..nodes[a].min(BLOCK)
+            } else {
+                BLOCK..nodes[a]
+            }
+        });
         if range.iter().any(|r| r.is_empty()) {
             continue;
         }
@@ -460,7 +507,13 @@ fn gather_block(grid: &BlockGrid<3>, iso: f64, lo: [usize; 3], nodes: [usize; 3]
             for y in range[1].clone() {
                 for x in range[0].clone() {
                     vals[x + SPAN * (y + SPAN * z)] = match block {
-                        Some(b) => b[local_index([x - off[0] * BLOCK, y - off[1] * BLOCK, z - off[2] * BLOCK])],
+                        Some(b) => {
+                            b[local_index([
+                                x - off[0] * BLOCK,
+                                y - off[1] * BLOCK,
+                                z - off[2] * BLOCK,
+                            ])]
+                        }
                         None => tile,
                     };
                 }
@@ -489,7 +542,8 @@ fn block_mesh(grid: &BlockGrid<3>, iso: f64, coord: [usize; 3]) -> BlockMesh {
     let lo = coord.map(|c| c * BLOCK);
     // Cells of this block: lower corners from lo up to the block end or the
     // last node but one.
-    let cells: [usize; 3] = std::array::from_fn(|a| (lo[a] + BLOCK).min(spec.dims[a] - 1).saturating_sub(lo[a]));
+    let cells: [usize; 3] =
+        std::array::from_fn(|a| (lo[a] + BLOCK).min(spec.dims[a] - 1).saturating_sub(lo[a]));
     if cells.contains(&0) {
         return out;
     }
@@ -501,7 +555,8 @@ fn block_mesh(grid: &BlockGrid<3>, iso: f64, coord: [usize; 3]) -> BlockMesh {
     for z in 0..cells[2] {
         for y in 0..cells[1] {
             for x in 0..cells[0] {
-                let at = |c: usize| x + (c & 1) + SPAN * (y + ((c >> 1) & 1) + SPAN * (z + (c >> 2)));
+                let at =
+                    |c: usize| x + (c & 1) + SPAN * (y + ((c >> 1) & 1) + SPAN * (z + (c >> 2)));
                 let v: [f64; 8] = std::array::from_fn(|c| vals[at(c)]);
                 let (config, bits) = cell_case(&v, iso);
                 if config == 0 || config == 255 {
@@ -516,7 +571,11 @@ fn block_mesh(grid: &BlockGrid<3>, iso: f64, coord: [usize; 3]) -> BlockMesh {
                     let slot = &mut ids[3 * at(a as usize) + axis];
                     if *slot == u32::MAX {
                         let a = a as usize;
-                        let node = [lo[0] + x + (a & 1), lo[1] + y + ((a >> 1) & 1), lo[2] + z + (a >> 2)];
+                        let node = [
+                            lo[0] + x + (a & 1),
+                            lo[1] + y + ((a >> 1) & 1),
+                            lo[2] + z + (a >> 2),
+                        ];
                         out.keys.push(3 * spec.linear(node) as u64 + axis as u64);
                         out.vertices.push(edge_vertex(grid, node, axis, iso));
                         *slot = (out.keys.len() - 1) as u32;
@@ -526,14 +585,23 @@ fn block_mesh(grid: &BlockGrid<3>, iso: f64, coord: [usize; 3]) -> BlockMesh {
                 let cell = spec.linear([lo[0] + x, lo[1] + y, lo[2] + z]) as u64;
                 let mut centre_ids = [u32::MAX; 4];
                 for (c, lp) in table.loop_centres(config, bits).iter().enumerate() {
-                    let centre = loop_centre(lp.iter().map(|&e| out.vertices[edge_ids[e as usize] as usize]));
-                    out.keys.push(3 * spec.node_count() as u64 + 4 * cell + c as u64);
+                    let centre = loop_centre(
+                        lp.iter()
+                            .map(|&e| out.vertices[edge_ids[e as usize] as usize]),
+                    );
+                    out.keys
+                        .push(3 * spec.node_count() as u64 + 4 * cell + c as u64);
                     out.vertices.push(centre);
                     centre_ids[c] = (out.keys.len() - 1) as u32;
                 }
                 for tri in table.triangles(config, bits) {
-                    out.triangles
-                        .push(tri.map(|e| if e < 12 { edge_ids[e as usize] } else { centre_ids[e as usize - 12] }));
+                    out.triangles.push(tri.map(|e| {
+                        if e < 12 {
+                            edge_ids[e as usize]
+                        } else {
+                            centre_ids[e as usize - 12]
+                        }
+                    }));
                 }
             }
         }
@@ -546,7 +614,12 @@ fn merge_block_meshes(parts: Vec<BlockMesh>) -> TriMesh {
     let mut all: Vec<(u64, u32, u32)> = parts
         .iter()
         .enumerate()
-        .flat_map(|(p, m)| m.keys.iter().enumerate().map(move |(l, &k)| (k, p as u32, l as u32)))
+        .flat_map(|(p, m)| {
+            m.keys
+                .iter()
+                .enumerate()
+                .map(move |(l, &k)| (k, p as u32, l as u32))
+        })
         .collect();
     all.par_sort_unstable();
     let mut offsets = vec![0usize; parts.len() + 1];
@@ -571,7 +644,9 @@ fn merge_block_meshes(parts: Vec<BlockMesh>) -> TriMesh {
         .flat_map(|(p, m)| {
             let base = offsets[p];
             let global = &global;
-            m.triangles.iter().map(move |t| t.map(|v| global[base + v as usize]))
+            m.triangles
+                .iter()
+                .map(move |t| t.map(|v| global[base + v as usize]))
         })
         .collect();
     TriMesh {
@@ -619,7 +694,10 @@ mod tests {
         };
         let mut dense = Field2::filled(spec, 5.0);
         let mut sparse = BlockGrid::new(spec, 5.0).unwrap();
-        for (n, idx) in [[0, 0], [7, 7], [8, 7], [20, 12], [15, 3], [8, 8]].into_iter().enumerate() {
+        for (n, idx) in [[0, 0], [7, 7], [8, 7], [20, 12], [15, 3], [8, 8]]
+            .into_iter()
+            .enumerate()
+        {
             dense.set(idx, n as f64);
             sparse.set(idx, n as f64);
         }
@@ -650,11 +728,12 @@ mod tests {
         }
         assert!(sparse.blocks().len() < sparse.table.len());
         // Signs of the tiles are also recovered from the band alone.
-        let nodes = sparse.blocks().iter().flat_map(|b| {
-            (0..Block::<3>::LEN)
-                .map(move |l| (b.node(l), b.values[l]))
-                .filter(|(idx, _)| (0..3).all(|a| idx[a] < 40))
-        });
+        let nodes: Vec<_> = sparse.iter_nodes().collect();
+        let stored: std::collections::HashSet<[usize; 3]> = nodes.iter().map(|n| n.0).collect();
+        assert_eq!(stored.len(), nodes.len(), "a node listed twice");
+        for (l, &v) in field.values.iter().enumerate() {
+            assert!(v.abs() >= band || stored.contains(&spec.unlinear(l)));
+        }
         let rebuilt = BlockGrid::from_nodes(spec, band, nodes).unwrap();
         assert_eq!(rebuilt.to_dense(), back);
     }
@@ -694,7 +773,12 @@ mod tests {
         });
         let grid = BlockGrid::from_nodes(spec, 3.0 * h, nodes).unwrap();
         let dense_bytes = spec.node_count() * 8;
-        assert!(grid.memory_bytes() * 4 < dense_bytes, "{} vs {}", grid.memory_bytes(), dense_bytes);
+        assert!(
+            grid.memory_bytes() * 4 < dense_bytes,
+            "{} vs {}",
+            grid.memory_bytes(),
+            dense_bytes
+        );
         assert!(grid.get([100, 100, 100]) < 0.0, "centre tile is inside");
         assert!(grid.get([0, 0, 0]) > 0.0);
         let topo = closed_manifold(&marching_cubes_sparse(&grid, 0.0));

@@ -169,10 +169,14 @@ pub fn fast_tag<const D: usize>(
     pops
 }
 
-/// Outer contour then fast tagging. With `grow_epsilon`, ε is enlarged
-/// (×1.5 per try) until the contour encloses a cavity, so gaps in sparse
-/// data (curves, holes) are closed; past half the grid extent the grid
-/// border itself (the bounding box) is the start.
+/// Outer contour then fast tagging. With `grow_epsilon`, ε is also tried
+/// larger (×1.5 per try, up to half the grid extent) and the ε whose
+/// contour encloses the largest cavity (interior nodes with d > ε) wins:
+/// for well-sampled closed data that is the smallest ε (the cavity only
+/// shrinks as ε grows), while gaps (holes in a scan, sparse curves) leak
+/// the exterior into the inside until an ε large enough closes them, when
+/// the cavity jumps up. Past half the grid extent the grid border itself
+/// (the bounding box) is the start.
 pub fn tag<const D: usize>(
     d: &Field<D>,
     epsilon: f64,
@@ -186,9 +190,24 @@ pub fn tag<const D: usize>(
         .fold(0.0, f64::max);
     let mut eps = epsilon;
     let (mut tags, mut front) = outer_contour(d, eps, bbox);
-    while grow_epsilon && enclosed_count(d, &tags, eps) == 0 && eps < 0.5 * largest {
-        eps *= 1.5;
-        (tags, front) = outer_contour(d, eps, bbox);
+    if grow_epsilon {
+        let mut best = enclosed_count(d, &tags, eps);
+        let mut trial = eps;
+        loop {
+            trial *= 1.5;
+            if trial >= 0.5 * largest {
+                break;
+            }
+            let (t, f) = outer_contour(d, trial, bbox);
+            let cavity = enclosed_count(d, &t, trial);
+            eprintln!("DEBUG eps {trial} cavity {cavity} best {best} inside {}", t.iter().filter(|&&x| x != Tag::Exterior).count());
+            if cavity > best {
+                (best, eps, tags, front) = (cavity, trial, t, f);
+            } else if best > 0 && cavity < best / 4 {
+                // Past the peak: larger ε only shrinks the cavity further.
+                break;
+            }
+        }
     }
     let heap_pops = fast_tag(d, &mut tags, &front, tolerance);
     Tagging {

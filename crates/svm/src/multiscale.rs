@@ -19,7 +19,12 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug)]
 pub struct FitOptions {
     pub loss: Loss,
-    /// Box constraint per level: C_l = c · s_l (squared loss: ridge 1/C_l).
+    /// Regularization. ε-insensitive loss: the box constraint of a level is
+    /// C_l = c · (median |residual| over its candidate base points), so one
+    /// coefficient moves f by at most c typical residuals: a real feature
+    /// is corrected by many overlapping kernels together, while an isolated
+    /// stray point (an outlier) cannot pull the surface to itself.
+    /// Squared loss: ridge 1/c on the unit-diagonal kernel matrix.
     pub c: f64,
     /// ε-insensitive tube width, relative to the diagonal.
     pub epsilon: f64,
@@ -185,7 +190,10 @@ fn fit_level(
     let kernel = KernelMatrix::build(&base, width);
     let params = RegressionParams {
         loss: opts.loss,
-        c: opts.c * width,
+        c: match opts.loss {
+            Loss::EpsilonInsensitive => opts.c * median_magnitude(&residuals).max(tolerance),
+            Loss::Squared => opts.c,
+        },
         epsilon: opts.epsilon * samples.diameter,
         tolerance: 0.1 * tolerance,
         max_sweeps: opts.max_sweeps,
@@ -206,6 +214,16 @@ fn fit_level(
         seconds: start.elapsed().as_secs_f64(),
     };
     (Level::new(width, centres, coefficients), base, report)
+}
+
+/// Median of |v| (0 for none).
+fn median_magnitude(v: &[f64]) -> f64 {
+    let mut m: Vec<f64> = v.iter().map(|x| x.abs()).collect();
+    if m.is_empty() {
+        return 0.0;
+    }
+    let mid = m.len() / 2;
+    *m.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// Base-point candidates of a level: one surface sample per box of side

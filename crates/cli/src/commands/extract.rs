@@ -25,7 +25,8 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     if !args.iso.is_finite() {
         bail!("--iso must be a finite number, not {}", args.iso);
     }
-    let field = read_field(&args.input).with_context(|| format!("cannot read field {}", args.input.display()))?;
+    let field = read_field(&args.input)
+        .with_context(|| format!("cannot read field {}", args.input.display()))?;
     check_crosses(&field, args.iso, &args)?;
     let spinner = ctx.spinner("extracting");
     let (geometry, summary) = match &field {
@@ -54,7 +55,11 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         }
         AnyField::D2(f) => {
             let curves = marching_squares(f, args.iso);
-            let closed = curves.lines.iter().filter(|l| l.len() > 2 && l.first() == l.last()).count();
+            let closed = curves
+                .lines
+                .iter()
+                .filter(|l| l.len() > 2 && l.first() == l.last())
+                .count();
             let summary = serde_json::json!({
                 "vertices": curves.vertices.len(),
                 "curves": curves.lines.len(),
@@ -70,7 +75,11 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     };
     spinner.finish_and_clear();
     write_output(&args, &field, &geometry)?;
-    ctx.say(format!("wrote {} in {:.2} s", args.output.display(), ctx.elapsed()));
+    ctx.say(format!(
+        "wrote {} in {:.2} s",
+        args.output.display(),
+        ctx.elapsed()
+    ));
     ctx.emit_json(&serde_json::json!({
         "command": "extract",
         "input": args.input,
@@ -89,7 +98,9 @@ fn check_crosses(field: &AnyField, iso: f64, args: &Args) -> anyhow::Result<()> 
     let (lo, hi) = field
         .values()
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
     if !(lo < iso && hi >= iso) {
         bail!(
             "{}: the field never crosses iso {iso} (values range from {lo} to {hi}); choose --iso inside that range",
@@ -107,6 +118,7 @@ fn write_output(args: &Args, field: &AnyField, geometry: &Geometry) -> anyhow::R
             args.output.display()
         );
     }
-    io::write(&args.output, geometry).with_context(|| format!("cannot write {}", args.output.display()))?;
+    io::write(&args.output, geometry)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
     Ok(())
 }

@@ -82,6 +82,15 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     }
 }
 
+/// "1 point", "2 points".
+fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
+
 impl Args {
     fn options(&self) -> RenderOptions {
         RenderOptions {
@@ -121,11 +130,11 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     render::write_png(&args.output, &image).context("writing the picture")?;
     spinner.finish_and_clear();
     let what = if geometry.is_mesh() {
-        format!("{} triangles", geometry.triangles.len())
+        count(geometry.triangles.len(), "triangle")
     } else if !geometry.lines.is_empty() {
-        format!("{} polylines", geometry.lines.len())
+        count(geometry.lines.len(), "polyline")
     } else {
-        format!("{} points", geometry.points.len())
+        count(geometry.points.len(), "point")
     };
     ctx.say(format!(
         "wrote {} ({}x{}, {what}) in {:.2} s",

@@ -17,7 +17,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
-    let field = read_field(&args.input).with_context(|| format!("cannot read field {}", args.input.display()))?;
+    let field = read_field(&args.input)
+        .with_context(|| format!("cannot read field {}", args.input.display()))?;
     let (nodes, shell_nodes, written) = match &field {
         AnyField::D2(f) => store(&Shell::from_field(f), &args.output)?,
         AnyField::D3(f) => store(&Shell::from_field(f), &args.output)?,
@@ -52,10 +53,16 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
 /// Write the shell; returns (grid nodes, shell nodes, bytes written).
 fn store<const D: usize>(shell: &Shell<D>, path: &Path) -> anyhow::Result<(usize, usize, usize)> {
     if shell.indices.is_empty() {
-        anyhow::bail!("the field has no sign change, so its shell is empty: is it a signed distance field?");
+        anyhow::bail!(
+            "the field has no sign change, so its shell is empty: is it a signed distance field?"
+        );
     }
     write_shell(path, shell).with_context(|| format!("cannot write {}", path.display()))?;
-    Ok((shell.spec.node_count(), shell.indices.len(), shell.encoded_len()))
+    Ok((
+        shell.spec.node_count(),
+        shell.indices.len(),
+        shell.encoded_len(),
+    ))
 }
 
 fn file_size(path: &Path) -> anyhow::Result<u64> {

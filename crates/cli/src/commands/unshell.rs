@@ -19,14 +19,16 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     surfrecon_grid::field_io::FieldFormat::from_path(&args.output)?;
-    let shell = read_shell(&args.input).with_context(|| format!("cannot read shell {}", args.input.display()))?;
+    let shell = read_shell(&args.input)
+        .with_context(|| format!("cannot read shell {}", args.input.display()))?;
     let spinner = ctx.spinner("rebuilding the distance field");
     let start = Instant::now();
     let rebuilt = match &shell {
         AnyShell::D2(s) => s.rebuild().map(|f| (f.spec.dims.to_vec(), Field::D2(f))),
         AnyShell::D3(s) => s.rebuild().map(|f| (f.spec.dims.to_vec(), Field::D3(f))),
     };
-    let (dims, field) = rebuilt.with_context(|| format!("cannot rebuild {}", args.input.display()))?;
+    let (dims, field) =
+        rebuilt.with_context(|| format!("cannot rebuild {}", args.input.display()))?;
     let rebuild_seconds = start.elapsed().as_secs_f64();
     spinner.finish_and_clear();
     match &field {
@@ -36,7 +38,10 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     .with_context(|| format!("cannot write {}", args.output.display()))?;
     ctx.say(format!(
         "rebuilt a {} field in {rebuild_seconds:.2} s; wrote {}",
-        dims.iter().map(|n| n.to_string()).collect::<Vec<_>>().join("x"),
+        dims.iter()
+            .map(|n| n.to_string())
+            .collect::<Vec<_>>()
+            .join("x"),
         args.output.display()
     ));
     ctx.emit_json(&serde_json::json!({

@@ -262,11 +262,16 @@ where
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let tmp = tempfile::Builder::new()
-        .prefix(".surfrecon-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(io_err)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".surfrecon-").suffix(".tmp");
+    // Temporary files are private (0600); an output file should get the
+    // usual permissions (0644 less the umask), like any newly created file.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o644));
+    }
+    let tmp = builder.tempfile_in(dir).map_err(io_err)?;
     let mut buffered = std::io::BufWriter::with_capacity(1 << 20, tmp);
     fill(&mut buffered).map_err(io_err)?;
     let tmp = buffered.into_inner().map_err(|e| io_err(e.into_error()))?;

@@ -56,6 +56,18 @@ impl<'a> Scene<'a> {
         if !used.contains(&true) {
             return invalid("nothing to render: no line has a vertex".into());
         }
+        let extent = crate::Aabb::from_points(
+            positions
+                .iter()
+                .zip(&used)
+                .filter(|(_, &u)| u)
+                .map(|(p, _)| p),
+        );
+        if !extent.diagonal().is_finite() {
+            return invalid(
+                "coordinates are too large to draw (the bounding box overflows)".into(),
+            );
+        }
         Ok(Scene {
             geometry,
             options,

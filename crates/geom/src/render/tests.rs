@@ -358,6 +358,20 @@ fn unusable_input_is_a_clear_error() {
 }
 
 #[test]
+fn extreme_scales_draw_or_fail_cleanly() {
+    let huge = vec![DVec3::splat(1e300), DVec3::splat(-1e300), DVec3::ZERO];
+    let err = render(&Geometry::from_points(PointCloud::new(huge)), &small()).unwrap_err();
+    assert!(err.to_string().contains("too large"), "{err}");
+    // A tiny but proper shape still fills the frame.
+    let tiny = icosphere(DVec3::splat(1e-200), 1e-200, 2);
+    let options = small();
+    assert_framed(
+        &render(&Geometry::from_mesh(tiny), &options).unwrap(),
+        options.background,
+    );
+}
+
+#[test]
 fn huge_images_lower_supersampling_instead_of_failing() {
     let options = RenderOptions {
         width: 8192,

@@ -47,7 +47,12 @@ pub(crate) fn node_gradient<S: Samples3>(s: &S, idx: [usize; 3]) -> DVec3 {
 /// Position and unit normal of the crossing on the edge from node `lo`
 /// along `axis`: linear interpolation of the values and of the node
 /// gradients (trilinear interpolation restricted to the edge).
-pub(crate) fn edge_vertex<S: Samples3>(s: &S, lo: [usize; 3], axis: usize, iso: f64) -> (DVec3, DVec3) {
+pub(crate) fn edge_vertex<S: Samples3>(
+    s: &S,
+    lo: [usize; 3],
+    axis: usize,
+    iso: f64,
+) -> (DVec3, DVec3) {
     let mut hi = lo;
     hi[axis] += 1;
     let (a, b) = (s.at(lo), s.at(hi));
@@ -83,8 +88,8 @@ pub(crate) fn cell_case(v: &[f64; 8], iso: f64) -> (u8, u8) {
     let amb = cube_table().ambiguous_faces[config as usize];
     let mut bits = 0u8;
     if amb != 0 {
-        for f in 0..6 {
-            if (amb >> f) & 1 == 1 && positive_connected(v, iso, FACE_CORNERS[f]) {
+        for (f, &face) in FACE_CORNERS.iter().enumerate() {
+            if (amb >> f) & 1 == 1 && positive_connected(v, iso, face) {
                 bits |= 1 << f;
             }
         }
@@ -175,7 +180,9 @@ fn row_state(row: &[f64], iso: f64) -> RowState {
 /// Whether rows in these states may hold a sign change between them.
 #[inline]
 fn may_cross(states: &[RowState]) -> bool {
-    states.iter().any(|&s| s == RowState::Mixed || s != states[0])
+    states
+        .iter()
+        .any(|&s| s == RowState::Mixed || s != states[0])
 }
 
 fn extract_slab(field: &Field3, iso: f64, z0: usize, z1: usize) -> Slab {
@@ -192,7 +199,14 @@ fn extract_slab(field: &Field3, iso: f64, z0: usize, z1: usize) -> Slab {
     let mut vertical = vec![NONE; nx * ny];
     for k in z0..z1 {
         let upper_rows = plane_rows(field, iso, k + 1);
-        vertical_edges(field, iso, k, [&lower.rows, &upper_rows], &mut vertical, &mut slab);
+        vertical_edges(
+            field,
+            iso,
+            k,
+            [&lower.rows, &upper_rows],
+            &mut vertical,
+            &mut slab,
+        );
         let top_start = slab.vertices.len();
         let upper = plane_edges_with(field, iso, k + 1, upper_rows, &mut slab);
         slab.top = top_start..slab.vertices.len();
@@ -217,7 +231,9 @@ fn row(field: &Field3, j: usize, k: usize) -> &[f64] {
 }
 
 fn plane_rows(field: &Field3, iso: f64, k: usize) -> Vec<RowState> {
-    (0..field.spec.dims[1]).map(|j| row_state(row(field, j, k), iso)).collect()
+    (0..field.spec.dims[1])
+        .map(|j| row_state(row(field, j, k), iso))
+        .collect()
 }
 
 fn plane_edges(field: &Field3, iso: f64, k: usize, slab: &mut Slab) -> PlaneEdges {
@@ -226,7 +242,13 @@ fn plane_edges(field: &Field3, iso: f64, k: usize, slab: &mut Slab) -> PlaneEdge
 }
 
 /// Crossings on the x- and y-edges of node plane `k`, in node order.
-fn plane_edges_with(field: &Field3, iso: f64, k: usize, rows: Vec<RowState>, slab: &mut Slab) -> PlaneEdges {
+fn plane_edges_with(
+    field: &Field3,
+    iso: f64,
+    k: usize,
+    rows: Vec<RowState>,
+    slab: &mut Slab,
+) -> PlaneEdges {
     let [nx, ny, _] = field.spec.dims;
     let mut ids = vec![NONE; 2 * nx * ny];
     for j in 0..ny {
@@ -243,7 +265,8 @@ fn plane_edges_with(field: &Field3, iso: f64, k: usize, rows: Vec<RowState>, sla
                 ids[2 * (j * nx + i)] = push_vertex(slab, edge_vertex(field, [i, j, k], 0, iso));
             }
             if y_edges && positive != (next[i] >= iso) {
-                ids[2 * (j * nx + i) + 1] = push_vertex(slab, edge_vertex(field, [i, j, k], 1, iso));
+                ids[2 * (j * nx + i) + 1] =
+                    push_vertex(slab, edge_vertex(field, [i, j, k], 1, iso));
             }
         }
     }
@@ -275,10 +298,22 @@ fn vertical_edges(
 }
 
 /// Triangles of all cells between node planes `k` and `k + 1`.
-fn cell_layer(field: &Field3, iso: f64, k: usize, planes: [&PlaneEdges; 2], vertical: &[u32], slab: &mut Slab) {
+fn cell_layer(
+    field: &Field3,
+    iso: f64,
+    k: usize,
+    planes: [&PlaneEdges; 2],
+    vertical: &[u32],
+    slab: &mut Slab,
+) {
     let [nx, ny, _] = field.spec.dims;
     for j in 0..ny - 1 {
-        let states = [planes[0].rows[j], planes[0].rows[j + 1], planes[1].rows[j], planes[1].rows[j + 1]];
+        let states = [
+            planes[0].rows[j],
+            planes[0].rows[j + 1],
+            planes[1].rows[j],
+            planes[1].rows[j + 1],
+        ];
         if !may_cross(&states) {
             continue;
         }
@@ -291,7 +326,11 @@ fn cell_layer(field: &Field3, iso: f64, k: usize, planes: [&PlaneEdges; 2], vert
             }
             let vertex_of = |e: u8| {
                 let lc = EDGE_CORNERS[e as usize][0];
-                let (x, y, z) = (i + (lc & 1) as usize, j + ((lc >> 1) & 1) as usize, (lc >> 2) as usize);
+                let (x, y, z) = (
+                    i + (lc & 1) as usize,
+                    j + ((lc >> 1) & 1) as usize,
+                    (lc >> 2) as usize,
+                );
                 let node = y * nx + x;
                 match e / 4 {
                     0 => planes[z].ids[2 * node],
@@ -316,8 +355,13 @@ fn emit_cell(config: u8, bits: u8, vertex_of: impl Fn(u8) -> u32, slab: &mut Sla
         centre_ids[k] = push_vertex(slab, centre);
     }
     for tri in table.triangles(config, bits) {
-        slab.triangles
-            .push(tri.map(|e| if e < 12 { vertex_of(e) } else { centre_ids[e as usize - 12] }));
+        slab.triangles.push(tri.map(|e| {
+            if e < 12 {
+                vertex_of(e)
+            } else {
+                centre_ids[e as usize - 12]
+            }
+        }));
     }
 }
 
@@ -331,7 +375,10 @@ pub(crate) fn loop_centre(points: impl ExactSizeIterator<Item = (DVec3, DVec3)>)
 /// Concatenate slabs, identifying each slab's bottom plane vertices with
 /// the previous slab's top plane vertices (same edges, same order).
 fn merge_slabs(slabs: Vec<Slab>) -> TriMesh {
-    let total_v: usize = slabs.iter().map(|s| s.vertices.len() - s.bottom).sum::<usize>()
+    let total_v: usize = slabs
+        .iter()
+        .map(|s| s.vertices.len() - s.bottom)
+        .sum::<usize>()
         + slabs.first().map_or(0, |s| s.bottom);
     let total_t: usize = slabs.iter().map(|s| s.triangles.len()).sum();
     let mut mesh = TriMesh {
@@ -346,9 +393,14 @@ fn merge_slabs(slabs: Vec<Slab>) -> TriMesh {
         let base = mesh.vertices.len();
         let remap = |v: u32| {
             let v = v as usize;
-            (if v < skip { prev_top + v } else { base + v - skip }) as u32
+            (if v < skip {
+                prev_top + v
+            } else {
+                base + v - skip
+            }) as u32
         };
-        mesh.triangles.extend(slab.triangles.iter().map(|t| t.map(remap)));
+        mesh.triangles
+            .extend(slab.triangles.iter().map(|t| t.map(remap)));
         mesh.vertices.extend_from_slice(&slab.vertices[skip..]);
         normals.extend_from_slice(&slab.normals[skip..]);
         prev_top = base + slab.top.start - skip;

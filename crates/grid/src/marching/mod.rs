@@ -13,8 +13,8 @@ mod cubes;
 mod squares;
 pub mod tables;
 
-pub(crate) use cubes::{cell_case, edge_vertex, loop_centre, Samples3};
 pub use cubes::marching_cubes;
+pub(crate) use cubes::{cell_case, edge_vertex, loop_centre, Samples3};
 pub use squares::marching_squares;
 
 #[cfg(test)]

@@ -43,7 +43,7 @@ fn edge_crossings(field: &Field2, iso: f64) -> (Vec<DVec3>, Vec<[u32; 2]>) {
     let spec = &field.spec;
     let mut vertices = Vec::new();
     let mut ids = vec![[NONE; 2]; spec.node_count()];
-    for l in 0..spec.node_count() {
+    for (l, node_ids) in ids.iter_mut().enumerate() {
         let idx = spec.unlinear(l);
         for axis in 0..2 {
             if idx[axis] + 1 >= spec.dims[axis] {
@@ -55,7 +55,7 @@ fn edge_crossings(field: &Field2, iso: f64) -> (Vec<DVec3>, Vec<[u32; 2]>) {
             if (a >= iso) != (b >= iso) {
                 let mut p = spec.position(idx);
                 p[axis] += crossing_fraction(a, b, iso) * spec.spacing;
-                ids[l][axis] = vertices.len() as u32;
+                node_ids[axis] = vertices.len() as u32;
                 vertices.push(DVec3::new(p[0], p[1], 0.0));
             }
         }
@@ -79,7 +79,11 @@ fn cell_segments<'a>(
     // at least the negative one's).
     let d = v.map(|x| x - iso);
     let (diag_a, diag_b) = (d[0] * d[3], d[1] * d[2]);
-    let connect = if d[0] >= 0.0 { diag_a >= diag_b } else { diag_b >= diag_a };
+    let connect = if d[0] >= 0.0 {
+        diag_a >= diag_b
+    } else {
+        diag_b >= diag_a
+    };
     let (segs, n) = square_segments(config, connect);
     // Square edges counter-clockwise: y=0, x=1, y=1, x=0.
     let edge_vertex = move |e: u8| match e {

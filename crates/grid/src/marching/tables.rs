@@ -154,13 +154,17 @@ fn build_cube_table() -> CubeTable {
 /// Oriented segments (from edge, to edge) of every face.
 fn face_segments(config: u8, face_bits: u8) -> Vec<(u8, u8)> {
     let mut segs = Vec::new();
-    for f in 0..6 {
-        let corners = FACE_CORNERS[f];
+    for (f, &corners) in FACE_CORNERS.iter().enumerate() {
         let positive = |i: usize| (config >> corners[i % 4]) & 1 == 1;
         // Crossings in counter-clockwise order: (edge, entering positive?).
         let crossings: Vec<(u8, bool)> = (0..4)
             .filter(|&i| positive(i) != positive(i + 1))
-            .map(|i| (edge_between(corners[i], corners[(i + 1) % 4]), positive(i + 1)))
+            .map(|i| {
+                (
+                    edge_between(corners[i], corners[(i + 1) % 4]),
+                    positive(i + 1),
+                )
+            })
             .collect();
         if crossings.is_empty() {
             continue;
@@ -253,7 +257,8 @@ fn triangulate_loop(lp: &[u8]) -> Option<Vec<[u8; 3]>> {
         (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt()
     };
     // A chord (i, j) is allowed if it is a loop side or joins crossings on no common face.
-    let allowed = |i: usize, j: usize| j == i + 1 || (i == 0 && j == n - 1) || !share_face(lp[i], lp[j]);
+    let allowed =
+        |i: usize, j: usize| j == i + 1 || (i == 0 && j == n - 1) || !share_face(lp[i], lp[j]);
     let inf = f64::INFINITY;
     let mut cost = vec![vec![inf; n]; n];
     let mut split = vec![vec![usize::MAX; n]; n];
@@ -359,7 +364,10 @@ mod tests {
                     let [a, b] = EDGE_CORNERS[e as usize];
                     let crosses = ((config >> a) ^ (config >> b)) & 1 == 1;
                     let used = tris.iter().any(|t| t.contains(&e));
-                    assert!(tris.iter().flatten().all(|&x| x < 12 + MAX_LOOP_CENTRES as u8));
+                    assert!(tris
+                        .iter()
+                        .flatten()
+                        .all(|&x| x < 12 + MAX_LOOP_CENTRES as u8));
                     assert_eq!(crosses, used, "config {config} edge {e}");
                 }
             }

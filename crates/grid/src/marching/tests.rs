@@ -18,20 +18,34 @@ pub(crate) struct Topo {
 pub(crate) fn closed_manifold(mesh: &TriMesh) -> Topo {
     let mut directed: HashMap<(u32, u32), usize> = HashMap::new();
     for t in &mesh.triangles {
-        assert!(t[0] != t[1] && t[1] != t[2] && t[0] != t[2], "repeated index {t:?}");
+        assert!(
+            t[0] != t[1] && t[1] != t[2] && t[0] != t[2],
+            "repeated index {t:?}"
+        );
         let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
-        assert!((b - a).cross(c - a).length() > 0.0, "zero-area triangle {t:?}");
+        assert!(
+            (b - a).cross(c - a).length() > 0.0,
+            "zero-area triangle {t:?}"
+        );
         for k in 0..3 {
             *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
         }
     }
     for (&(a, b), &n) in &directed {
         assert_eq!(n, 1, "directed edge {a}->{b} used {n} times");
-        assert_eq!(directed.get(&(b, a)), Some(&1), "edge {a}-{b} is a border or non-manifold");
+        assert_eq!(
+            directed.get(&(b, a)),
+            Some(&1),
+            "edge {a}-{b} is a border or non-manifold"
+        );
     }
     assert_vertex_manifold(mesh);
     let used: std::collections::HashSet<u32> = mesh.triangles.iter().flatten().copied().collect();
-    let (v, e, f) = (used.len() as i64, (directed.len() / 2) as i64, mesh.triangles.len() as i64);
+    let (v, e, f) = (
+        used.len() as i64,
+        (directed.len() / 2) as i64,
+        mesh.triangles.len() as i64,
+    );
     Topo {
         euler: v - e + f,
         components: components(mesh),
@@ -72,7 +86,10 @@ fn components(mesh: &TriMesh) -> usize {
     }
     for t in &mesh.triangles {
         for k in 1..3 {
-            let (a, b) = (find(&mut parent, t[0] as usize), find(&mut parent, t[k] as usize));
+            let (a, b) = (
+                find(&mut parent, t[0] as usize),
+                find(&mut parent, t[k] as usize),
+            );
             parent[a] = b;
         }
     }
@@ -171,7 +188,11 @@ fn random_smooth_fields_give_closed_manifolds() {
     for _ in 0..6 {
         let bumps: Vec<(DVec3, f64, f64)> = (0..12)
             .map(|_| {
-                let c = DVec3::new(rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5));
+                let c = DVec3::new(
+                    rng.random_range(-0.5..0.5),
+                    rng.random_range(-0.5..0.5),
+                    rng.random_range(-0.5..0.5),
+                );
                 (c, rng.random_range(0.1..0.25), rng.random_range(0.5..1.5))
             })
             .collect();
@@ -220,7 +241,9 @@ fn open_surface_at_grid_boundary_and_empty_cases() {
     // A plane through the grid: a single open sheet.
     let mesh = marching_cubes(&sample3(spec, |p| p.z - 0.05), 0.0);
     assert_eq!(mesh.triangles.len(), 2 * 9 * 9);
-    assert!(marching_cubes(&sample3(spec, |_| 1.0), 0.0).triangles.is_empty());
+    assert!(marching_cubes(&sample3(spec, |_| 1.0), 0.0)
+        .triangles
+        .is_empty());
     let tiny = Field3::filled(
         GridSpec {
             origin: [0.0; 3],
@@ -250,9 +273,7 @@ fn output_does_not_depend_on_thread_count() {
 fn case_table_has_all_cases() {
     // All 256 configurations with every face choice are triangulable.
     let t = tables::cube_table();
-    let total: usize = (0..=255u8)
-        .map(|c| t.triangles(c, 0).len())
-        .sum();
+    let total: usize = (0..=255u8).map(|c| t.triangles(c, 0).len()).sum();
     assert!(total > 0);
 }
 
@@ -303,7 +324,10 @@ fn circle_is_one_closed_counter_clockwise_curve() {
     assert_eq!(p.lines.len(), 1);
     assert_all_closed(&p);
     let area = signed_area(&p, &p.lines[0]);
-    assert!((area - std::f64::consts::PI * r * r).abs() < 0.01, "area {area}");
+    assert!(
+        (area - std::f64::consts::PI * r * r).abs() < 0.01,
+        "area {area}"
+    );
     let h = spec.spacing;
     for v in &p.vertices {
         assert!(((v.x - cx).hypot(v.y - cy) - r).abs() < 0.01 * h);

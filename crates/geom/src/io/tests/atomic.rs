@@ -65,3 +65,16 @@ fn missing_files_and_unknown_extensions_are_errors() {
     let err = read("cloud.pcd").unwrap_err();
     assert!(err.to_string().contains("unknown file format"), "{err}");
 }
+
+#[cfg(unix)]
+#[test]
+fn outputs_get_ordinary_file_permissions() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("plain.txt");
+    std::fs::write(&plain, b"x").unwrap(); // 0666 less the umask
+    let written = dir.path().join("written.txt");
+    write_atomic(&written, |w| w.write_all(b"x")).unwrap();
+    let mode = |p: &std::path::Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode(&written), mode(&plain) & 0o644);
+}

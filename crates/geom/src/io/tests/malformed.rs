@@ -493,3 +493,37 @@ fn xyz_errors_far_into_a_big_file_name_the_right_line() {
     );
     expect(short.as_bytes(), Format::Xyz, Line(180_002), "line 2 has 6");
 }
+
+#[test]
+fn ply_vertex_rows_with_lists_take_the_general_path() {
+    let head = |format: &str| {
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex 2\nproperty double x\n\
+             property list uchar float tags\nproperty double y\nproperty double z\n\
+             property double nx\nproperty double ny\nproperty double nz\nend_header\n"
+        )
+    };
+    let ascii = format!("{}1 2 0.5 0.25 2 3 0 0 1\n4 0 5 6 0 1 0\n", head("ascii"));
+    let mut binary = head("binary_little_endian").into_bytes();
+    for (x, tags, y, z, n) in [
+        (1.0, &[0.5f32, 0.25][..], 2.0, 3.0, [0.0, 0.0, 1.0]),
+        (4.0, &[], 5.0, 6.0, [0.0, 1.0, 0.0]),
+    ] {
+        binary.extend_from_slice(&f64::to_le_bytes(x));
+        binary.push(tags.len() as u8);
+        tags.iter()
+            .for_each(|t| binary.extend_from_slice(&t.to_le_bytes()));
+        for v in [y, z].into_iter().chain(n) {
+            let v: f64 = v;
+            binary.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    for bytes in [ascii.into_bytes(), binary] {
+        let g = parse_ok(&bytes, Format::Ply);
+        assert_eq!(
+            g.points.positions,
+            vec![DVec3::new(1.0, 2.0, 3.0), DVec3::new(4.0, 5.0, 6.0)]
+        );
+        assert_eq!(g.points.normals, Some(vec![DVec3::Z, DVec3::Y]));
+    }
+}
