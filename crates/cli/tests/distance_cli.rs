@@ -128,7 +128,11 @@ fn band_clamps_far_values() {
         "24",
         "--quiet",
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let AnyField::D3(field) = read_field(&output).unwrap() else {
         panic!("expected a 3D field");
     };
@@ -155,7 +159,11 @@ fn open_mesh_is_refused_for_signed_unless_allowed() {
     assert_fails_with(&out, "not closed: 3 boundary edges");
     assert!(!output.exists(), "no output after a failure");
     let out = surfrecon(&[&args[..], &["--allow-open"]].concat());
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(output.exists());
 }
 
@@ -170,7 +178,10 @@ fn bad_options_and_huge_grids_are_refused() {
     };
     assert_fails_with(&run(&["--spacing=-1"]), "--spacing must be a positive");
     assert_fails_with(&run(&["--band", "0"]), "--band must be a positive");
-    assert_fails_with(&run(&["--resolution", "0"]), "--resolution must be at least 1");
+    assert_fails_with(
+        &run(&["--resolution", "0"]),
+        "--resolution must be at least 1",
+    );
     assert_fails_with(&run(&["--spacing", "0.0005"]), "--resolution");
     assert_fails_with(&run(&["--2d", "--signed"]), "2D");
     let clash = run(&["--resolution", "8", "--spacing", "0.1"]);

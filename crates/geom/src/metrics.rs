@@ -69,19 +69,29 @@ impl Default for EvalOptions {
 /// topology fields are `None` (JSON null) when the candidate is a point set.
 #[derive(Clone, Debug, Serialize)]
 pub struct EvalReport {
+    /// Mean of the two directed mean distances.
     pub chamfer_l1: f64,
+    /// Mean of the two directed mean squared distances.
     pub chamfer_l2: f64,
+    /// Largest distance in either direction.
     pub hausdorff: f64,
+    /// F-score at 0.5% of the reference diagonal.
     pub fscore_0_5pct: f64,
+    /// F-score at 1% of the reference diagonal.
     pub fscore_1pct: f64,
+    /// Mean |n_a . n_b| of closest pairs; `None` unless both sides have normals.
     pub normal_consistency: Option<f64>,
     /// Vertices of the candidate mesh (all of them), or its point count.
     pub vertices: usize,
+    /// Triangles of the candidate (0 for a point set).
     pub faces: usize,
+    /// Every edge in exactly two faces.
     pub watertight: Option<bool>,
     /// Both edge- and vertex-manifold.
     pub manifold: Option<bool>,
+    /// Pieces connected through shared vertices.
     pub components: Option<usize>,
+    /// V - E + F over the vertices used by faces.
     pub euler: Option<i64>,
     /// Bounding-box diagonal of the reference, the F-score length scale.
     pub diagonal: f64,
@@ -328,8 +338,11 @@ pub fn closest_point_on_segment(p: DVec3, s: DVec3, e: DVec3) -> DVec3 {
 /// The answer of [`TriangleBvh::closest`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClosestTriangle {
+    /// Index of the triangle in the mesh.
     pub triangle: usize,
+    /// The closest point on it.
     pub point: DVec3,
+    /// Distance from the query to `point`.
     pub distance: f64,
 }
 

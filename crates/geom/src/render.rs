@@ -34,7 +34,7 @@ pub const MAX_SIDE: u32 = 16384;
 pub const MAX_PIXELS: u64 = 1 << 26;
 /// Supersampling is lowered for big images so the sample buffers stay
 /// within this many samples.
-const MAX_SAMPLES: u64 = 1 << 26;
+const MAX_SAMPLES: u64 = 1 << 25;
 
 /// Which world axis points up on screen.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

@@ -1,7 +1,11 @@
-//! Spatial index for k-nearest and radius queries, shared by every method.
+//! Spatial indexes shared by every method.
 //!
-//! A thin wrapper over kiddo's immutable k-d tree (measured fastest here for
-//! both building and querying large scans).
+//! - [`KdTree`]: k-nearest and radius queries; a thin wrapper over kiddo's
+//!   immutable k-d tree (measured fastest here for both building and querying
+//!   large scans).
+//! - [`CellGrid`]: a uniform grid for many fixed-radius queries; on 1M
+//!   surface points it builds about 3x faster than the k-d tree and answers
+//!   radius queries about 1.4x faster when the cell size is the radius.
 
 use glam::DVec3;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
@@ -19,7 +23,9 @@ pub struct KdTree {
 /// One query result: index into the indexed points and the distance to it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Neighbour {
+    /// Position of the point in the slice the index was built from.
     pub index: usize,
+    /// Euclidean distance from the query.
     pub distance: f64,
 }
 
@@ -33,10 +39,12 @@ impl KdTree {
         }
     }
 
+    /// Number of indexed points.
     pub fn len(&self) -> usize {
         self.len
     }
 
+    /// Whether no point is indexed.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
@@ -183,10 +191,12 @@ impl CellGrid {
         (z * self.dims[1] + y) * self.dims[0] + x
     }
 
+    /// Number of indexed points.
     pub fn len(&self) -> usize {
         self.sorted.len()
     }
 
+    /// Whether no point is indexed.
     pub fn is_empty(&self) -> bool {
         self.sorted.is_empty()
     }

@@ -53,8 +53,9 @@ fn mesh_to_sdf() {
     let target = 3.0;
     let ((dense, dense_cpu), _) = best_of(2, || signed_distance(&mesh, &spec, None).expect("sdf"));
     let band = 3.0 * spec.spacing;
-    let ((narrow, narrow_cpu), _) =
-        best_of(2, || signed_distance(&mesh, &spec, Some(band)).expect("sdf"));
+    let ((narrow, narrow_cpu), _) = best_of(2, || {
+        signed_distance(&mesh, &spec, Some(band)).expect("sdf")
+    });
     println!(
         "mesh -> SDF, {} triangles, grid {}: dense {:.3} s wall ({:.3} s CPU), target < {} s: {}; \
          narrow band 3h {:.3} s wall ({:.3} s CPU), {:.1}x faster than dense",

@@ -4,30 +4,29 @@
 //! Two stages, both O(N + M) for N nodes and M data:
 //!
 //! 1. **Exact band.** Every node within `band_cells` cells of a datum's
-//!    bounding box gets the exact distance to that datum; a node keeps the
-//!    smallest. A node whose value ends up at most the band radius is final:
-//!    its nearest datum lies within the band radius, so it was evaluated.
-//!    The grid is cut into slabs of layers along the last axis, data are
-//!    binned per slab, and slabs run in parallel; within a slab data are
-//!    applied in index order, so the result is the same for any number of
-//!    threads.
+//!    bounding box gets the exact distance to that datum (and the datum's
+//!    nearest point, its "foot"); a node keeps the smallest. A node whose
+//!    value ends up at most the band radius is final: its nearest datum lies
+//!    within the band radius, so it was evaluated. The grid is cut into
+//!    fixed slabs along the last axis, data are binned per slab, and slabs
+//!    run in parallel; ties go to the smaller datum index, so the result is
+//!    the same for any number of threads.
 //! 2. **Closest-datum sweeping.** Gauss–Seidel sweeps in the 2^D alternating
-//!    orders of fast sweeping (see [`crate::sweep`]), where the update of a
-//!    node tries the closest datum of each of its 2·D neighbours and keeps
-//!    the exact distance to the best one. The information travels along the
+//!    orders of fast sweeping (see [`crate::sweep`]), where a node tries the
+//!    closest data of its neighbours and keeps the exact distance to the
+//!    best one (closest-point propagation). Information travels along the
 //!    same characteristics as in Godunov fast sweeping, but the value
-//!    carried is an exact distance to a real datum rather than a first-order
+//!    carried is an exact distance to a real datum instead of a first-order
 //!    approximation, so the field stays near-exact far from the data. It
-//!    stops after the first sweep that changes nothing (a fixed point).
+//!    ends at a fixed point (see [`propagate_closest`]).
 //!
-//! Why the Godunov value is not mixed in by default: a candidate distance is
-//! always an upper bound of the true distance and is exact when the
-//! propagated datum is the true nearest one, which fails only in thin slivers
-//! of Voronoi cells, by a tiny amount. The first-order Godunov value, by
-//! contrast, is off by O(h) and *under*estimates where fronts converge
-//! (inside curved data), so `min(Godunov, candidate)` pulls those errors into
-//! the field. [`DistanceOptions::mix_godunov`] enables the mixed rule for
-//! comparison; the tests measure both.
+//! Why no Godunov value is mixed in: a candidate distance is an upper bound
+//! of the true distance and exact whenever the propagated datum is the true
+//! nearest one, which fails only where Voronoi cells get thinner than a cell,
+//! by little. The first-order Godunov value is off by O(h) and
+//! *under*estimates where fronts converge (inside curved data), so keeping
+//! `min(Godunov, candidate)` would pull those errors into the field. The
+//! test `godunov_sweeping_from_the_band_is_less_accurate` measures both.
 
 use crate::sweep::for_each_node_ordered;
 use crate::{Field, GridError, GridSpec};
@@ -186,7 +185,9 @@ impl<const D: usize> DataSet<D> {
     /// index can name.
     pub fn validate(&self) -> Result<(), GridError> {
         if self.is_empty() {
-            return Err(GridError::InvalidInput("no data to measure distance to".into()));
+            return Err(GridError::InvalidInput(
+                "no data to measure distance to".into(),
+            ));
         }
         if self.len() >= NO_DATUM as usize {
             return Err(GridError::InvalidInput(format!(
@@ -224,8 +225,11 @@ impl<const D: usize> DataSet<D> {
         let mut used = vec![false; verts.len()];
         let mut data = DataSet::default();
         for (k, t) in geometry.triangles.iter().enumerate() {
-            data.triangles
-                .push([at(t[0], "triangle", k)?, at(t[1], "triangle", k)?, at(t[2], "triangle", k)?]);
+            data.triangles.push([
+                at(t[0], "triangle", k)?,
+                at(t[1], "triangle", k)?,
+                at(t[2], "triangle", k)?,
+            ]);
             t.iter().for_each(|&i| used[i as usize] = true);
         }
         for (k, line) in geometry.lines.iter().enumerate() {
@@ -234,7 +238,8 @@ impl<const D: usize> DataSet<D> {
                 used[i as usize] = true;
             }
             for w in line.windows(2) {
-                data.segments.push([project(verts[w[0] as usize]), project(verts[w[1] as usize])]);
+                data.segments
+                    .push([project(verts[w[0] as usize]), project(verts[w[1] as usize])]);
             }
             if line.len() == 1 {
                 data.points.push(project(verts[line[0] as usize]));
@@ -308,13 +313,9 @@ pub fn unsigned_distance_with<const D: usize>(
     let (sorted, original) = spatially_sorted(data, spec);
     let data = &sorted;
     let mut nodes = Nodes::new(spec.node_count());
-    let t0 = std::time::Instant::now();
     exact_band(data, spec, radius, &mut nodes);
-    let dbg = std::env::var("SR_DEBUG").is_ok();
-    if dbg { eprintln!("band {:?}", t0.elapsed()); }
     if options.propagate {
-        let n = propagate_closest(data, spec, radius, &mut nodes);
-        if dbg { eprintln!("sweeps {n} {:?}", t0.elapsed()); }
+        propagate_closest(data, spec, radius, &mut nodes);
     }
     let Nodes {
         mut values,
@@ -369,7 +370,10 @@ impl<const D: usize> Nodes<D> {
 /// are close in memory (the sweeps look data up by neighbouring nodes; in
 /// input order those reads miss the cache). Also returns, per sorted index,
 /// the original index.
-fn spatially_sorted<const D: usize>(data: &DataSet<D>, spec: &GridSpec<D>) -> (DataSet<D>, Vec<u32>) {
+fn spatially_sorted<const D: usize>(
+    data: &DataSet<D>,
+    spec: &GridSpec<D>,
+) -> (DataSet<D>, Vec<u32>) {
     let key = |i: usize| -> usize {
         let (lo, hi) = data.datum_bounds(i);
         let idx = std::array::from_fn(|a| {
@@ -381,14 +385,24 @@ fn spatially_sorted<const D: usize>(data: &DataSet<D>, spec: &GridSpec<D>) -> (D
     let (np, ns) = (data.points.len(), data.segments.len());
     let mut original = Vec::with_capacity(data.len());
     for range in [0..np, np..np + ns, np + ns..data.len()] {
-        let mut keyed: Vec<(usize, u32)> = range.into_par_iter().map(|i| (key(i), i as u32)).collect();
+        let mut keyed: Vec<(usize, u32)> =
+            range.into_par_iter().map(|i| (key(i), i as u32)).collect();
         keyed.par_sort_unstable();
         original.extend(keyed.into_iter().map(|(_, i)| i));
     }
     let sorted = DataSet {
-        points: original[..np].iter().map(|&i| data.points[i as usize]).collect(),
-        segments: original[np..np + ns].iter().map(|&i| data.segments[i as usize - np]).collect(),
-        triangles: original[np + ns..].iter().map(|&i| data.triangles[i as usize - np - ns]).collect(),
+        points: original[..np]
+            .iter()
+            .map(|&i| data.points[i as usize])
+            .collect(),
+        segments: original[np..np + ns]
+            .iter()
+            .map(|&i| data.segments[i as usize - np])
+            .collect(),
+        triangles: original[np + ns..]
+            .iter()
+            .map(|&i| data.triangles[i as usize - np - ns])
+            .collect(),
     };
     (sorted, original)
 }
@@ -444,7 +458,12 @@ fn for_each_in_box<const D: usize>(
 /// nodes within `radius` of each datum's bounding box; parallel over fixed
 /// slabs. Ties go to the smaller (sorted) datum index, so the result does
 /// not depend on the order data are applied in.
-fn exact_band<const D: usize>(data: &DataSet<D>, spec: &GridSpec<D>, radius: f64, nodes: &mut Nodes<D>) {
+fn exact_band<const D: usize>(
+    data: &DataSet<D>,
+    spec: &GridSpec<D>,
+    radius: f64,
+    nodes: &mut Nodes<D>,
+) {
     let last_axis = D - 1;
     let layer = spec.strides()[last_axis];
     let slabs = spec.dims[last_axis].div_ceil(SLAB_LAYERS);
@@ -468,7 +487,8 @@ fn exact_band<const D: usize>(data: &DataSet<D>, spec: &GridSpec<D>, radius: f64
             let slab_first = s * SLAB_LAYERS;
             let slab_last = (slab_first + SLAB_LAYERS).min(spec.dims[last_axis]) - 1;
             for &i in bin {
-                let Some((mut first, mut last)) = node_box(spec, data.datum_bounds(i as usize), radius)
+                let Some((mut first, mut last)) =
+                    node_box(spec, data.datum_bounds(i as usize), radius)
                 else {
                     continue;
                 };
@@ -489,7 +509,7 @@ fn exact_band<const D: usize>(data: &DataSet<D>, spec: &GridSpec<D>, radius: f64
         });
 }
 
-/// Stage 2: closest-datum fast sweeping. A node tries the candidates
+/// Stage 2: closest-datum fast sweeping; returns the number of sweeps. A node tries the candidates
 /// (datum + foot point) of its neighbours, axis and diagonal (diagonals
 /// matter: a Voronoi cell can be too thin to hold an axis-connected chain
 /// of nodes), and adopts the nearest datum. Sweeps run in the 2^D
@@ -520,7 +540,11 @@ fn propagate_closest<const D: usize>(
             }
         });
     }
-    let mut open: Vec<bool> = nodes.values.par_iter().map(|&v| !(v <= final_below)).collect();
+    let mut open: Vec<bool> = nodes
+        .values
+        .par_iter()
+        .map(|&v| !(v <= final_below))
+        .collect();
     for _ in 0..MAX_ROUNDS {
         for order in 0..1usize << D {
             sweeps += 1;
@@ -723,7 +747,12 @@ pub fn segment_closest<const D: usize>(p: &[f64; D], a: &[f64; D], b: &[f64; D])
 
 /// Squared distance from `p` to the triangle `a, b, c` (any dimension).
 #[inline]
-pub fn triangle_dist2<const D: usize>(p: &[f64; D], a: &[f64; D], b: &[f64; D], c: &[f64; D]) -> f64 {
+pub fn triangle_dist2<const D: usize>(
+    p: &[f64; D],
+    a: &[f64; D],
+    b: &[f64; D],
+    c: &[f64; D],
+) -> f64 {
     dist2(p, &triangle_closest(p, a, b, c))
 }
 
@@ -890,11 +919,46 @@ mod tests {
     fn torus_mesh_3d_matches_brute_force() {
         let mesh = shapes::torus(0.3, 0.12, 24, 12);
         let mesh = TriMesh {
-            vertices: mesh.vertices.iter().map(|v| *v + DVec3::splat(0.5)).collect(),
+            vertices: mesh
+                .vertices
+                .iter()
+                .map(|v| *v + DVec3::splat(0.5))
+                .collect(),
             ..mesh
         };
         let data = DataSet::<3>::from_mesh(&mesh).unwrap();
         check("3D torus triangles", &data, &unit_grid(48));
+    }
+
+    #[test]
+    fn godunov_sweeping_from_the_band_is_less_accurate() {
+        // Same exact band, then either closest-datum propagation or plain
+        // Godunov fast sweeping with the band frozen.
+        let mesh = shapes::icosphere(DVec3::splat(0.5), 0.35, 2);
+        let data = DataSet::<3>::from_mesh(&mesh).unwrap();
+        let spec = unit_grid::<3>(32);
+        let cpp = unsigned_distance(&data, &spec).unwrap();
+        let band_only = DistanceOptions {
+            propagate: false,
+            ..Default::default()
+        };
+        let mut godunov = unsigned_distance_with(&data, &spec, &band_only)
+            .unwrap()
+            .field;
+        let radius = band_only.band_cells * spec.spacing;
+        let frozen: Vec<bool> = godunov.values.iter().map(|&v| v <= radius).collect();
+        crate::sweep::fast_sweep(&mut godunov, &frozen);
+        let (mut e_cpp, mut e_god) = (0.0f64, 0.0f64);
+        for l in 0..spec.node_count() {
+            let p = spec.position(spec.unlinear(l));
+            let exact = (0..data.len())
+                .map(|i| data.distance(i, &p))
+                .fold(f64::INFINITY, f64::min);
+            e_cpp = e_cpp.max((cpp.field.values[l] - exact).abs() / spec.spacing);
+            e_god = e_god.max((godunov.values[l] - exact).abs() / spec.spacing);
+        }
+        println!("sphere mesh, max error: closest-datum {e_cpp:.2e} h, Godunov {e_god:.2e} h");
+        assert!(e_cpp < 0.1 && e_god > 5.0 * e_cpp.max(0.01));
     }
 
     #[test]
@@ -926,7 +990,10 @@ mod tests {
         };
         let spec = unit_grid::<3>(30);
         let run = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
             pool.install(|| unsigned_distance(&data, &spec).unwrap())
         };
         assert_eq!(run(1), run(3));
@@ -959,21 +1026,31 @@ mod tests {
     fn triangle_distance_matches_dense_sampling() {
         let mut r = rng(4);
         for _ in 0..200 {
-            let [a, b, c, p]: [[f64; 3]; 4] = std::array::from_fn(|_| random_point(&mut r, -1.0, 1.0));
+            let [a, b, c, p]: [[f64; 3]; 4] =
+                std::array::from_fn(|_| random_point(&mut r, -1.0, 1.0));
             let exact = triangle_dist2(&p, &a, &b, &c).sqrt();
             let n = 200;
             let mut sampled = f64::INFINITY;
             for i in 0..=n {
                 for j in 0..=n - i {
                     let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                    let q: [f64; 3] = std::array::from_fn(|k| a[k] + u * (b[k] - a[k]) + v * (c[k] - a[k]));
+                    let q: [f64; 3] =
+                        std::array::from_fn(|k| a[k] + u * (b[k] - a[k]) + v * (c[k] - a[k]));
                     sampled = sampled.min(dist2(&p, &q).sqrt());
                 }
             }
-            assert!(exact <= sampled + 1e-12 && sampled - exact < 0.02, "{exact} {sampled}");
+            assert!(
+                exact <= sampled + 1e-12 && sampled - exact < 0.02,
+                "{exact} {sampled}"
+            );
         }
         // Degenerate triangles and 2D filled triangles.
-        let d = triangle_dist2(&[0.0, 1.0, 0.0], &[0.0; 3], &[1.0, 0.0, 0.0], &[2.0, 0.0, 0.0]);
+        let d = triangle_dist2(
+            &[0.0, 1.0, 0.0],
+            &[0.0; 3],
+            &[1.0, 0.0, 0.0],
+            &[2.0, 0.0, 0.0],
+        );
         assert_eq!(d, 1.0);
         assert!(triangle_dist2(&[0.2, 0.2], &[0.0, 0.0], &[1.0, 0.0], &[0.0, 1.0]) < 1e-30);
         assert_eq!(segment_dist2(&[3.0, 4.0], &[0.0, 0.0], &[0.0, 0.0]), 25.0);
@@ -988,7 +1065,10 @@ mod tests {
             ..Default::default()
         };
         let msg = unsigned_distance(&nan, &spec).unwrap_err().to_string();
-        assert!(msg.contains("datum 0") && msg.contains("non-finite"), "{msg}");
+        assert!(
+            msg.contains("datum 0") && msg.contains("non-finite"),
+            "{msg}"
+        );
         let bad_band = DistanceOptions {
             band_cells: -1.0,
             ..Default::default()
@@ -1002,7 +1082,9 @@ mod tests {
             triangles: vec![[0, 1, 7]],
             ..Geometry::from_points(surfrecon_geom::PointCloud::new(vec![DVec3::ZERO; 3]))
         };
-        let msg = DataSet::<3>::from_geometry(&geometry).unwrap_err().to_string();
+        let msg = DataSet::<3>::from_geometry(&geometry)
+            .unwrap_err()
+            .to_string();
         assert!(msg.contains("triangle 0 refers to vertex 7"), "{msg}");
     }
 

@@ -223,10 +223,8 @@ struct Cluster {
 
 impl WindingTree {
     fn new(triangles: &[[[f64; 3]; 3]]) -> Self {
-        let triangles: Vec<[DVec3; 3]> = triangles
-            .iter()
-            .map(|t| t.map(DVec3::from_array))
-            .collect();
+        let triangles: Vec<[DVec3; 3]> =
+            triangles.iter().map(|t| t.map(DVec3::from_array)).collect();
         let mut tree = WindingTree {
             triangles,
             nodes: Vec::new(),
@@ -249,8 +247,16 @@ impl WindingTree {
             weighted += area * (*a + *b + *c) / 3.0;
             area_sum += area;
         }
-        let mean = tris.iter().map(|t| (t[0] + t[1] + t[2]) / 3.0).sum::<DVec3>() / tris.len() as f64;
-        let centre = if area_sum > 0.0 { weighted / area_sum } else { mean };
+        let mean = tris
+            .iter()
+            .map(|t| (t[0] + t[1] + t[2]) / 3.0)
+            .sum::<DVec3>()
+            / tris.len() as f64;
+        let centre = if area_sum > 0.0 {
+            weighted / area_sum
+        } else {
+            mean
+        };
         let radius = tris
             .iter()
             .flatten()
@@ -354,7 +360,11 @@ mod tests {
                 let p = DVec3::from_array(spec.position(spec.unlinear(l)));
                 let (got, want) = (field.values[l], exact(p));
                 if want.abs() > sign_margin {
-                    assert_eq!(got < 0.0, want < 0.0, "sign at {p}: got {got}, exact {want}");
+                    assert_eq!(
+                        got < 0.0,
+                        want < 0.0,
+                        "sign at {p}: got {got}, exact {want}"
+                    );
                 }
                 (got - want).abs()
             })
@@ -403,14 +413,21 @@ mod tests {
                 }
             })
             .reduce(|| (0.0, 0.0), |a, b| (a.0.max(b.0), a.1.max(b.1)));
-        println!("sphere SDF unsigned error: {:.2e} h near, {:.2e} h far", near / h, far / h);
+        println!(
+            "sphere SDF unsigned error: {:.2e} h near, {:.2e} h far",
+            near / h,
+            far / h
+        );
         assert!(near <= 0.05 * h, "near error {near}");
         // Inside the sphere the triangles' Voronoi cones narrow below a cell
         // towards the centre, where closest-triangle propagation is only
         // near-exact.
         assert!(far <= 0.1 * h, "far error {far}");
         let err = compare(&field, |p| (p - centre).length() - 1.0, tess + far);
-        assert!(err <= tess + far + 1e-12, "error {err}, tessellation {tess}");
+        assert!(
+            err <= tess + far + 1e-12,
+            "error {err}, tessellation {tess}"
+        );
     }
 
     #[test]
@@ -532,7 +549,11 @@ mod tests {
             DVec3::new(3.0, -2.0, 1.0),
             DVec3::new(0.0, -1.1, 0.1),
         ] {
-            let exact: f64 = tree.triangles.iter().map(|t| solid_angle(t, q)).sum::<f64>()
+            let exact: f64 = tree
+                .triangles
+                .iter()
+                .map(|t| solid_angle(t, q))
+                .sum::<f64>()
                 / (4.0 * std::f64::consts::PI);
             let fast = tree.winding_number(q);
             // The dipole approximation is a few percent off: ample to

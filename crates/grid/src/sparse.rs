@@ -306,30 +306,66 @@ impl<const D: usize> BlockGrid<D> {
 
     /// The narrow band of a dense field: every block with a node of
     /// `|value| < band` is stored (with all its values); other blocks become
-    /// tiles of `±band` with the sign of their values.
+    /// tiles of `±band` with the sign of their first node. Parallel over
+    /// blocks.
     pub fn from_dense_band(field: &Field<D>, band: f64) -> Result<Self, GridError> {
         let mut g = Self::new(field.spec, band)?;
-        let mut inside = vec![None; g.table.len()];
-        for (l, &v) in field.values.iter().enumerate() {
-            let idx = field.spec.unlinear(l);
-            let b = g.block_linear(idx.map(|i| i >> BLOCK_SHIFT));
-            inside[b].get_or_insert(v < 0.0);
-            if v.abs() < band {
-                g.allocate(idx);
-            }
+        if field.values.len() != field.spec.node_count() {
+            return Err(GridError::Invalid("field has the wrong number of values".into()));
         }
-        for (l, &v) in field.values.iter().enumerate() {
-            let idx = field.spec.unlinear(l);
-            if let Some((b, local)) = g.locate(idx) {
-                g.blocks[b].values[local] = v;
-            }
-        }
-        for (b, inside) in inside.into_iter().enumerate() {
-            if g.table[b] == TILE_OUTSIDE && inside == Some(true) {
+        let coords: Vec<[usize; D]> = (0..g.table.len()).map(|b| g.block_coord(b)).collect();
+        // Per block: (in the band?, first node negative?).
+        let kinds: Vec<(bool, bool)> = coords
+            .par_iter()
+            .map(|&c| {
+                let mut in_band = false;
+                g.for_block_nodes(c, |_, idx| in_band |= field.get(idx).abs() < band);
+                (in_band, field.get(c.map(|x| x * BLOCK)) < 0.0)
+            })
+            .collect();
+        let g_ref = &g;
+        let blocks: Vec<Block<D>> = coords
+            .par_iter()
+            .zip(&kinds)
+            .filter(|(_, k)| k.0)
+            .map(|(&coord, &(_, inside))| {
+                let fill = if inside { -band } else { band };
+                let mut values = vec![fill; Block::<D>::LEN];
+                g_ref.for_block_nodes(coord, |local, idx| values[local] = field.get(idx));
+                Block { coord, values }
+            })
+            .collect();
+        for (b, &(in_band, inside)) in kinds.iter().enumerate() {
+            if !in_band && inside {
                 g.table[b] = TILE_INSIDE;
             }
         }
+        for blk in blocks {
+            let b = g.block_linear(blk.coord);
+            g.table[b] = g.blocks.len() as u32;
+            g.blocks.push(blk);
+        }
         Ok(g)
+    }
+
+    /// Block coordinates of block linear index `b`.
+    fn block_coord(&self, mut b: usize) -> [usize; D] {
+        std::array::from_fn(|a| {
+            let c = b % self.block_dims[a];
+            b /= self.block_dims[a];
+            c
+        })
+    }
+
+    /// Call `visit(local, node)` for the nodes of block `coord` inside the grid.
+    fn for_block_nodes(&self, coord: [usize; D], mut visit: impl FnMut(usize, [usize; D])) {
+        for local in 0..Block::<D>::LEN {
+            let idx: [usize; D] =
+                std::array::from_fn(|a| coord[a] * BLOCK + ((local >> (BLOCK_SHIFT as usize * a)) & (BLOCK - 1)));
+            if self.in_grid(idx) {
+                visit(local, idx);
+            }
+        }
     }
 
     /// The dense field (tiles expanded to their values).

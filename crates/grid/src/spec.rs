@@ -299,8 +299,8 @@ mod tests {
 
     #[test]
     fn from_bounds_by_spacing_and_degenerate_axes() {
-        let g = GridSpec::<2>::from_bounds([1.0, 5.0], [2.05, 5.0], GridSize::Spacing(0.5), 0)
-            .unwrap();
+        let g =
+            GridSpec::<2>::from_bounds([1.0, 5.0], [2.05, 5.0], GridSize::Spacing(0.5), 0).unwrap();
         assert_eq!(g.spacing, 0.5);
         assert_eq!(g.dims, [4, 2]);
         assert!(g.origin[0] <= 1.0 && g.max_corner()[0] >= 2.05);
@@ -328,8 +328,8 @@ mod tests {
 
     #[test]
     fn memory_check_refuses_with_a_fitting_suggestion() {
-        let g = GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Resolution(1000), 0)
-            .unwrap();
+        let g =
+            GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Resolution(1000), 0).unwrap();
         assert!(g.check_memory_against(8, 1e12).is_ok());
         let err = g.check_memory_against(8, 1e9).unwrap_err();
         let msg = err.to_string();
@@ -338,7 +338,12 @@ mod tests {
         let GridError::TooLarge { suggestion, .. } = err else {
             panic!("wrong variant");
         };
-        let n: usize = suggestion.split_whitespace().nth(1).unwrap().parse().unwrap();
+        let n: usize = suggestion
+            .split_whitespace()
+            .nth(1)
+            .unwrap()
+            .parse()
+            .unwrap();
         let smaller =
             GridSpec::<3>::from_bounds([0.0; 3], [1.0; 3], GridSize::Resolution(n), 0).unwrap();
         assert!(smaller.check_memory_against(8, 1e9).is_ok());

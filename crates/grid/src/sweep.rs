@@ -69,8 +69,16 @@ pub fn fast_sweep<const D: usize>(field: &mut Field<D>, frozen: &[bool]) -> usiz
 /// Smaller of the two neighbour values of node `l` along one axis.
 #[inline(always)]
 fn axis_min(values: &[f64], l: usize, i: usize, n: usize, stride: usize) -> f64 {
-    let lo = if i > 0 { values[l - stride] } else { f64::INFINITY };
-    let hi = if i + 1 < n { values[l + stride] } else { f64::INFINITY };
+    let lo = if i > 0 {
+        values[l - stride]
+    } else {
+        f64::INFINITY
+    };
+    let hi = if i + 1 < n {
+        values[l + stride]
+    } else {
+        f64::INFINITY
+    };
     lo.min(hi)
 }
 
@@ -130,7 +138,11 @@ pub fn for_each_node_ordered<const D: usize>(
     loop {
         let row: usize = (1..D).map(|a| idx[a] * strides[a]).sum();
         for step in 0..dims[0] {
-            idx[0] = if backwards[0] { dims[0] - 1 - step } else { step };
+            idx[0] = if backwards[0] {
+                dims[0] - 1 - step
+            } else {
+                step
+            };
             visit(row + idx[0], &idx);
         }
         // Odometer over the outer axes.
@@ -139,7 +151,11 @@ pub fn for_each_node_ordered<const D: usize>(
             if a == D {
                 return;
             }
-            let at_end = if backwards[a] { idx[a] == 0 } else { idx[a] + 1 == dims[a] };
+            let at_end = if backwards[a] {
+                idx[a] == 0
+            } else {
+                idx[a] + 1 == dims[a]
+            };
             if !at_end {
                 idx[a] = if backwards[a] { idx[a] - 1 } else { idx[a] + 1 };
                 break;
@@ -212,7 +228,10 @@ mod tests {
         let centre = [0.5; D];
         let dist = |l: usize| -> f64 {
             let p = g.position(g.unlinear(l));
-            (0..D).map(|a| (p[a] - centre[a]).powi(2)).sum::<f64>().sqrt()
+            (0..D)
+                .map(|a| (p[a] - centre[a]).powi(2))
+                .sum::<f64>()
+                .sqrt()
         };
         let mut f = Field::filled(g, f64::INFINITY);
         let mut frozen = vec![false; g.node_count()];

@@ -53,10 +53,13 @@ impl<const D: usize> NarrowBand<D> {
             *v = v.clamp(-half_width, half_width);
         }
         let spec = phi.spec;
-        for l in 0..spec.node_count() {
-            if !is_inner(&spec, l) {
-                phi.values[l] = half_width;
-            }
+        {
+            use rayon::prelude::*;
+            phi.values.par_iter_mut().enumerate().for_each(|(l, v)| {
+                if !is_inner(&spec, l) {
+                    *v = half_width;
+                }
+            });
         }
         let active = sign_change_nodes(&phi);
         NarrowBand {
@@ -82,9 +85,11 @@ impl<const D: usize> NarrowBand<D> {
 /// Inner nodes (at least [`BORDER`] from the grid border) with a neighbour of
 /// the other sign, ascending.
 pub(crate) fn sign_change_nodes<const D: usize>(phi: &Field<D>) -> Vec<u32> {
+    use rayon::prelude::*;
     let spec = phi.spec;
     let strides = spec.strides();
     (0..spec.node_count())
+        .into_par_iter()
         .filter(|&l| is_inner(&spec, l) && has_sign_change(&phi.values, l, &strides))
         .map(|l| l as u32)
         .collect()

@@ -221,9 +221,13 @@ pub fn reconstruct_field<const D: usize>(
         ..Default::default()
     };
     let mut band: Option<NarrowBand<D>> = None;
+    let mut coarse_d: Option<Field<D>> = None;
     for level in (0..levels).rev() {
         let spec = coarsen(&fine, 1 << level);
-        let d = report.time("distance", || unsigned_distance(input, spec))?;
+        let d = report.time("distance", || match &coarse_d {
+            None => unsigned_distance(input, spec),
+            Some(c) => refined_distance(input, spec, c, params.band),
+        })?;
         let mut current = match band.take() {
             None => initial_band(input, params, sampling, &d, &mut report),
             Some(coarse) => report.time("upsample", || {
@@ -235,6 +239,7 @@ pub fn reconstruct_field<const D: usize>(
         let coarsest = level + 1 == levels;
         evolve_level(&mut current, &d, params, coarsest, &mut report);
         band = Some(current);
+        coarse_d = Some(d);
     }
     let band = band.expect("at least one level");
     report.band_nodes = band.len();
@@ -421,14 +426,42 @@ fn evolve_level<const D: usize>(
     report.flow.push(stats);
 }
 
-/// Unsigned distance from every node to the data (grid crate: exact near
-/// the data, closest-datum sweeping elsewhere; O(nodes + data)).
-fn unsigned_distance<const D: usize>(input: &Input, spec: GridSpec<D>) -> Result<Field<D>> {
+/// Distance on a finer level: exact within a few cells of the data (where
+/// the surface settles and accuracy matters), the coarser level's distance
+/// interpolated elsewhere (its error there, O(coarse h), only affects how
+/// fast far-away parts move). Saves the full-grid sweeps on the fine grid.
+fn refined_distance<const D: usize>(
+    input: &Input,
+    spec: GridSpec<D>,
+    coarse: &Field<D>,
+    band_cells: f64,
+) -> Result<Field<D>> {
+    let options = distance::DistanceOptions {
+        band_cells: band_cells + 2.0,
+        propagate: false,
+        ..Default::default()
+    };
+    let mut exact = distance::unsigned_distance_with(&data_set::<D>(input), &spec, &options)?.field;
+    let far = upsample(coarse, spec);
+    for (e, f) in exact.values.iter_mut().zip(far.values) {
+        if !e.is_finite() {
+            *e = f;
+        }
+    }
+    Ok(exact)
+}
+
+fn data_set<const D: usize>(input: &Input) -> DataSet<D> {
     let project = |v: &DVec3| -> [f64; D] { std::array::from_fn(|a| v[a]) };
-    let data = DataSet::<D> {
+    DataSet::<D> {
         points: input.points.iter().map(project).collect(),
         segments: input.segments.iter().map(|s| s.each_ref().map(project)).collect(),
         triangles: input.triangles.iter().map(|t| t.each_ref().map(project)).collect(),
-    };
-    Ok(distance::unsigned_distance(&data, &spec)?.field)
+    }
+}
+
+/// Unsigned distance from every node to the data (grid crate: exact near
+/// the data, closest-datum sweeping elsewhere; O(nodes + data)).
+fn unsigned_distance<const D: usize>(input: &Input, spec: GridSpec<D>) -> Result<Field<D>> {
+    Ok(distance::unsigned_distance(&data_set::<D>(input), &spec)?.field)
 }

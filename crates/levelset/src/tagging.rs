@@ -192,6 +192,7 @@ pub fn tag<const D: usize>(
     let (mut tags, mut front) = outer_contour(d, eps, bbox);
     if grow_epsilon {
         let mut best = enclosed_count(d, &tags, eps);
+        let substantial = (spec.node_count() / 1000).max(1);
         let mut trial = eps;
         loop {
             trial *= 1.5;
@@ -200,11 +201,10 @@ pub fn tag<const D: usize>(
             }
             let (t, f) = outer_contour(d, trial, bbox);
             let cavity = enclosed_count(d, &t, trial);
-            eprintln!("DEBUG eps {trial} cavity {cavity} best {best} inside {}", t.iter().filter(|&&x| x != Tag::Exterior).count());
             if cavity > best {
                 (best, eps, tags, front) = (cavity, trial, t, f);
-            } else if best > 0 && cavity < best / 4 {
-                // Past the peak: larger ε only shrinks the cavity further.
+            } else if best >= substantial && cavity < best / 4 {
+                // Past a real peak: larger ε only shrinks the cavity further.
                 break;
             }
         }

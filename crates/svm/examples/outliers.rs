@@ -29,6 +29,7 @@ fn main() {
         let far = outl.iter().filter(|p| (p.length() - 1.0).abs() > 0.05).count();
         println!("  levels {k}: {neg}/{far} far outliers with wrong sign");
     }
+    for p in outl { let v = model.value(*p); if (v < 0.0) != (p.length() < 1.0) && (p.length() - 1.0).abs() > 0.05 { println!("   wrong: sd {:.3} f {:.3} f1 {:.3} f3 {:.3}", p.length()-1.0, v, model.without_finest(5).value(*p), model.without_finest(3).value(*p)); } }
     let (mesh, _) = mesh_model(&model, &pc.positions, pc.bounds(), &MeshOptions { resolution: 64, ..Default::default() }).unwrap();
     let t = topology(&mesh);
     let clean = sample_surface(&icosphere(DVec3::ZERO, 1.0, 5), 2000, 99);

@@ -8,10 +8,11 @@ use crate::error::{require_positive, Result, SvmError};
 use crate::cells::CellIndex;
 use crate::kernel::KernelMatrix;
 use crate::model::{Level, SvmModel};
-use crate::regression::{solve, Loss, RegressionParams};
+use crate::regression::{solve_weighted, Loss, RegressionParams};
 use crate::training::{box_representatives, SurfaceSamples, TrainingPoint};
 use glam::DVec3;
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::time::Instant;
 
 /// Parameters of the multi-scale fit. Lengths are relative: `epsilon` and
@@ -181,24 +182,27 @@ fn fit_level(
         .zip(&candidates)
         .map(|(f, t)| t.target - f)
         .collect();
-    let (base, targets): (Vec<DVec3>, Vec<f64>) = candidates
+    let kept: Vec<(DVec3, f64, f64)> = candidates
         .iter()
         .zip(&residuals)
         .filter(|(_, r)| r.abs() > tolerance)
-        .map(|(t, r)| (t.position, *r))
-        .unzip();
+        .map(|(t, r)| (t.position, *r, t.weight))
+        .collect();
+    let base: Vec<DVec3> = kept.iter().map(|k| k.0).collect();
+    let targets: Vec<f64> = kept.iter().map(|k| k.1).collect();
+    let weights: Vec<f64> = kept.iter().map(|k| k.2).collect();
     let kernel = KernelMatrix::build(&base, width);
     let params = RegressionParams {
         loss: opts.loss,
         c: match opts.loss {
-            Loss::EpsilonInsensitive => opts.c * median_magnitude(&residuals).max(tolerance),
+            Loss::EpsilonInsensitive => if std::env::var("CW").is_ok() { opts.c * width } else { opts.c * median_magnitude(&residuals).max(tolerance) },
             Loss::Squared => opts.c,
         },
         epsilon: opts.epsilon * samples.diameter,
         tolerance: 0.1 * tolerance,
         max_sweeps: opts.max_sweeps,
     };
-    let solution = solve(&kernel, &targets, &params);
+    let solution = solve_weighted(&kernel, &targets, &params, &weights);
     let (centres, coefficients): (Vec<DVec3>, Vec<f64>) = base
         .iter()
         .zip(&solution.coefficients)
@@ -214,6 +218,34 @@ fn fit_level(
         seconds: start.elapsed().as_secs_f64(),
     };
     (Level::new(width, centres, coefficients), base, report)
+}
+
+/// For each box (representative, count): the number of samples in it and
+/// in its 26 neighbours.
+fn neighbourhood_counts(points: &[DVec3], boxes: &[(usize, usize)], origin: DVec3, h: f64) -> Vec<f64> {
+    let cell = |p: DVec3| ((p - origin) / h).floor().as_i64vec3();
+    let counts: HashMap<glam::I64Vec3, usize> = boxes.iter().map(|&(r, n)| (cell(points[r]), n)).collect();
+    boxes
+        .par_iter()
+        .map(|&(r, _)| {
+            let c = cell(points[r]);
+            let mut total = 0;
+            for k in 0..27i64 {
+                let d = glam::I64Vec3::new(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
+                total += counts.get(&(c + d)).copied().unwrap_or(0);
+            }
+            total as f64
+        })
+        .collect()
+}
+
+fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut m = v.to_vec();
+    let mid = m.len() / 2;
+    *m.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// Median of |v| (0 for none).
@@ -236,21 +268,30 @@ fn propose(
 ) -> Vec<TrainingPoint> {
     let h = opts.cell_ratio * width;
     let points: Vec<DVec3> = active.iter().map(|&i| samples.points[i]).collect();
-    let reps: Vec<usize> = box_representatives(&points, samples.bounds.min, h)
-        .into_iter()
-        .map(|r| active[r])
+    let boxes = box_representatives(&points, samples.bounds.min, h);
+    // A base point with far fewer samples around it (in its box and the 26
+    // next to it) than is typical is suspect, e.g. a stray point alone in
+    // space: its base points get a proportionally smaller C, so they cannot
+    // outvote boxes full of surface samples.
+    let support: Vec<f64> = if std::env::var("NB").is_ok() { neighbourhood_counts(&points, &boxes, samples.bounds.min, h) } else { boxes.iter().map(|b| b.1 as f64).collect() };
+    let typical = median(&support).max(1.0);
+    let reps: Vec<(usize, f64)> = boxes
+        .iter()
+        .zip(&support)
+        .map(|(&(r, _), &n)| (active[r], (n / typical).min(1.0)))
         .collect();
     let y = opts.offset_ratio * width;
-    let off = samples.off_surface(&reps, y);
+    let off = samples.off_surface_weighted(&reps, y);
     // Interleave surface and off-surface points by representative so rows
     // of the kernel matrix stay spatially coherent.
     let mut out = Vec::with_capacity(reps.len() + off.len());
     let mut off_iter = off.into_iter().peekable();
-    for &i in &reps {
+    for &(i, weight) in &reps {
         let p = samples.points[i];
         out.push(TrainingPoint {
             position: p,
             target: 0.0,
+            weight,
         });
         while let Some(t) = off_iter.next_if(|t| t.position.distance(p) <= y * 1.000001) {
             out.push(t);

@@ -48,13 +48,24 @@ pub struct RegressionResult {
 /// starting from β = 0. Sweeps are Gauss–Seidel in row order, so the
 /// result is deterministic; callers order rows spatially for locality.
 pub fn solve(k: &KernelMatrix, targets: &[f64], params: &RegressionParams) -> RegressionResult {
+    solve_weighted(k, targets, params, &vec![1.0; k.rows()])
+}
+
+/// [`solve`] with a weight per point: point i gets C_i = C · w_i (a sample
+/// weight on its loss term; w_i > 0).
+pub fn solve_weighted(
+    k: &KernelMatrix,
+    targets: &[f64],
+    params: &RegressionParams,
+    weights: &[f64],
+) -> RegressionResult {
     let n = k.rows();
     let mut beta = vec![0.0; n];
     let mut sweeps = 0;
     let mut last_change = 0.0;
     while sweeps < params.max_sweeps {
         sweeps += 1;
-        last_change = sweep(k, targets, params, &mut beta);
+        last_change = sweep(k, targets, params, weights, &mut beta);
         if last_change <= params.tolerance {
             break;
         }
@@ -67,7 +78,13 @@ pub fn solve(k: &KernelMatrix, targets: &[f64], params: &RegressionParams) -> Re
 }
 
 /// One pass over all coordinates; returns the largest change of K_ii β_i.
-fn sweep(k: &KernelMatrix, targets: &[f64], p: &RegressionParams, beta: &mut [f64]) -> f64 {
+fn sweep(
+    k: &KernelMatrix,
+    targets: &[f64],
+    p: &RegressionParams,
+    weights: &[f64],
+    beta: &mut [f64],
+) -> f64 {
     let mut max_change: f64 = 0.0;
     for i in 0..beta.len() {
         let (cols, vals) = k.row(i);
@@ -80,22 +97,23 @@ fn sweep(k: &KernelMatrix, targets: &[f64], p: &RegressionParams, beta: &mut [f6
             g += v * beta[j as usize];
         }
         g -= kii * beta[i];
-        let new = update(g, kii, p);
+        let new = update(g, kii, p, p.c * weights[i]);
         max_change = max_change.max(((new - beta[i]) * kii).abs());
         beta[i] = new;
     }
     max_change
 }
 
-/// The exact one-coordinate minimizer given g = Σ_{j≠i} K_ij β_j − t_i.
+/// The exact one-coordinate minimizer given g = Σ_{j≠i} K_ij β_j − t_i
+/// and this point's C.
 #[inline]
-fn update(g: f64, kii: f64, p: &RegressionParams) -> f64 {
+fn update(g: f64, kii: f64, p: &RegressionParams, c: f64) -> f64 {
     match p.loss {
         Loss::EpsilonInsensitive => {
             let shrunk = (g.abs() - p.epsilon).max(0.0) / kii;
-            (-g.signum() * shrunk).clamp(-p.c, p.c)
+            (-g.signum() * shrunk).clamp(-c, c)
         }
-        Loss::Squared => -g / (kii + 1.0 / p.c),
+        Loss::Squared => -g / (kii + 1.0 / c),
     }
 }
 

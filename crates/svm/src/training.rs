@@ -12,11 +12,13 @@ use rayon::prelude::*;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::Aabb;
 
-/// A position with the value f should take there.
+/// A position with the value f should take there, and the weight of its
+/// loss term (1 for a base point standing for a typical number of samples).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TrainingPoint {
     pub position: DVec3,
     pub target: f64,
+    pub weight: f64,
 }
 
 /// Validated oriented surface samples with a spatial index.
@@ -76,15 +78,23 @@ impl SurfaceSamples {
 
     /// Off-surface points at distance `y` on both sides of each sample in
     /// `reps`, interleaved (+ then −) in the order of `reps`, each passing
-    /// the 0.9·y consistency check.
+    /// the 0.9·y consistency check; all of weight 1.
     pub fn off_surface(&self, reps: &[usize], y: f64) -> Vec<TrainingPoint> {
+        let weighted: Vec<(usize, f64)> = reps.iter().map(|&i| (i, 1.0)).collect();
+        self.off_surface_weighted(&weighted, y)
+    }
+
+    /// [`Self::off_surface`] for (sample, weight) pairs; each off-surface
+    /// point inherits its sample's weight.
+    pub fn off_surface_weighted(&self, reps: &[(usize, f64)], y: f64) -> Vec<TrainingPoint> {
         reps.par_iter()
-            .flat_map_iter(|&i| {
+            .flat_map_iter(|&(i, weight)| {
                 [1.0, -1.0].into_iter().filter_map(move |sign| {
                     let position = self.points[i] + self.normals[i] * (sign * y);
                     self.is_consistent(position, y).then_some(TrainingPoint {
                         position,
                         target: sign * y,
+                        weight,
                     })
                 })
             })
@@ -137,9 +147,10 @@ fn median_spacing(points: &[DVec3], tree: &KdTree) -> f64 {
 
 /// Box subdivision: cubes of side `h` from `origin`; one representative per
 /// occupied cube, the point nearest the mean of the cube's points (so a
-/// stray point sharing a cube with the surface is not chosen). Returned in
-/// Morton order of the cubes, which keeps neighbours close in memory.
-pub fn box_representatives(points: &[DVec3], origin: DVec3, h: f64) -> Vec<usize> {
+/// stray point sharing a cube with the surface is not chosen), with the
+/// number of points in its cube. Returned in Morton order of the cubes,
+/// which keeps neighbours close in memory.
+pub fn box_representatives(points: &[DVec3], origin: DVec3, h: f64) -> Vec<(usize, usize)> {
     let mut keyed: Vec<(u64, u32)> = points
         .par_iter()
         .enumerate()
@@ -149,7 +160,7 @@ pub fn box_representatives(points: &[DVec3], origin: DVec3, h: f64) -> Vec<usize
     let groups: Vec<&[(u64, u32)]> = keyed.chunk_by(|a, b| a.0 == b.0).collect();
     groups
         .par_iter()
-        .map(|g| representative(points, g))
+        .map(|g| (representative(points, g), g.len()))
         .collect()
 }
 
@@ -219,7 +230,8 @@ mod tests {
         let h = 0.25;
         let reps = box_representatives(&pc.positions, origin, h);
         let cube = |p: DVec3| ((p - origin) / h).floor().as_ivec3();
-        let mut cubes: Vec<_> = reps.iter().map(|&i| cube(pc.positions[i])).collect();
+        assert_eq!(reps.iter().map(|r| r.1).sum::<usize>(), pc.len());
+        let mut cubes: Vec<_> = reps.iter().map(|&(i, _)| cube(pc.positions[i])).collect();
         let n = cubes.len();
         cubes.sort_by_key(|c| (c.x, c.y, c.z));
         cubes.dedup();

@@ -62,8 +62,8 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         }
     }
     let t_read = Instant::now();
-    let geometry = io::read(&args.input)
-        .with_context(|| format!("cannot read {}", args.input.display()))?;
+    let geometry =
+        io::read(&args.input).with_context(|| format!("cannot read {}", args.input.display()))?;
     let read_secs = t_read.elapsed().as_secs_f64();
     let flat = geometry.points.positions.iter().all(|p| p.z == 0.0);
     let two_d = args.two_d || (flat && !args.three_d && !geometry.is_mesh() && !args.signed);
@@ -111,7 +111,10 @@ fn grid_over<const D: usize>(
     args: &Args,
 ) -> anyhow::Result<GridSpec<D>> {
     let Some((lo, hi)) = data.bounds() else {
-        bail!("{} holds no points, lines or triangles", args.input.display());
+        bail!(
+            "{} holds no points, lines or triangles",
+            args.input.display()
+        );
     };
     GridSpec::from_bounds(lo, hi, size, args.padding)
         .with_context(|| format!("cannot place a grid over {}", args.input.display()))
@@ -181,7 +184,9 @@ fn write<const D: usize>(
     let (min, max) = field
         .values
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
     ctx.say(format!(
         "{} {}D distance on a {} grid (spacing {:.6}), values {min:.6} to {max:.6}",
         if args.signed { "signed" } else { "unsigned" },

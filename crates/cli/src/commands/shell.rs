@@ -28,12 +28,9 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     let dense_bytes = 8 * nodes as u64;
     let ratio = field_bytes as f64 / shell_bytes as f64;
     ctx.say(format!(
-        "{shell_nodes} of {nodes} nodes on the shell; {} is {} bytes, {ratio:.1}x smaller than {} ({} bytes; {:.1}x smaller than the raw f64 grid)",
+        "{shell_nodes} of {nodes} nodes on the shell; {} is {shell_bytes} bytes, {ratio:.1}x smaller than {} ({field_bytes} bytes)",
         args.output.display(),
-        shell_bytes,
         args.input.display(),
-        field_bytes,
-        dense_bytes as f64 / shell_bytes as f64,
     ));
     debug_assert_eq!(written, shell_bytes as usize);
     ctx.emit_json(&serde_json::json!({
@@ -45,6 +42,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         "field_bytes": field_bytes,
         "shell_bytes": shell_bytes,
         "size_ratio": ratio,
+        "raw_f64_ratio": dense_bytes as f64 / shell_bytes as f64,
         "seconds": ctx.elapsed(),
     }));
     Ok(())

@@ -12,7 +12,7 @@ const MARGIN: f64 = 0.06;
 const FIELD_OF_VIEW_DEG: f64 = 28.0;
 
 /// A vertex on screen: `x`, `y` in samples (y grows downwards), `depth`
-/// along the viewing axis (always positive), and `inv_w`, the weight that
+/// along the viewing axis in scene units (always positive), and `inv_w`, the weight that
 /// makes attribute interpolation perspective-correct (1/depth for a
 /// perspective camera, 1 for an orthographic one).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -23,13 +23,20 @@ pub(crate) struct ScreenPoint {
     pub inv_w: f64,
 }
 
-/// An orthonormal view frame plus the fitted projection.
+/// An orthonormal view frame plus the fitted projection. The camera works
+/// in scene units: world coordinates moved to the centre of the drawn
+/// geometry and divided by its bounding radius, so depths stay near 1 for
+/// any input scale (they go into an `f32` depth buffer).
 #[derive(Clone, Debug)]
 pub(crate) struct Camera {
     /// Screen right, screen up and the direction from the scene to the eye.
     pub right: DVec3,
     pub up: DVec3,
     pub back: DVec3,
+    /// World centre and 1 / world radius of the scene.
+    center: DVec3,
+    inv_radius: f64,
+    /// Eye position in scene units.
     eye: DVec3,
     perspective: bool,
     /// Samples per unit of image-plane coordinate.
@@ -78,32 +85,40 @@ impl Camera {
         let (center, radius) = bounding_sphere(points, used);
         let perspective = options.projection == Projection::Perspective;
         let distance = if perspective {
-            radius / (0.5 * FIELD_OF_VIEW_DEG.to_radians()).sin()
+            1.0 / (0.5 * FIELD_OF_VIEW_DEG.to_radians()).sin()
         } else {
-            2.0 * radius
+            2.0
         };
         let mut camera = Camera {
             right,
             up,
             back,
-            eye: center + back * distance,
+            center,
+            inv_radius: 1.0 / radius,
+            eye: back * distance,
             perspective,
             focal: 1.0,
             cx: 0.0,
             cy: 0.0,
         };
-        let plane_radius = if perspective {
-            radius / distance
-        } else {
-            radius
-        };
+        let plane_radius = if perspective { 1.0 / distance } else { 1.0 };
         camera.fit_plane(points, used, plane_radius, width, height);
         camera
     }
 
+    /// A world point in scene units.
+    fn to_scene(&self, p: DVec3) -> DVec3 {
+        (p - self.center) * self.inv_radius
+    }
+
+    /// A world length in scene units.
+    pub fn scene_length(&self, world: f64) -> f64 {
+        world * self.inv_radius
+    }
+
     /// Image-plane coordinates (u right, v up) and depth of a world point.
     fn plane(&self, p: DVec3) -> (f64, f64, f64) {
-        let rel = p - self.eye;
+        let rel = self.to_scene(p) - self.eye;
         let depth = -rel.dot(self.back);
         let (u, v) = (rel.dot(self.right), rel.dot(self.up));
         if self.perspective {
@@ -160,13 +175,13 @@ impl Camera {
     /// orthographic camera).
     pub fn towards_eye(&self, p: DVec3) -> DVec3 {
         if self.perspective {
-            (self.eye - p).normalize_or(self.back)
+            (self.eye - self.to_scene(p)).normalize_or(self.back)
         } else {
             self.back
         }
     }
 
-    /// Samples per world unit for something at `depth`: converts world sizes
+    /// Samples per scene unit for something at `depth`: converts sizes
     /// (point spacing) to screen sizes.
     pub fn samples_per_unit(&self, depth: f64) -> f64 {
         if self.perspective {
@@ -182,13 +197,34 @@ impl Camera {
 fn bounding_sphere(points: &[DVec3], used: &[bool]) -> (DVec3, f64) {
     let bounds =
         crate::Aabb::from_points(points.iter().zip(used).filter(|(_, &u)| u).map(|(p, _)| p));
-    let radius = 0.5 * bounds.diagonal();
+    let radius = 0.5 * scaled_length(bounds.size());
     let radius = if radius > 0.0 && radius.is_finite() {
         radius
     } else {
         1.0
     };
     (bounds.center(), radius)
+}
+
+/// Length of `v` without the underflow or overflow of squaring tiny or
+/// huge components.
+pub(crate) fn scaled_length(v: DVec3) -> f64 {
+    let largest = v.abs().max_element();
+    if largest > 0.0 && largest.is_finite() {
+        largest * (v / largest).length()
+    } else {
+        largest
+    }
+}
+
+/// `v` normalised at any scale (zero for a zero or non-finite vector).
+pub(crate) fn scaled_unit(v: DVec3) -> DVec3 {
+    let largest = v.abs().max_element();
+    if largest > 0.0 && largest.is_finite() {
+        (v / largest).normalize_or_zero()
+    } else {
+        DVec3::ZERO
+    }
 }
 
 #[cfg(test)]

@@ -78,7 +78,10 @@ impl Band<'_> {
         let Some(edges) = EdgeFunctions::new(v) else {
             return; // degenerate on screen: seen edge-on, covers nothing
         };
-        let (y_min, y_max) = (v[0].y.min(v[1].y).min(v[2].y), v[0].y.max(v[1].y).max(v[2].y));
+        let (y_min, y_max) = (
+            v[0].y.min(v[1].y).min(v[2].y),
+            v[0].y.max(v[1].y).max(v[2].y),
+        );
         for y in row_range(self.y0, self.rows, y_min, y_max) {
             let py = y as f64 + 0.5;
             let (x_lo, x_hi) = edges.row_span(py);

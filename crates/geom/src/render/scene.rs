@@ -1,7 +1,7 @@
 //! From a checked [`Geometry`] to drawing layers on screen: shaded surface,
 //! wireframe and polyline strokes, point splats, each binned into bands.
 
-use super::camera::{Camera, ScreenPoint};
+use super::camera::{scaled_length, scaled_unit, Camera, ScreenPoint};
 use super::raster::{bin_by_rows, Band, Frame};
 use super::shade::{linear, mix, Lighting};
 use super::{RenderOptions, Shading};
@@ -21,6 +21,8 @@ const DEPTH_CUE: f64 = 0.45;
 const MAX_SPLAT_FRACTION: f64 = 0.02;
 /// Points sampled to estimate the typical spacing of a cloud.
 const SPACING_SAMPLES: usize = 2000;
+/// Spacing (in scene units, radius 1) assumed when all points coincide.
+const FALLBACK_SPACING: f64 = 0.01;
 /// Neighbours of the plane fit that estimates missing point normals.
 const NORMAL_NEIGHBOURS: usize = 12;
 /// Which nearest distinct neighbour measures the spacing.
@@ -63,7 +65,7 @@ impl<'a> Scene<'a> {
                 .filter(|(_, &u)| u)
                 .map(|(p, _)| p),
         );
-        if !extent.diagonal().is_finite() {
+        if !scaled_length(extent.size()).is_finite() {
             return invalid(
                 "coordinates are too large to draw (the bounding box overflows)".into(),
             );
@@ -87,7 +89,6 @@ impl<'a> Scene<'a> {
             screen: &screen,
             lighting: Lighting::new(&camera),
             depth_range: self.depth_range(&screen),
-            radius: 0.5 * crate::Aabb::from_points(self.used_positions()).diagonal(),
             ss: ss as f64,
         };
         let mut frame = Frame::new(w, h, o.background);
@@ -101,16 +102,6 @@ impl<'a> Scene<'a> {
             strokes.draw(i, band, &view);
         });
         frame
-    }
-
-    fn used_positions(&self) -> impl Iterator<Item = &DVec3> {
-        self.geometry
-            .points
-            .positions
-            .iter()
-            .zip(&self.used)
-            .filter(|(_, &u)| u)
-            .map(|(p, _)| p)
     }
 
     /// Nearest and farthest depth of the drawn vertices.
@@ -162,8 +153,6 @@ struct View<'c> {
     lighting: Lighting,
     /// Nearest and farthest drawn depth, for depth cueing.
     depth_range: (f64, f64),
-    /// Half the diagonal of the drawn geometry's bounding box.
-    radius: f64,
     /// Samples per pixel along an axis.
     ss: f64,
 }
@@ -210,7 +199,7 @@ impl<'a> Surface<'a> {
             .collect();
         let vertex_normals = match scene.options.shading {
             Shading::Flat => None,
-            Shading::Smooth => Some(smooth_normals(g)),
+            Shading::Smooth => Some(smooth_normals(g, view.camera)),
         };
         let extents = triangles.iter().map(|t| {
             let ys = t.map(|i| view.screen[i as usize].y);
@@ -268,7 +257,9 @@ impl<'a> Surface<'a> {
 /// Face normal towards the viewer and whether the winding faces the viewer.
 fn face_facts(corners: [DVec3; 3], camera: &Camera) -> Face {
     let [a, b, c] = corners;
-    let n = (b - a).cross(c - a).normalize_or_zero();
+    // Unit edges first: same direction, no overflow or underflow at
+    // extreme coordinate scales.
+    let n = scaled_unit(scaled_unit(b - a).cross(scaled_unit(c - a)));
     let to_eye = camera.towards_eye((a + b + c) / 3.0);
     let front = n.dot(to_eye) >= 0.0;
     Face {
@@ -280,7 +271,7 @@ fn face_facts(corners: [DVec3; 3], camera: &Camera) -> Face {
 /// The file's vertex normals when present and usable, else area-weighted
 /// averages of the adjacent face normals (accumulated in triangle order so
 /// the result is reproducible).
-fn smooth_normals(g: &Geometry) -> Vec<DVec3> {
+fn smooth_normals(g: &Geometry, camera: &Camera) -> Vec<DVec3> {
     if let Some(normals) = &g.points.normals {
         if normals
             .iter()
@@ -293,7 +284,9 @@ fn smooth_normals(g: &Geometry) -> Vec<DVec3> {
     let mut sum = vec![DVec3::ZERO; p.len()];
     for t in &g.triangles {
         let [a, b, c] = t.map(|i| p[i as usize]);
-        let weighted = (b - a).cross(c - a); // length = twice the area
+        // Length = twice the area, in scene units so it cannot underflow.
+        let scale = camera.scene_length(1.0);
+        let weighted = ((b - a) * scale).cross((c - a) * scale);
         t.iter().for_each(|&i| sum[i as usize] += weighted);
     }
     sum.par_iter_mut().for_each(|n| *n = n.normalize_or_zero());
@@ -311,7 +304,7 @@ impl Strokes {
     fn build(scene: &Scene, view: &View, bands: usize) -> Strokes {
         let o = scene.options;
         let g = scene.geometry;
-        let slack = WIRE_DEPTH_SLACK * view.radius;
+        let slack = WIRE_DEPTH_SLACK; // the scene radius is 1
         let mut segments = Vec::new();
         if o.wireframe {
             let half = 0.5 * o.line_width * view.ss;
@@ -414,9 +407,9 @@ impl<'a> Splats<'a> {
             let i = i as usize;
             let centre = view.screen[i];
             let r = self.radius[i];
-            // World size of the splat, so it can bulge towards the viewer
-            // like a small ball and overlapping splats blend smoothly.
-            let world_r = r / cam.samples_per_unit(centre.depth);
+            // Size of the splat in the scene, so it can bulge towards the
+            // viewer like a small ball and overlapping splats blend smoothly.
+            let scene_r = r / cam.samples_per_unit(centre.depth);
             let dim = 1.0 - DEPTH_CUE * view.depth_fraction(centre.depth);
             let base = self.base.map(|c| c * dim);
             let normal = self.normals.as_ref().map(|n| {
@@ -434,7 +427,7 @@ impl<'a> Splats<'a> {
                 let n = normal.unwrap_or_else(|| {
                     (0.5 * (ox * cam.right + oy * cam.up) + cam.back).normalize()
                 });
-                (centre.depth - bulge * world_r, view.lighting.shade(n, base))
+                (centre.depth - bulge * scene_r, view.lighting.shade(n, base))
             });
         }
     }
@@ -449,12 +442,13 @@ fn splat_radii(positions: &[DVec3], options: &RenderOptions, view: &View) -> Vec
     }
     let min_r = 0.6 * ss;
     let max_r = (MAX_SPLAT_FRACTION * options.width.min(options.height) as f64 * ss).max(min_r);
-    let spacing = typical_spacing(positions).unwrap_or(0.01 * view.radius);
+    let spacing =
+        typical_spacing(positions).map_or(FALLBACK_SPACING, |s| view.camera.scene_length(s));
     // A little over half the spacing so neighbouring splats overlap.
-    let world_r = 0.6 * spacing;
+    let scene_r = 0.6 * spacing;
     view.screen
         .par_iter()
-        .map(|s| (world_r * view.camera.samples_per_unit(s.depth)).clamp(min_r, max_r))
+        .map(|s| (scene_r * view.camera.samples_per_unit(s.depth)).clamp(min_r, max_r))
         .collect()
 }
 

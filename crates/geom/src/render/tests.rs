@@ -359,12 +359,19 @@ fn unusable_input_is_a_clear_error() {
 
 #[test]
 fn extreme_scales_draw_or_fail_cleanly() {
-    let huge = vec![DVec3::splat(1e300), DVec3::splat(-1e300), DVec3::ZERO];
-    let err = render(&Geometry::from_points(PointCloud::new(huge)), &small()).unwrap_err();
-    assert!(err.to_string().contains("too large"), "{err}");
+    let options = small();
+    // Far apart but representable: drawn as three dots.
+    let far = vec![DVec3::splat(1e300), DVec3::splat(-1e300), DVec3::ZERO];
+    let img = render(&Geometry::from_points(PointCloud::new(far)), &options).unwrap();
+    assert!(object_pixels(&img, options.background).len() > 30);
+    // A box wider than the largest f64 cannot be framed.
+    let overflow = vec![DVec3::splat(f64::MAX), DVec3::splat(-f64::MAX)];
+    match render(&Geometry::from_points(PointCloud::new(overflow)), &options) {
+        Err(e) => assert!(e.to_string().contains("too large"), "{e}"),
+        Ok(_) => panic!("an overflowing bounding box was accepted"),
+    }
     // A tiny but proper shape still fills the frame.
     let tiny = icosphere(DVec3::splat(1e-200), 1e-200, 2);
-    let options = small();
     assert_framed(
         &render(&Geometry::from_mesh(tiny), &options).unwrap(),
         options.background,
