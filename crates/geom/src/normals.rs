@@ -5,11 +5,13 @@
 //!   eigenvector of the smallest eigenvalue of the neighbourhood covariance).
 //!   The sign is arbitrary.
 //! - [`orient_normals`]: flips normals so that neighbours agree, propagating
-//!   along a minimum spanning tree of the k-neighbour graph weighted by
-//!   `1 - |n_i . n_j|` (so the flips travel first across nearly parallel
-//!   normals, where the decision is safe) plus a penalty for edges that leave
-//!   the tangent planes (so they do not jump across thin parts), seeded
-//!   outward at the highest point of every connected piece.
+//!   from the highest point of every connected piece along a minimum spanning
+//!   tree of the k-neighbour graph weighted by `1 - |agreement|` (so the
+//!   flips travel first where the decision is safe). The agreement compares
+//!   `n_i` with `n_j` mirrored in the plane bisecting the edge, which stays
+//!   right across creases and thin parts where the classic `n_i . n_j` fails.
+//!   Each piece is finally turned outward by a vote of all its points.
+//! - [`estimate_oriented_normals`]: both, sharing one neighbour search.
 //! - [`symmetric_eigen3`]: the robust 3x3 symmetric eigen solver behind the
 //!   plane fit (cyclic Jacobi rotations).
 
@@ -280,13 +282,13 @@ fn transpose3(x: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
 
 /// Flip `normals` in place so that they are consistently oriented and point
 /// outward. The graph joins every point to its `k` nearest neighbours (both
-/// directions); each connected piece is oriented separately, starting from
-/// its highest point (largest z), whose normal is turned to point up (or away
-/// from the piece's centroid when it is horizontal), and propagating along a
-/// minimum spanning tree (Prim) with edge weights `1 - |n_i . n_j|` plus an
-/// off-tangent-plane term (see `edge_weight`). Only
-/// signs change. If the slices differ in length, only the common prefix is
-/// used. Deterministic for any thread count.
+/// directions); each connected piece is oriented separately: propagation
+/// starts at its highest point (largest z) and follows a minimum spanning
+/// tree (Prim) with edge weights `1 - |agreement|` (see `agreement`), then
+/// the whole piece is flipped if the flux vote says it points inward (see
+/// `piece_points_inward`; the seed decides for flat pieces). Only signs
+/// change. If the slices differ in length, only the common prefix is used.
+/// Deterministic for any thread count.
 pub fn orient_normals(points: &[DVec3], normals: &mut [DVec3], k: usize) {
     let n = points.len().min(normals.len());
     let sorted = SpatialOrder::new(&points[..n]);
@@ -317,7 +319,7 @@ fn orient_with_table(points: &[DVec3], normals: &mut [DVec3], table: &KnnTable, 
             &mut visited,
             &mut best_weight,
         );
-        if seed_points_inward(seed, &piece, points, normals) {
+        if piece_points_inward(seed, &piece, points, normals) {
             for &i in &piece {
                 normals[i] = -normals[i];
             }
@@ -332,14 +334,27 @@ fn highest_first(points: &[DVec3]) -> Vec<usize> {
     order
 }
 
-/// Whether the seed normal of a freshly propagated piece points inward: down
-/// at the highest point, or toward the piece's centroid when horizontal.
-fn seed_points_inward(seed: usize, piece: &[usize], points: &[DVec3], normals: &[DVec3]) -> bool {
+/// Whether a freshly propagated (consistent) piece points inward. Decided
+/// by the flux of `p - c` through it, `sum n_i . (p_i - c)` about the
+/// centroid `c`: for a closed surface it is 3 x volume / sample density,
+/// positive when the normals point out, whatever the shape, and it is a vote
+/// of every point rather than of one. When the flux is nearly zero (a flat
+/// or otherwise undecided piece), the seed decides: its normal should point
+/// up at the highest point, or away from the centroid when horizontal.
+fn piece_points_inward(seed: usize, piece: &[usize], points: &[DVec3], normals: &[DVec3]) -> bool {
+    let centroid = piece.iter().map(|&i| points[i]).sum::<DVec3>() / piece.len() as f64;
+    let flux: f64 = piece
+        .iter()
+        .map(|&i| normals[i].dot(points[i] - centroid))
+        .sum();
+    let spread: f64 = piece.iter().map(|&i| (points[i] - centroid).length()).sum();
+    if flux.abs() > 1e-3 * spread {
+        return flux < 0.0;
+    }
     let normal = normals[seed];
     if normal.z.abs() > 1e-6 {
         return normal.z < 0.0;
     }
-    let centroid = piece.iter().map(|&i| points[i]).sum::<DVec3>() / piece.len() as f64;
     normal.dot(points[seed] - centroid) < 0.0
 }
 
@@ -365,7 +380,7 @@ fn propagate_from(
         }
         visited[node] = true;
         piece.push(node);
-        if normals[node].dot(normals[parent]) < 0.0 {
+        if agreement(points, normals, parent, node) < 0.0 {
             normals[node] = -normals[node];
         }
         for &next in graph.neighbours(node) {
@@ -384,21 +399,26 @@ fn propagate_from(
     piece
 }
 
-/// Cost of propagating an orientation across the edge (i, j), in [0, 2]:
-/// `1 - |n_i . n_j|` (low for nearly parallel normals, the classic weight)
-/// plus how far the edge leaves the two tangent planes, `|n . e|` averaged
-/// over both ends for the unit edge direction `e`. The second term is what
-/// keeps the tree from jumping between the two sides of a thin part (a
-/// bunny's ear): there the normals are antiparallel, so the classic weight
-/// alone is near zero, but the edge runs along the normals.
-fn edge_weight(points: &[DVec3], normals: &[DVec3], i: usize, j: usize) -> f64 {
-    let (ni, nj) = (normals[i], normals[j]);
-    let parallel = 1.0 - ni.dot(nj).abs();
+/// How well the normals at `i` and `j` agree, in [-1, 1], after mirroring
+/// `n_j` in the plane that bisects the edge: `n_i . (n_j - 2 (n_j . e) e)`
+/// for the unit edge direction `e`. The mirror maps a point of a circle (or
+/// sphere) through both points, with its normal, onto the other, so the
+/// comparison is exact on curved surfaces, across creases and across the
+/// two sides of a thin part (a bunny's ear), where the plain `n_i . n_j`
+/// gives the wrong sign. For neighbours in a common plane (`e` tangent) it is
+/// the plain dot product.
+fn agreement(points: &[DVec3], normals: &[DVec3], i: usize, j: usize) -> f64 {
     let e = (points[j] - points[i]).normalize_or_zero();
-    let off_plane = 0.5 * (ni.dot(e).abs() + nj.dot(e).abs());
-    let weight = parallel + off_plane;
-    // NaN (from non-finite input) sorts last; negatives cannot occur but
-    // would break the bit-pattern ordering.
+    let mirrored = normals[j] - 2.0 * normals[j].dot(e) * e;
+    normals[i].dot(mirrored)
+}
+
+/// Cost of propagating an orientation across the edge (i, j), in [0, 1]:
+/// `1 - |agreement|`, low where the sign decision is safe.
+fn edge_weight(points: &[DVec3], normals: &[DVec3], i: usize, j: usize) -> f64 {
+    let weight = 1.0 - agreement(points, normals, i, j).abs();
+    // NaN (from non-finite input) sorts last; negatives (rounding) would
+    // break the bit-pattern ordering.
     if weight.is_nan() {
         f64::INFINITY
     } else {
@@ -459,7 +479,7 @@ impl NeighbourGraph {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shapes::{icosphere, sample_surface, torus};
+    use crate::shapes::{cuboid, icosphere, sample_surface, torus};
     use crate::TriMesh;
     use rand::{Rng, SeedableRng};
 
@@ -609,6 +629,21 @@ mod tests {
         let found = estimate_oriented_normals(&noisy, 20);
         let fraction = outward_fraction(&found, cloud.normals.as_ref().unwrap());
         assert!(fraction >= 0.99, "{fraction}");
+    }
+
+    #[test]
+    fn box_and_thin_plate_normals_point_outward() {
+        // Sharp 90-degree edges.
+        let (found, truth) =
+            oriented_samples(&cuboid(DVec3::ZERO, DVec3::new(1.0, 2.0, 0.7)), 6000, 12);
+        let fraction = outward_fraction(&found, &truth);
+        assert!(fraction >= 0.99, "box {fraction}");
+        // A plate about as thick as the sample spacing: neighbourhoods reach
+        // the other side, where the normals are antiparallel.
+        let plate = cuboid(DVec3::ZERO, DVec3::new(1.0, 1.0, 0.03));
+        let (found, truth) = oriented_samples(&plate, 5000, 16);
+        let fraction = outward_fraction(&found, &truth);
+        assert!(fraction >= 0.99, "plate {fraction}");
     }
 
     #[test]

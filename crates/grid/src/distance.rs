@@ -534,7 +534,7 @@ fn propagate_closest<const D: usize>(
     for order in 0..1usize << D {
         sweeps += 1;
         for_each_node_ordered(&spec.dims, order, |l, idx| {
-            if !(nodes.values[l] <= final_below) {
+            if nodes.values[l] > final_below {
                 let room = stencil.room(idx);
                 update_node(data, spec, nodes, l, idx, room, &stencil.upwind[order]);
             }
@@ -543,7 +543,7 @@ fn propagate_closest<const D: usize>(
     let mut open: Vec<bool> = nodes
         .values
         .par_iter()
-        .map(|&v| !(v <= final_below))
+        .map(|&v| v > final_below)
         .collect();
     for _ in 0..MAX_ROUNDS {
         for order in 0..1usize << D {
@@ -560,7 +560,7 @@ fn propagate_closest<const D: usize>(
                     for &(down, up, offset, _) in &stencil.all {
                         if room.allows(down, up) {
                             let n = (l as isize + offset) as usize;
-                            open[n] = !(nodes.values[n] <= final_below);
+                            open[n] = nodes.values[n] > final_below;
                         }
                     }
                 }
@@ -702,9 +702,9 @@ impl<const D: usize> Stencil<D> {
     #[inline(always)]
     fn room(&self, idx: &[usize; D]) -> Room {
         let mut room = Room { down: 0, up: 0 };
-        for a in 0..D {
-            room.down |= usize::from(idx[a] > 0) << a;
-            room.up |= usize::from(idx[a] + 1 < self.dims[a]) << a;
+        for (a, (&i, &n)) in idx.iter().zip(&self.dims).enumerate() {
+            room.down |= usize::from(i > 0) << a;
+            room.up |= usize::from(i + 1 < n) << a;
         }
         room
     }
@@ -796,7 +796,7 @@ pub fn triangle_closest<const D: usize>(
         return segment_closest(p, b, c);
     }
     let sum = va + vb + vc;
-    if !(sum > 0.0) {
+    if sum.is_nan() || sum <= 0.0 {
         let edges = [
             segment_closest(p, a, b),
             segment_closest(p, a, c),

@@ -297,6 +297,41 @@ fn decode(bytes: &[u8]) -> DecodeResult<AnyShell> {
 }
 
 fn decode_body<const D: usize>(r: &mut Reader) -> DecodeResult<Shell<D>> {
+    let spec = decode_spec::<D>(r)?;
+    let nodes = spec
+        .dims
+        .iter()
+        .try_fold(1u64, |c, &n| c.checked_mul(n as u64));
+    let nodes = nodes.ok_or((r.pos, "grid size overflows".to_string()))?;
+    let count_at = r.pos;
+    let count = r.u64("node count")?;
+    // Each node takes at least 9 bytes (index + value): a corrupt count
+    // must not make us reserve absurd amounts of memory.
+    if count > nodes || count > (r.bytes.len() - r.pos) as u64 / 9 {
+        return Err((
+            count_at,
+            format!("{count} shell nodes cannot fit (grid has {nodes}, file is too short)"),
+        ));
+    }
+    let indices = decode_indices(r, count as usize, nodes)?;
+    let values = decode_values(r, count as usize)?;
+    if r.pos != r.bytes.len() {
+        return Err((
+            r.pos,
+            format!(
+                "{} unexpected bytes after the values",
+                r.bytes.len() - r.pos
+            ),
+        ));
+    }
+    Ok(Shell {
+        spec,
+        indices,
+        values,
+    })
+}
+
+fn decode_spec<const D: usize>(r: &mut Reader) -> DecodeResult<GridSpec<D>> {
     let mut dims = [0usize; D];
     for n in dims.iter_mut() {
         let at = r.pos;
@@ -317,17 +352,16 @@ fn decode_body<const D: usize>(r: &mut Reader) -> DecodeResult<Shell<D>> {
             format!("unusable spacing {spacing} or origin {origin:?}"),
         ));
     }
-    let nodes = dims.iter().try_fold(1u64, |c, &n| c.checked_mul(n as u64));
-    let nodes = nodes.ok_or((at, "grid size overflows".to_string()))?;
-    let count_at = r.pos;
-    let count = r.u64("node count")?;
-    if count > nodes || count > (r.bytes.len() - r.pos) as u64 {
-        return Err((
-            count_at,
-            format!("{count} shell nodes cannot fit (grid has {nodes}, file is too short)"),
-        ));
-    }
-    let mut indices = Vec::with_capacity(count as usize);
+    Ok(GridSpec {
+        origin,
+        spacing,
+        dims,
+    })
+}
+
+/// `count` ascending node indices below `nodes`, delta-encoded.
+fn decode_indices(r: &mut Reader, count: usize, nodes: u64) -> DecodeResult<Vec<u64>> {
+    let mut indices = Vec::with_capacity(count);
     let mut prev = 0u64;
     for i in 0..count {
         let at = r.pos;
@@ -342,7 +376,11 @@ fn decode_body<const D: usize>(r: &mut Reader) -> DecodeResult<Shell<D>> {
         indices.push(l);
         prev = l;
     }
-    let mut values = Vec::with_capacity(count as usize);
+    Ok(indices)
+}
+
+fn decode_values(r: &mut Reader, count: usize) -> DecodeResult<Vec<f64>> {
+    let mut values = Vec::with_capacity(count);
     for i in 0..count {
         let at = r.pos;
         let v = r.f64("values")?;
@@ -351,24 +389,7 @@ fn decode_body<const D: usize>(r: &mut Reader) -> DecodeResult<Shell<D>> {
         }
         values.push(v);
     }
-    if r.pos != r.bytes.len() {
-        return Err((
-            r.pos,
-            format!(
-                "{} unexpected bytes after the values",
-                r.bytes.len() - r.pos
-            ),
-        ));
-    }
-    Ok(Shell {
-        spec: GridSpec {
-            origin,
-            spacing,
-            dims,
-        },
-        indices,
-        values,
-    })
+    Ok(values)
 }
 
 #[cfg(test)]

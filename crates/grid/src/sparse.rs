@@ -13,7 +13,7 @@
 //! block-local indices with [`Block::node`] / [`BlockGrid::locate`], and read
 //! neighbours across block borders with [`BlockGrid::neighbour`].
 
-use crate::marching::tables::{cube_table, EDGE_CORNERS};
+use crate::marching::tables::{cube_table, EDGE_CORNERS, MAX_LOOP_CENTRES};
 use crate::marching::{cell_case, edge_vertex, loop_centre, Samples3};
 use crate::{Field, GridError, GridSpec};
 use rayon::prelude::*;
@@ -311,7 +311,9 @@ impl<const D: usize> BlockGrid<D> {
     pub fn from_dense_band(field: &Field<D>, band: f64) -> Result<Self, GridError> {
         let mut g = Self::new(field.spec, band)?;
         if field.values.len() != field.spec.node_count() {
-            return Err(GridError::Invalid("field has the wrong number of values".into()));
+            return Err(GridError::Invalid(
+                "field has the wrong number of values".into(),
+            ));
         }
         let coords: Vec<[usize; D]> = (0..g.table.len()).map(|b| g.block_coord(b)).collect();
         // Per block: (in the band?, first node negative?).
@@ -360,8 +362,9 @@ impl<const D: usize> BlockGrid<D> {
     /// Call `visit(local, node)` for the nodes of block `coord` inside the grid.
     fn for_block_nodes(&self, coord: [usize; D], mut visit: impl FnMut(usize, [usize; D])) {
         for local in 0..Block::<D>::LEN {
-            let idx: [usize; D] =
-                std::array::from_fn(|a| coord[a] * BLOCK + ((local >> (BLOCK_SHIFT as usize * a)) & (BLOCK - 1)));
+            let idx: [usize; D] = std::array::from_fn(|a| {
+                coord[a] * BLOCK + ((local >> (BLOCK_SHIFT as usize * a)) & (BLOCK - 1))
+            });
             if self.in_grid(idx) {
                 visit(local, idx);
             }
@@ -518,131 +521,179 @@ fn gather_block(
     nodes: [usize; 3],
 ) -> Option<Vec<f64>> {
     let mut vals = vec![0.0; SPAN * SPAN * SPAN];
-    let coord = lo.map(|l| l / BLOCK);
     // The block itself and the (up to 7) blocks whose first node layer
     // closes its cells; copied block by block, no per-node lookup.
     for o in 0..8 {
-        let off = [o & 1, (o >> 1) & 1, o >> 2];
-        let range: [std::ops::Range<usize>; 3] = std::array::from_fn(|a| {
-            if off[a] == 0 {
-                0..nodes[a].min(BLOCK)
-            } else {
-                BLOCK..nodes[a]
-            }
-        });
-        if range.iter().any(|r| r.is_empty()) {
-            continue;
-        }
-        let source: [usize; 3] = std::array::from_fn(|a| coord[a] + off[a]);
-        let block = grid.tile_value(source).is_none().then(|| {
-            let l = grid.block_linear(source);
-            &grid.blocks[grid.table[l] as usize].values
-        });
-        let tile = grid.tile_value(source).unwrap_or(0.0);
-        for z in range[2].clone() {
-            for y in range[1].clone() {
-                for x in range[0].clone() {
-                    vals[x + SPAN * (y + SPAN * z)] = match block {
-                        Some(b) => {
-                            b[local_index([
-                                x - off[0] * BLOCK,
-                                y - off[1] * BLOCK,
-                                z - off[2] * BLOCK,
-                            ])]
-                        }
-                        None => tile,
-                    };
-                }
-            }
-        }
+        copy_block_part(
+            grid,
+            lo.map(|l| l / BLOCK),
+            [o & 1, (o >> 1) & 1, o >> 2],
+            nodes,
+            &mut vals,
+        );
     }
     let mut positive = 0usize;
     for z in 0..nodes[2] {
         for y in 0..nodes[1] {
-            for x in 0..nodes[0] {
-                positive += (vals[x + SPAN * (y + SPAN * z)] >= iso) as usize;
-            }
+            let row = SPAN * (y + SPAN * z);
+            positive += vals[row..row + nodes[0]]
+                .iter()
+                .filter(|&&v| v >= iso)
+                .count();
         }
     }
     let total = nodes.iter().product::<usize>();
     (positive != 0 && positive != total).then_some(vals)
 }
 
-fn block_mesh(grid: &BlockGrid<3>, iso: f64, coord: [usize; 3]) -> BlockMesh {
-    let spec = grid.spec;
-    let mut out = BlockMesh {
-        keys: Vec::new(),
-        vertices: Vec::new(),
-        triangles: Vec::new(),
+/// Copy into `vals` the nodes that block `coord + off` contributes to the
+/// cells of block `coord`: all of its own nodes for `off = 0`, else its
+/// first layer along each axis where `off` is 1.
+fn copy_block_part(
+    grid: &BlockGrid<3>,
+    coord: [usize; 3],
+    off: [usize; 3],
+    nodes: [usize; 3],
+    vals: &mut [f64],
+) {
+    let range: [std::ops::Range<usize>; 3] = std::array::from_fn(|a| {
+        if off[a] == 0 {
+            0..nodes[a].min(BLOCK)
+        } else {
+            BLOCK..nodes[a]
+        }
+    });
+    if range.iter().any(|r| r.is_empty()) {
+        return;
+    }
+    let source: [usize; 3] = std::array::from_fn(|a| coord[a] + off[a]);
+    let tile = grid.tile_value(source);
+    let block = match tile {
+        Some(_) => None,
+        None => Some(&grid.blocks[grid.table[grid.block_linear(source)] as usize].values),
     };
+    for z in range[2].clone() {
+        for y in range[1].clone() {
+            for x in range[0].clone() {
+                vals[x + SPAN * (y + SPAN * z)] = match block {
+                    Some(b) => {
+                        b[local_index([x - off[0] * BLOCK, y - off[1] * BLOCK, z - off[2] * BLOCK])]
+                    }
+                    None => tile.unwrap_or(0.0),
+                };
+            }
+        }
+    }
+}
+
+fn block_mesh(grid: &BlockGrid<3>, iso: f64, coord: [usize; 3]) -> BlockMesh {
     let lo = coord.map(|c| c * BLOCK);
     // Cells of this block: lower corners from lo up to the block end or the
     // last node but one.
-    let cells: [usize; 3] =
-        std::array::from_fn(|a| (lo[a] + BLOCK).min(spec.dims[a] - 1).saturating_sub(lo[a]));
+    let cells: [usize; 3] = std::array::from_fn(|a| {
+        (lo[a] + BLOCK)
+            .min(grid.spec.dims[a] - 1)
+            .saturating_sub(lo[a])
+    });
+    let mut out = BlockEmitter {
+        grid,
+        iso,
+        lo,
+        ids: Vec::new(),
+        mesh: BlockMesh {
+            keys: Vec::new(),
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+        },
+    };
     if cells.contains(&0) {
-        return out;
+        return out.mesh;
     }
     let Some(vals) = gather_block(grid, iso, lo, cells.map(|c| c + 1)) else {
-        return out;
+        return out.mesh;
     };
-    let mut ids = vec![u32::MAX; 3 * SPAN * SPAN * SPAN];
-    let table = cube_table();
+    out.ids = vec![u32::MAX; 3 * SPAN * SPAN * SPAN];
     for z in 0..cells[2] {
         for y in 0..cells[1] {
             for x in 0..cells[0] {
                 let at =
                     |c: usize| x + (c & 1) + SPAN * (y + ((c >> 1) & 1) + SPAN * (z + (c >> 2)));
                 let v: [f64; 8] = std::array::from_fn(|c| vals[at(c)]);
-                let (config, bits) = cell_case(&v, iso);
-                if config == 0 || config == 255 {
-                    continue;
-                }
-                let edge_ids: [u32; 12] = std::array::from_fn(|e| {
-                    let [a, b] = EDGE_CORNERS[e];
-                    if (config >> a) & 1 == (config >> b) & 1 {
-                        return u32::MAX;
-                    }
-                    let axis = e / 4;
-                    let slot = &mut ids[3 * at(a as usize) + axis];
-                    if *slot == u32::MAX {
-                        let a = a as usize;
-                        let node = [
-                            lo[0] + x + (a & 1),
-                            lo[1] + y + ((a >> 1) & 1),
-                            lo[2] + z + (a >> 2),
-                        ];
-                        out.keys.push(3 * spec.linear(node) as u64 + axis as u64);
-                        out.vertices.push(edge_vertex(grid, node, axis, iso));
-                        *slot = (out.keys.len() - 1) as u32;
-                    }
-                    *slot
-                });
-                let cell = spec.linear([lo[0] + x, lo[1] + y, lo[2] + z]) as u64;
-                let mut centre_ids = [u32::MAX; 4];
-                for (c, lp) in table.loop_centres(config, bits).iter().enumerate() {
-                    let centre = loop_centre(
-                        lp.iter()
-                            .map(|&e| out.vertices[edge_ids[e as usize] as usize]),
-                    );
-                    out.keys
-                        .push(3 * spec.node_count() as u64 + 4 * cell + c as u64);
-                    out.vertices.push(centre);
-                    centre_ids[c] = (out.keys.len() - 1) as u32;
-                }
-                for tri in table.triangles(config, bits) {
-                    out.triangles.push(tri.map(|e| {
-                        if e < 12 {
-                            edge_ids[e as usize]
-                        } else {
-                            centre_ids[e as usize - 12]
-                        }
-                    }));
-                }
+                out.cell([x, y, z], &v);
             }
         }
     }
-    out
+    out.mesh
+}
+
+/// Builds one block's mesh: vertex ids per local edge (`3 * node + axis`
+/// over the `SPAN³` local nodes), created on first use.
+struct BlockEmitter<'a> {
+    grid: &'a BlockGrid<3>,
+    iso: f64,
+    lo: [usize; 3],
+    ids: Vec<u32>,
+    mesh: BlockMesh,
+}
+
+impl BlockEmitter<'_> {
+    /// Triangles of the cell at local position `p` with corner values `v`.
+    fn cell(&mut self, p: [usize; 3], v: &[f64; 8]) {
+        let (config, bits) = cell_case(v, self.iso);
+        if config == 0 || config == 255 {
+            return;
+        }
+        let edge_ids: [u32; 12] = std::array::from_fn(|e| {
+            let [a, b] = EDGE_CORNERS[e];
+            if (config >> a) & 1 == (config >> b) & 1 {
+                return u32::MAX;
+            }
+            let a = a as usize;
+            self.edge_vertex(
+                [p[0] + (a & 1), p[1] + ((a >> 1) & 1), p[2] + (a >> 2)],
+                e / 4,
+            )
+        });
+        let table = cube_table();
+        let spec = &self.grid.spec;
+        let cell = spec.linear(std::array::from_fn(|k| self.lo[k] + p[k])) as u64;
+        let mut centre_ids = [u32::MAX; MAX_LOOP_CENTRES];
+        for (c, lp) in table.loop_centres(config, bits).iter().enumerate() {
+            let centre = loop_centre(
+                lp.iter()
+                    .map(|&e| self.mesh.vertices[edge_ids[e as usize] as usize]),
+            );
+            // Centre keys lie past all edge keys and are never shared.
+            centre_ids[c] = self.push(3 * spec.node_count() as u64 + 4 * cell + c as u64, centre);
+        }
+        for tri in table.triangles(config, bits) {
+            let ids = tri.map(|e| {
+                if e < 12 {
+                    edge_ids[e as usize]
+                } else {
+                    centre_ids[e as usize - 12]
+                }
+            });
+            self.mesh.triangles.push(ids);
+        }
+    }
+
+    /// Id of the crossing on the edge from local node `n` along `axis`.
+    fn edge_vertex(&mut self, n: [usize; 3], axis: usize) -> u32 {
+        let slot = 3 * (n[0] + SPAN * (n[1] + SPAN * n[2])) + axis;
+        if self.ids[slot] == u32::MAX {
+            let node: [usize; 3] = std::array::from_fn(|k| self.lo[k] + n[k]);
+            let key = 3 * self.grid.spec.linear(node) as u64 + axis as u64;
+            self.ids[slot] = self.push(key, edge_vertex(self.grid, node, axis, self.iso));
+        }
+        self.ids[slot]
+    }
+
+    fn push(&mut self, key: u64, vertex: (DVec3, DVec3)) -> u32 {
+        self.mesh.keys.push(key);
+        self.mesh.vertices.push(vertex);
+        (self.mesh.keys.len() - 1) as u32
+    }
 }
 
 /// Join block meshes: one vertex per key, vertices sorted by key.

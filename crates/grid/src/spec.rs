@@ -54,9 +54,9 @@ impl<const D: usize> GridSpec<D> {
     #[inline]
     pub fn unlinear(&self, mut l: usize) -> [usize; D] {
         let mut idx = [0; D];
-        for a in 0..D {
-            idx[a] = l % self.dims[a];
-            l /= self.dims[a];
+        for (i, &n) in idx.iter_mut().zip(&self.dims) {
+            *i = l % n;
+            l /= n;
         }
         idx
     }
@@ -105,7 +105,7 @@ impl<const D: usize> GridSpec<D> {
         for a in 0..D {
             let cells = (extent[a] / spacing * (1.0 - 1e-12)).ceil();
             let nodes = cells + 1.0 + 2.0 * padding_cells as f64;
-            if !(nodes <= MAX_NODES as f64) {
+            if nodes.is_nan() || nodes > MAX_NODES as f64 {
                 return Err(too_many_nodes());
             }
             dims[a] = (nodes as usize).max(2);

@@ -90,13 +90,13 @@ pub fn godunov_update<const D: usize>(minima: &mut [f64; D], h: f64) -> f64 {
     sort_small(minima);
     let mut u = minima[0] + h;
     let (mut sum, mut sum_sq) = (minima[0], minima[0] * minima[0]);
-    for m in 1..D {
-        if u <= minima[m] {
+    for (m, &next) in minima.iter().enumerate().skip(1) {
+        if u <= next {
             break;
         }
         // Solve sum_k (u - a_k)^2 = h^2 over the m + 1 smallest minima.
-        sum += minima[m];
-        sum_sq += minima[m] * minima[m];
+        sum += next;
+        sum_sq += next * next;
         let count = (m + 1) as f64;
         let disc = sum * sum - count * (sum_sq - h * h);
         u = (sum + disc.max(0.0).sqrt()) / count;
@@ -125,7 +125,7 @@ pub fn for_each_node_ordered<const D: usize>(
     order: usize,
     mut visit: impl FnMut(usize, &[usize; D]),
 ) {
-    if dims.iter().any(|&n| n == 0) {
+    if dims.contains(&0) {
         return;
     }
     let backwards: [bool; D] = std::array::from_fn(|a| order >> a & 1 == 1);
@@ -235,10 +235,10 @@ mod tests {
         };
         let mut f = Field::filled(g, f64::INFINITY);
         let mut frozen = vec![false; g.node_count()];
-        for l in 0..g.node_count() {
+        for (l, fixed) in frozen.iter_mut().enumerate() {
             if dist(l) <= 2.0 * h {
                 f.values[l] = dist(l);
-                frozen[l] = true;
+                *fixed = true;
             }
         }
         let sweeps = fast_sweep(&mut f, &frozen);

@@ -37,8 +37,14 @@ fn main() {
     let r = reconstruct_3d(&input, &params).expect("reconstruction");
     let total = start.elapsed().as_secs_f64();
     let rep = &r.report;
-    println!("dragon-sized reconstruction: {} points, grid {:?} ({} nodes), {} level(s), h = {:.3}",
-        POINTS, rep.dims, rep.dims.iter().product::<usize>(), rep.levels, rep.spacing);
+    println!(
+        "dragon-sized reconstruction: {} points, grid {:?} ({} nodes), {} level(s), h = {:.3}",
+        POINTS,
+        rep.dims,
+        rep.dims.iter().product::<usize>(),
+        rep.levels,
+        rep.spacing
+    );
     println!("threads: {}", rayon::current_num_threads());
     for (stage, t) in &rep.timings {
         println!("  {stage:<12} {t:8.3} s");
@@ -53,7 +59,14 @@ fn main() {
             c.steps, c.converged, f.steps, f.converged, c.max_band.max(f.max_band)
         );
     }
-    println!("mesh: {} vertices, {} triangles", r.mesh.vertices.len(), r.mesh.triangles.len());
+    println!(
+        "mesh: {} vertices, {} triangles",
+        r.mesh.vertices.len(),
+        r.mesh.triangles.len()
+    );
     println!("initial reconstruction (all distance + tagging + first reinit): {initial:.3} s  (paper {PAPER_INITIAL_S:.0} s, {:.0}x faster)", PAPER_INITIAL_S / initial);
-    println!("end to end: {total:.3} s  (paper {PAPER_TOTAL_S:.0} s, {:.0}x faster)", PAPER_TOTAL_S / total);
+    println!(
+        "end to end: {total:.3} s  (paper {PAPER_TOTAL_S:.0} s, {:.0}x faster)",
+        PAPER_TOTAL_S / total
+    );
 }

@@ -86,7 +86,9 @@ pub fn evolve<const D: usize>(
     };
     // The zero set moves at most cfl·h per step; reinitialize before it can
     // come within a cell of the band's edge.
-    let interval = (((band.half_width / h) - 1.0) / params.cfl.max(0.05)).floor().max(1.0) as usize;
+    let interval = (((band.half_width / h) - 1.0) / params.cfl.max(0.05))
+        .floor()
+        .max(1.0) as usize;
     let mut snapshot = zero_set_snapshot(band);
     stats.max_band = band.len();
     while stats.steps < params.max_steps {
@@ -185,7 +187,8 @@ pub fn curvature_term<const D: usize>(phi: &[f64], l: usize, strides: &[usize; D
         hess[a][a] = hi - 2.0 * c + lo;
         for b in 0..a {
             let (sa, sb) = (strides[a], strides[b]);
-            let m = (phi[l + sa + sb] - phi[l + sa - sb] - phi[l - sa + sb] + phi[l - sa - sb]) * 0.25;
+            let m =
+                (phi[l + sa + sb] - phi[l + sa - sb] - phi[l - sa + sb] + phi[l - sa - sb]) * 0.25;
             hess[a][b] = m;
             hess[b][a] = m;
         }
@@ -208,7 +211,11 @@ pub fn curvature_term<const D: usize>(phi: &[f64], l: usize, strides: &[usize; D
 /// zero set, whose updates matter (farther band nodes are recomputed by the
 /// next reinitialization anyway), and the mean advection coefficient there
 /// (the motion's speed scale).
-fn stable_step<const D: usize>(band: &NarrowBand<D>, d: &Field<D>, coef: &Coefficients) -> (f64, f64) {
+fn stable_step<const D: usize>(
+    band: &NarrowBand<D>,
+    d: &Field<D>,
+    coef: &Coefficients,
+) -> (f64, f64) {
     let spec = band.phi.spec;
     let h = spec.spacing;
     let strides = spec.strides();

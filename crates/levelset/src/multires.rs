@@ -83,7 +83,11 @@ mod tests {
             dims: [21, 17, 10],
         };
         let coarse = coarsen(&fine, 2);
-        assert!(coarse.max_corner().iter().zip(fine.max_corner()).all(|(c, f)| *c >= f - 1e-12));
+        assert!(coarse
+            .max_corner()
+            .iter()
+            .zip(fine.max_corner())
+            .all(|(c, f)| *c >= f - 1e-12));
         let f = |p: [f64; 3]| 2.0 * p[0] - p[1] + 0.5 * p[2] + 1.0;
         let cf = Field {
             spec: coarse,

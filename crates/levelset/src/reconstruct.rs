@@ -146,7 +146,8 @@ impl Report {
     fn time<T>(&mut self, stage: &str, f: impl FnOnce() -> T) -> T {
         let t = Instant::now();
         let out = f();
-        self.timings.push((stage.to_string(), t.elapsed().as_secs_f64()));
+        self.timings
+            .push((stage.to_string(), t.elapsed().as_secs_f64()));
         out
     }
 
@@ -183,7 +184,9 @@ pub struct Reconstruction2 {
 /// Reconstruct a closed surface from 3D data.
 pub fn reconstruct_3d(input: &Input, params: &ReconstructParams) -> Result<Reconstruction3> {
     let (field, mut report) = reconstruct_field::<3>(input, params)?;
-    let mesh = report.time("extract", || surfrecon_grid::marching::marching_cubes(&field, 0.0));
+    let mesh = report.time("extract", || {
+        surfrecon_grid::marching::marching_cubes(&field, 0.0)
+    });
     Ok(Reconstruction3 {
         mesh,
         field,
@@ -213,7 +216,10 @@ pub fn reconstruct_field<const D: usize>(
     validate::<D>(input, params)?;
     let sampling = sampling_spacing(input);
     let fine = fine_grid::<D>(input, params, sampling)?;
-    let levels = params.levels.unwrap_or_else(|| auto_levels(&fine.dims)).max(1);
+    let levels = params
+        .levels
+        .unwrap_or_else(|| auto_levels(&fine.dims))
+        .max(1);
     let mut report = Report {
         dims: fine.dims.to_vec(),
         spacing: fine.spacing,
@@ -225,13 +231,15 @@ pub fn reconstruct_field<const D: usize>(
     for level in (0..levels).rev() {
         let spec = coarsen(&fine, 1 << level);
         let d = report.time("distance", || match &coarse_d {
+            None if level > 0 => unsigned_distance(&thinned(input, spec.spacing / 4.0), spec),
             None => unsigned_distance(input, spec),
-            Some(c) => refined_distance(input, spec, c, params.band),
+            Some(c) => refined_distance(input, spec, c, FINE_EXACT_CELLS),
         })?;
         let mut current = match band.take() {
             None => initial_band(input, params, sampling, &d, &mut report),
             Some(coarse) => report.time("upsample", || {
-                let mut b = NarrowBand::from_field(upsample(&coarse.phi, spec), params.band * spec.spacing);
+                let mut b =
+                    NarrowBand::from_field(upsample(&coarse.phi, spec), params.band * spec.spacing);
                 reinitialize(&mut b);
                 b
             }),
@@ -253,10 +261,14 @@ pub fn reconstruct_field<const D: usize>(
 
 fn validate<const D: usize>(input: &Input, params: &ReconstructParams) -> Result<()> {
     if input.is_empty() {
-        return Err(LevelsetError::InvalidInput("no data to reconstruct from (no points, curves or triangles)".into()));
+        return Err(LevelsetError::InvalidInput(
+            "no data to reconstruct from (no points, curves or triangles)".into(),
+        ));
     }
     if let Some(bad) = input.all_vertices().find(|v| !v.is_finite()) {
-        return Err(LevelsetError::InvalidInput(format!("data contain a non-finite coordinate: {bad}")));
+        return Err(LevelsetError::InvalidInput(format!(
+            "data contain a non-finite coordinate: {bad}"
+        )));
     }
     let bad = |name, message: &str| {
         Err(LevelsetError::InvalidParameter {
@@ -265,12 +277,21 @@ fn validate<const D: usize>(input: &Input, params: &ReconstructParams) -> Result
         })
     };
     if !(params.p >= 1.0 && params.p.is_finite()) {
-        return bad("p", &format!("must be a finite number ≥ 1, got {}", params.p));
+        return bad(
+            "p",
+            &format!("must be a finite number ≥ 1, got {}", params.p),
+        );
     }
     if !(params.band >= 2.0 && params.band <= 64.0) {
-        return bad("band", &format!("must be between 2 and 64 cells, got {}", params.band));
+        return bad(
+            "band",
+            &format!("must be between 2 and 64 cells, got {}", params.band),
+        );
     }
-    if params.resolution.is_some_and(|r| !(4..=100_000).contains(&r)) {
+    if params
+        .resolution
+        .is_some_and(|r| !(4..=100_000).contains(&r))
+    {
         return bad("resolution", "must be between 4 and 100000 cells");
     }
     if params.epsilon.is_some_and(|e| !(e > 0.0 && e.is_finite())) {
@@ -356,7 +377,10 @@ fn fine_grid<const D: usize>(
             2
         }
     });
-    let levels = params.levels.unwrap_or_else(|| auto_levels(&unpadded)).clamp(1, 6);
+    let levels = params
+        .levels
+        .unwrap_or_else(|| auto_levels(&unpadded))
+        .clamp(1, 6);
     let per_level = params.band.ceil() as usize + crate::band::BORDER + 3;
     let padding = per_level << (levels - 1);
     let spec = GridSpec::from_bounds(lo, hi, size, padding)?;
@@ -408,7 +432,7 @@ fn evolve_level<const D: usize>(
     report: &mut Report,
 ) {
     // Finer levels start from an already converged coarse solution.
-    let scale = |n: usize| if coarsest { n } else { n.div_ceil(3) };
+    let scale = |n: usize| if coarsest { n } else { n.div_ceil(5) };
     let conv = EvolveParams {
         max_steps: scale(params.convection_steps),
         tolerance: params.tolerance,
@@ -426,6 +450,27 @@ fn evolve_level<const D: usize>(
     report.flow.push(stats);
 }
 
+/// The input with at most one point per cube of side `cell` (the first
+/// in input order): coarse levels need no more, and dense scans have many
+/// points per coarse cell. Distances change by at most √3·cell/2.
+fn thinned(input: &Input, cell: f64) -> Input {
+    let mut seen = std::collections::HashSet::with_capacity(input.points.len());
+    let points = input
+        .points
+        .iter()
+        .filter(|p| seen.insert((*p / cell).floor().as_i64vec3().to_array()))
+        .copied()
+        .collect();
+    Input {
+        points,
+        segments: input.segments.clone(),
+        triangles: input.triangles.clone(),
+    }
+}
+
+/// Cells around the data where finer levels compute the exact distance.
+const FINE_EXACT_CELLS: f64 = 2.0;
+
 /// Distance on a finer level: exact within a few cells of the data (where
 /// the surface settles and accuracy matters), the coarser level's distance
 /// interpolated elsewhere (its error there, O(coarse h), only affects how
@@ -437,7 +482,7 @@ fn refined_distance<const D: usize>(
     band_cells: f64,
 ) -> Result<Field<D>> {
     let options = distance::DistanceOptions {
-        band_cells: band_cells + 2.0,
+        band_cells,
         propagate: false,
         ..Default::default()
     };
@@ -455,8 +500,16 @@ fn data_set<const D: usize>(input: &Input) -> DataSet<D> {
     let project = |v: &DVec3| -> [f64; D] { std::array::from_fn(|a| v[a]) };
     DataSet::<D> {
         points: input.points.iter().map(project).collect(),
-        segments: input.segments.iter().map(|s| s.each_ref().map(project)).collect(),
-        triangles: input.triangles.iter().map(|t| t.each_ref().map(project)).collect(),
+        segments: input
+            .segments
+            .iter()
+            .map(|s| s.each_ref().map(project))
+            .collect(),
+        triangles: input
+            .triangles
+            .iter()
+            .map(|t| t.each_ref().map(project))
+            .collect(),
     }
 }
 

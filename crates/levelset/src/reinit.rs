@@ -62,16 +62,18 @@ pub fn reinitialize<const D: usize>(band: &mut NarrowBand<D>) {
             *old = if inside(*old) { -v } else { v };
         }
         let phi = &band.phi.values;
-        values
-            .par_iter_mut()
-            .zip(&candidates)
-            .for_each(|(v, &l)| {
-                let again = godunov_from_layers(phi, marks, l as usize, &strides, h, base, base + layer + 1);
-                *v = v.min(again);
-            });
+        values.par_iter_mut().zip(&candidates).for_each(|(v, &l)| {
+            let again =
+                godunov_from_layers(phi, marks, l as usize, &strides, h, base, base + layer + 1);
+            *v = v.min(again);
+        });
         frontier.clear();
         for (&l, &v) in candidates.iter().zip(&values) {
-            let s = if inside(band.phi.values[l as usize]) { -1.0 } else { 1.0 };
+            let s = if inside(band.phi.values[l as usize]) {
+                -1.0
+            } else {
+                1.0
+            };
             if v < w {
                 band.phi.values[l as usize] = s * v;
                 accepted.push(l);

@@ -282,7 +282,9 @@ mod tests {
         // With ε = 0.6 the contour alone keeps (1.0, 0.6) inside; tagging
         // must still leave it inside (inside the circle) but the node far
         // outside the circle is exterior.
-        let node = |x: f64, y: f64| spec.linear([((x + 2.0) / 0.05) as usize, ((y + 2.0) / 0.05) as usize]);
+        let node = |x: f64, y: f64| {
+            spec.linear([((x + 2.0) / 0.05) as usize, ((y + 2.0) / 0.05) as usize])
+        };
         assert!(t.tags[node(-0.5, 0.0)] != Tag::Exterior);
         assert!(t.tags[node(1.7, 1.7)] == Tag::Exterior);
     }

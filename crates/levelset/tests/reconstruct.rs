@@ -43,15 +43,20 @@ fn topology(mesh: &TriMesh) -> (bool, i64, usize) {
             parent[a as usize] = b;
         }
     }
-    let roots: std::collections::HashSet<u32> = used.iter().map(|&v| find(&mut parent, v)).collect();
+    let roots: std::collections::HashSet<u32> =
+        used.iter().map(|&v| find(&mut parent, v)).collect();
     (watertight, euler, roots.len())
 }
 
 /// Mean two-sided distance between the mesh and an analytic surface given
 /// by its exact distance function and a dense sample of it.
 fn chamfer(mesh: &TriMesh, surface_distance: impl Fn(DVec3) -> f64, samples: &[DVec3]) -> f64 {
-    let to_surface: f64 =
-        mesh.vertices.iter().map(|&v| surface_distance(v).abs()).sum::<f64>() / mesh.vertices.len() as f64;
+    let to_surface: f64 = mesh
+        .vertices
+        .iter()
+        .map(|&v| surface_distance(v).abs())
+        .sum::<f64>()
+        / mesh.vertices.len() as f64;
     let tree = surfrecon_geom::spatial::KdTree::new(&mesh.vertices);
     let to_mesh: f64 = samples
         .iter()
@@ -76,7 +81,11 @@ fn sphere_from_points() {
     let h = r.report.spacing;
     let exact = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 5000, 2).positions;
     let c = chamfer(&r.mesh, |v| v.length() - 1.0, &exact);
-    eprintln!("sphere: {:?} chamfer {c} h {h} report {:?}", (watertight, euler, comps), r.report);
+    eprintln!(
+        "sphere: {:?} chamfer {c} h {h} report {:?}",
+        (watertight, euler, comps),
+        r.report
+    );
     assert!(watertight);
     assert_eq!(euler, 2);
     assert_eq!(comps, 1);
@@ -93,7 +102,11 @@ fn torus_from_points() {
     let exact = sample_surface(&shape, 5000, 4).positions;
     let dist = |v: DVec3| (DVec3::new(v.x, v.y, 0.0).length() - 1.0).hypot(v.z) - 0.4;
     let c = chamfer(&r.mesh, dist, &exact);
-    eprintln!("torus: {:?} chamfer {c} h {h} report {:?}", (watertight, euler, comps), r.report);
+    eprintln!(
+        "torus: {:?} chamfer {c} h {h} report {:?}",
+        (watertight, euler, comps),
+        r.report
+    );
     assert!(watertight);
     assert_eq!(euler, 0);
     assert_eq!(comps, 1);
@@ -109,13 +122,21 @@ fn circle_and_polygon_in_2d() {
         })
         .collect();
     let r = reconstruct_2d(&Input::from_points(circle), &params(80)).unwrap();
-    eprintln!("circle: {} lines report {:?}", r.curves.lines.len(), r.report);
+    eprintln!(
+        "circle: {} lines report {:?}",
+        r.curves.lines.len(),
+        r.report
+    );
     assert_eq!(r.curves.lines.len(), 1);
     let line = &r.curves.lines[0];
     assert_eq!(line.first(), line.last(), "curve must be closed");
     for &i in line {
         let v = r.curves.vertices[i as usize];
-        assert!((v.length() - 1.0).abs() < r.report.spacing, "vertex at radius {}", v.length());
+        assert!(
+            (v.length() - 1.0).abs() < r.report.spacing,
+            "vertex at radius {}",
+            v.length()
+        );
     }
 }
 
@@ -172,7 +193,10 @@ fn torus_hole_is_filled_smoothly() {
     assert!(watertight);
     assert_eq!(euler, 0, "still a torus");
     assert_eq!(comps, 1);
-    assert!(!hole.is_empty() && worst < 2.0 * h, "hole covered: worst {worst}, h {h}");
+    assert!(
+        !hole.is_empty() && worst < 2.0 * h,
+        "hole covered: worst {worst}, h {h}"
+    );
     // The patch is a smooth (minimal) surface: it bends with the torus but
     // less, so it stays within the sagitta of the gap.
     assert!(in_hole_vertices.iter().all(|d| d.abs() < 2.0 * h));
@@ -207,8 +231,17 @@ fn sphere_from_longitudes_and_latitudes() {
     let r = reconstruct_3d(&input, &params(40)).unwrap();
     let (watertight, euler, comps) = topology(&r.mesh);
     let h = r.report.spacing;
-    let worst = r.mesh.vertices.iter().map(|v| (v.length() - 1.0).abs()).fold(0.0, f64::max);
-    eprintln!("curves: {:?} worst {worst} h {h} report {:?}", (watertight, euler, comps), r.report);
+    let worst = r
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| (v.length() - 1.0).abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "curves: {:?} worst {worst} h {h} report {:?}",
+        (watertight, euler, comps),
+        r.report
+    );
     assert!(watertight);
     assert_eq!((euler, comps), (2, 1));
     assert!(worst < 2.0 * h, "worst {worst} vs h {h}");
@@ -235,8 +268,17 @@ fn non_uniform_noisy_sphere_gives_one_closed_surface() {
         .collect();
     let r = reconstruct_3d(&Input::from_points(points), &params(40)).unwrap();
     let (watertight, euler, comps) = topology(&r.mesh);
-    let worst = r.mesh.vertices.iter().map(|v| (v.length() - 1.0).abs()).fold(0.0, f64::max);
-    eprintln!("nonuniform: {:?} worst {worst} report {:?}", (watertight, euler, comps), r.report);
+    let worst = r
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| (v.length() - 1.0).abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "nonuniform: {:?} worst {worst} report {:?}",
+        (watertight, euler, comps),
+        r.report
+    );
     assert!(watertight);
     assert_eq!((euler, comps), (2, 1));
     assert!(worst < 3.0 * r.report.spacing);
@@ -245,7 +287,11 @@ fn non_uniform_noisy_sphere_gives_one_closed_surface() {
 #[test]
 fn polygon_in_2d() {
     // Points along the edges of a triangle.
-    let corners = [DVec3::new(-1.0, -0.8, 0.0), DVec3::new(1.2, -0.6, 0.0), DVec3::new(0.1, 1.0, 0.0)];
+    let corners = [
+        DVec3::new(-1.0, -0.8, 0.0),
+        DVec3::new(1.2, -0.6, 0.0),
+        DVec3::new(0.1, 1.0, 0.0),
+    ];
     let mut points = Vec::new();
     for k in 0..3 {
         let (a, b) = (corners[k], corners[(k + 1) % 3]);
@@ -265,7 +311,10 @@ fn polygon_in_2d() {
             })
             .fold(f64::INFINITY, f64::min)
     };
-    let worst = line.iter().map(|&i| edge_distance(r.curves.vertices[i as usize])).fold(0.0, f64::max);
+    let worst = line
+        .iter()
+        .map(|&i| edge_distance(r.curves.vertices[i as usize]))
+        .fold(0.0, f64::max);
     eprintln!("polygon: worst {worst} h {h}");
     assert!(worst < h, "worst {worst} vs h {h}");
 }
@@ -289,5 +338,8 @@ fn convection_alone_reaches_the_data() {
     let share = near as f64 / r.mesh.vertices.len() as f64;
     eprintln!("convection: share {share} report {:?}", r.report);
     assert!(r.report.flow.iter().all(|f| f.steps == 0));
-    assert!(share > 0.9, "only {share} of the vertices within h of the data");
+    assert!(
+        share > 0.9,
+        "only {share} of the vertices within h of the data"
+    );
 }

@@ -20,12 +20,15 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug)]
 pub struct FitOptions {
     pub loss: Loss,
-    /// Regularization. ε-insensitive loss: the box constraint of a level is
-    /// C_l = c · (median |residual| over its candidate base points), so one
-    /// coefficient moves f by at most c typical residuals: a real feature
-    /// is corrected by many overlapping kernels together, while an isolated
-    /// stray point (an outlier) cannot pull the surface to itself.
-    /// Squared loss: ridge 1/c on the unit-diagonal kernel matrix.
+    /// Regularization. ε-insensitive loss: base point i of a level gets the
+    /// box constraint C_i = c · w_i · r_i, with r_i the median |residual| of
+    /// the candidates in its box and the 26 next to it, and w_i ≤ 1 its
+    /// sample support (samples in its box and around it, relative to the
+    /// typical base point). So one coefficient moves f by at most about c
+    /// local residuals: a sharp feature, whose neighbours all need the same
+    /// correction, is fitted, while a stray point (an outlier) among well
+    /// fitted neighbours, or alone in space, cannot pull the surface to
+    /// itself. Squared loss: per-point ridge 1/(c · w_i) (dimensionless).
     pub c: f64,
     /// ε-insensitive tube width, relative to the diagonal.
     pub epsilon: f64,
@@ -182,11 +185,18 @@ fn fit_level(
         .zip(&candidates)
         .map(|(f, t)| t.target - f)
         .collect();
+    let local = local_median_residuals(&positions, &residuals, opts.cell_ratio * width);
+    // Per-point C factor: box constraints are in distance units (scaled by
+    // the local residual); the squared loss's ridge is dimensionless.
+    let scale = |t: &TrainingPoint, local: f64| match opts.loss {
+        Loss::EpsilonInsensitive => t.weight * local.max(tolerance),
+        Loss::Squared => t.weight,
+    };
     let kept: Vec<(DVec3, f64, f64)> = candidates
         .iter()
-        .zip(&residuals)
-        .filter(|(_, r)| r.abs() > tolerance)
-        .map(|(t, r)| (t.position, *r, t.weight))
+        .zip(residuals.iter().zip(&local))
+        .filter(|(_, (r, _))| r.abs() > tolerance)
+        .map(|(t, (r, l))| (t.position, *r, scale(t, *l)))
         .collect();
     let base: Vec<DVec3> = kept.iter().map(|k| k.0).collect();
     let targets: Vec<f64> = kept.iter().map(|k| k.1).collect();
@@ -194,10 +204,7 @@ fn fit_level(
     let kernel = KernelMatrix::build(&base, width);
     let params = RegressionParams {
         loss: opts.loss,
-        c: match opts.loss {
-            Loss::EpsilonInsensitive => if std::env::var("CW").is_ok() { opts.c * width } else { opts.c * median_magnitude(&residuals).max(tolerance) },
-            Loss::Squared => opts.c,
-        },
+        c: opts.c,
         epsilon: opts.epsilon * samples.diameter,
         tolerance: 0.1 * tolerance,
         max_sweeps: opts.max_sweeps,
@@ -239,21 +246,36 @@ fn neighbourhood_counts(points: &[DVec3], boxes: &[(usize, usize)], origin: DVec
         .collect()
 }
 
+/// Per point: the median |residual| over the points in its box of side `h`
+/// and the 26 boxes next to it.
+fn local_median_residuals(positions: &[DVec3], residuals: &[f64], h: f64) -> Vec<f64> {
+    let origin = positions.iter().copied().fold(DVec3::INFINITY, DVec3::min);
+    let cell = |p: DVec3| ((p - origin) / h).floor().as_i64vec3();
+    let mut boxes: HashMap<glam::I64Vec3, Vec<f64>> = HashMap::new();
+    for (p, r) in positions.iter().zip(residuals) {
+        boxes.entry(cell(*p)).or_default().push(r.abs());
+    }
+    positions
+        .par_iter()
+        .map(|p| {
+            let c = cell(*p);
+            let mut near = Vec::new();
+            for k in 0..27i64 {
+                let d = glam::I64Vec3::new(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
+                if let Some(v) = boxes.get(&(c + d)) {
+                    near.extend_from_slice(v);
+                }
+            }
+            median(&near)
+        })
+        .collect()
+}
+
 fn median(v: &[f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
     }
     let mut m = v.to_vec();
-    let mid = m.len() / 2;
-    *m.select_nth_unstable_by(mid, f64::total_cmp).1
-}
-
-/// Median of |v| (0 for none).
-fn median_magnitude(v: &[f64]) -> f64 {
-    let mut m: Vec<f64> = v.iter().map(|x| x.abs()).collect();
-    if m.is_empty() {
-        return 0.0;
-    }
     let mid = m.len() / 2;
     *m.select_nth_unstable_by(mid, f64::total_cmp).1
 }
@@ -273,12 +295,13 @@ fn propose(
     // next to it) than is typical is suspect, e.g. a stray point alone in
     // space: its base points get a proportionally smaller C, so they cannot
     // outvote boxes full of surface samples.
-    let support: Vec<f64> = if std::env::var("NB").is_ok() { neighbourhood_counts(&points, &boxes, samples.bounds.min, h) } else { boxes.iter().map(|b| b.1 as f64).collect() };
-    let typical = median(&support).max(1.0);
+    let own: Vec<f64> = boxes.iter().map(|b| b.1 as f64).collect();
+    let around = neighbourhood_counts(&points, &boxes, samples.bounds.min, h);
+    let (typical_own, typical_around) = (median(&own).max(1.0), median(&around).max(1.0));
     let reps: Vec<(usize, f64)> = boxes
         .iter()
-        .zip(&support)
-        .map(|(&(r, _), &n)| (active[r], (n / typical).min(1.0)))
+        .zip(own.iter().zip(&around))
+        .map(|(&(r, _), (&o, &a))| (active[r], (o / typical_own).min(a / typical_around).min(1.0)))
         .collect();
     let y = opts.offset_ratio * width;
     let off = samples.off_surface_weighted(&reps, y);

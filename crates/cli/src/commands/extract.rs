@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use surfrecon_geom::{io, metrics, Geometry};
 use surfrecon_grid::field_io::{read_field, AnyField};
 use surfrecon_grid::marching::{marching_cubes, marching_squares};
+use surfrecon_grid::{Field2, Field3};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -30,48 +31,8 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     check_crosses(&field, args.iso, &args)?;
     let spinner = ctx.spinner("extracting");
     let (geometry, summary) = match &field {
-        AnyField::D3(f) => {
-            let mesh = marching_cubes(f, args.iso);
-            let topo = metrics::topology(&mesh);
-            let shape = if topo.watertight {
-                "closed"
-            } else {
-                "open where it meets the grid boundary"
-            };
-            let summary = serde_json::json!({
-                "vertices": mesh.vertices.len(),
-                "triangles": mesh.triangles.len(),
-                "watertight": topo.watertight,
-                "components": topo.components,
-                "euler": topo.euler,
-            });
-            ctx.say(format!(
-                "{} triangles, {} vertices, {} component(s), {shape}",
-                mesh.triangles.len(),
-                mesh.vertices.len(),
-                topo.components
-            ));
-            (Geometry::from_mesh(mesh), summary)
-        }
-        AnyField::D2(f) => {
-            let curves = marching_squares(f, args.iso);
-            let closed = curves
-                .lines
-                .iter()
-                .filter(|l| l.len() > 2 && l.first() == l.last())
-                .count();
-            let summary = serde_json::json!({
-                "vertices": curves.vertices.len(),
-                "curves": curves.lines.len(),
-                "closed_curves": closed,
-            });
-            ctx.say(format!(
-                "{} curve(s) ({closed} closed), {} vertices",
-                curves.lines.len(),
-                curves.vertices.len()
-            ));
-            (Geometry::from_polylines(curves), summary)
-        }
+        AnyField::D3(f) => surface(f, args.iso, ctx),
+        AnyField::D2(f) => curves(f, args.iso, ctx),
     };
     spinner.finish_and_clear();
     write_output(&args, &field, &geometry)?;
@@ -91,6 +52,52 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         "seconds": ctx.elapsed(),
     }));
     Ok(())
+}
+
+/// Marching cubes; prints and returns the counts and topology.
+fn surface(field: &Field3, iso: f64, ctx: &Context) -> (Geometry, serde_json::Value) {
+    let mesh = marching_cubes(field, iso);
+    let topo = metrics::topology(&mesh);
+    let shape = if topo.watertight {
+        "closed"
+    } else {
+        "open where it meets the grid boundary"
+    };
+    ctx.say(format!(
+        "{} triangles, {} vertices, {} component(s), {shape}",
+        mesh.triangles.len(),
+        mesh.vertices.len(),
+        topo.components
+    ));
+    let summary = serde_json::json!({
+        "vertices": mesh.vertices.len(),
+        "triangles": mesh.triangles.len(),
+        "watertight": topo.watertight,
+        "components": topo.components,
+        "euler": topo.euler,
+    });
+    (Geometry::from_mesh(mesh), summary)
+}
+
+/// Marching squares; prints and returns the curve counts.
+fn curves(field: &Field2, iso: f64, ctx: &Context) -> (Geometry, serde_json::Value) {
+    let curves = marching_squares(field, iso);
+    let closed = curves
+        .lines
+        .iter()
+        .filter(|l| l.len() > 2 && l.first() == l.last())
+        .count();
+    ctx.say(format!(
+        "{} curve(s) ({closed} closed), {} vertices",
+        curves.lines.len(),
+        curves.vertices.len()
+    ));
+    let summary = serde_json::json!({
+        "vertices": curves.vertices.len(),
+        "curves": curves.lines.len(),
+        "closed_curves": closed,
+    });
+    (Geometry::from_polylines(curves), summary)
 }
 
 /// Refuse a level that the field never crosses: the result would be empty.

@@ -64,8 +64,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
-    let geometry = io::read(&args.input)
-        .with_context(|| format!("cannot read {}", args.input.display()))?;
+    let geometry =
+        io::read(&args.input).with_context(|| format!("cannot read {}", args.input.display()))?;
     match args.method {
         Method::Levelset => run_levelset(&args, &geometry, ctx),
         Method::Svm => run_svm(&args, &geometry, ctx),
@@ -78,7 +78,9 @@ fn run_svm(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
     }
     let (mesh, summary) = match args.resolution {
         None => reconstruct_svm::reconstruct(&geometry.points, &args.svm, ctx)?,
-        Some(n) => reconstruct_svm::reconstruct_with_resolution(&geometry.points, &args.svm, Some(n), ctx)?,
+        Some(n) => {
+            reconstruct_svm::reconstruct_with_resolution(&geometry.points, &args.svm, Some(n), ctx)?
+        }
     };
     let (vertices, triangles) = (mesh.vertices.len(), mesh.triangles.len());
     io::write(&args.output, &Geometry::from_mesh(mesh))
@@ -129,7 +131,8 @@ fn run_levelset(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Resu
     } else {
         let r = reconstruct_3d(&input, &params(args)).context("level-set reconstruction failed")?;
         write_field_outputs(args, &r.field)?;
-        let counts = json!({"vertices": r.mesh.vertices.len(), "triangles": r.mesh.triangles.len()});
+        let counts =
+            json!({"vertices": r.mesh.vertices.len(), "triangles": r.mesh.triangles.len()});
         (Geometry::from_mesh(r.mesh), r.report, counts)
     };
     spinner.finish_and_clear();
@@ -167,7 +170,10 @@ fn write_field_outputs<const D: usize>(
     Ok(())
 }
 
-fn write_shell<const D: usize>(path: &Path, field: &surfrecon_grid::Field<D>) -> anyhow::Result<()> {
+fn write_shell<const D: usize>(
+    path: &Path,
+    field: &surfrecon_grid::Field<D>,
+) -> anyhow::Result<()> {
     let shell = surfrecon_grid::shell::Shell::from_field(field);
     surfrecon_grid::shell::write_shell(path, &shell)
         .with_context(|| format!("cannot write shell {}", path.display()))
@@ -185,7 +191,11 @@ fn summarize(
     let total: f64 = report.timings.iter().map(|(_, t)| t).sum();
     ctx.say(format!(
         "reconstructed {} on a {} grid (h = {:.4}, {} level(s)) in {:.2} s -> {}",
-        if two_d { "closed curves" } else { "a closed surface" },
+        if two_d {
+            "closed curves"
+        } else {
+            "a closed surface"
+        },
         dims.join("x"),
         report.spacing,
         report.levels,

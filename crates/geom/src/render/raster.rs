@@ -132,22 +132,22 @@ impl Band<'_> {
         }
     }
 
-    /// Draw a round splat of `radius` samples centred at `c`. `shade` gets
-    /// the offset from the centre in units of the radius (x right, y up) and
-    /// returns the sample's depth and colour.
+    /// Draw a round splat of `radius` samples centred at `c`. `depth` and
+    /// `colour` get the offset from the centre in units of the radius (x
+    /// right, y up); the colour is only computed where the depth test passes.
     pub fn splat(
         &mut self,
         c: &ScreenPoint,
         radius: f64,
-        shade: impl Fn(f64, f64) -> (f64, [u8; 3]),
+        depth: impl Fn(f64, f64) -> f64,
+        colour: impl Fn(f64, f64) -> [u8; 3],
     ) {
         for y in row_range(self.y0, self.rows, c.y - radius, c.y + radius) {
             let oy = (c.y - (y as f64 + 0.5)) / radius;
             for x in column_range(self.width, c.x - radius, c.x + radius) {
                 let ox = (x as f64 + 0.5 - c.x) / radius;
                 if ox * ox + oy * oy <= 1.0 {
-                    let (depth, colour) = shade(ox, oy);
-                    self.plot(x, y, depth, 0.0, || colour);
+                    self.plot(x, y, depth(ox, oy), 0.0, || colour(ox, oy));
                 }
             }
         }
@@ -373,7 +373,7 @@ mod tests {
         let mut frame = Frame::new(64, 64, [0; 3]);
         let c = sp(30.3, 33.7, 1.0);
         draw_all(&mut frame, |band| {
-            band.splat(&c, 10.0, |_, _| (1.0, [255; 3]))
+            band.splat(&c, 10.0, |_, _| 1.0, |_, _| [255; 3])
         });
         let lit = frame.colour.iter().filter(|s| s[0] == 255).count() as f64;
         let disk = std::f64::consts::PI * 100.0;

@@ -420,15 +420,22 @@ impl<'a> Splats<'a> {
                     n
                 }
             });
-            band.splat(&centre, r, |ox, oy| {
-                let bulge = (1.0 - ox * ox - oy * oy).max(0.0).sqrt();
-                // Without normals: a gently rounded disk, so each splat
-                // reads as a dot without darkening into a grid pattern.
-                let n = normal.unwrap_or_else(|| {
-                    (0.5 * (ox * cam.right + oy * cam.up) + cam.back).normalize()
-                });
-                (centre.depth - bulge * scene_r, view.lighting.shade(n, base))
-            });
+            // With a normal the colour is the same over the whole splat:
+            // shade once instead of per sample.
+            let flat_colour = normal.map(|n| view.lighting.shade(n, base));
+            band.splat(
+                &centre,
+                r,
+                |ox, oy| centre.depth - (1.0 - ox * ox - oy * oy).max(0.0).sqrt() * scene_r,
+                |ox, oy| {
+                    // Without normals: a gently rounded disk, so each splat
+                    // reads as a dot without darkening into a grid pattern.
+                    flat_colour.unwrap_or_else(|| {
+                        let n = (0.5 * (ox * cam.right + oy * cam.up) + cam.back).normalize();
+                        view.lighting.shade(n, base)
+                    })
+                },
+            );
         }
     }
 }

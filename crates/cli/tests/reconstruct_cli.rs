@@ -1,0 +1,148 @@
+//! `surfrecon reconstruct` end to end: files in, closed surfaces out.
+
+use std::path::Path;
+use std::process::Command;
+
+fn surfrecon() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
+}
+
+/// Points on a sphere of radius 1 as an XYZ file (3 columns) or, with
+/// `flat`, points on a circle (2 columns: 2D data).
+fn write_points(path: &Path, flat: bool) {
+    let mut text = String::new();
+    let n = 2000;
+    for i in 0..n {
+        // Fibonacci sphere / evenly spaced circle: deterministic, uniform.
+        let t = (i as f64 + 0.5) / n as f64;
+        if flat {
+            let a = t * std::f64::consts::TAU;
+            text.push_str(&format!("{} {}\n", a.cos(), a.sin()));
+        } else {
+            let z = 1.0 - 2.0 * t;
+            let r = (1.0 - z * z).sqrt();
+            let a = i as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
+            text.push_str(&format!("{} {} {}\n", r * a.cos(), r * a.sin(), z));
+        }
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn sphere_points_give_a_closed_mesh_and_json_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("sphere.xyz");
+    let output = dir.path().join("out.ply");
+    let field = dir.path().join("phi.nrrd");
+    let shell = dir.path().join("phi.shell");
+    write_points(&input, false);
+    let out = surfrecon()
+        .args(["reconstruct", "--json", "--resolution", "32"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&output)
+        .arg("--field")
+        .arg(&field)
+        .arg("--shell")
+        .arg(&shell)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["method"], "levelset");
+    assert_eq!(summary["dimension"], 3);
+    assert!(summary["output_counts"]["triangles"].as_u64().unwrap() > 1000);
+    assert!(summary["band_nodes"].as_u64().unwrap() > 0);
+    let stages: Vec<&str> = summary["timings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["stage"].as_str().unwrap())
+        .collect();
+    for stage in ["distance", "tagging", "convection", "flow", "extract"] {
+        assert!(
+            stages.contains(&stage),
+            "missing stage {stage} in {stages:?}"
+        );
+    }
+    let mesh = surfrecon_geom::io::read(&output).unwrap();
+    for v in &mesh.points.positions {
+        assert!(
+            (v.length() - 1.0).abs() < 0.1,
+            "vertex at radius {}",
+            v.length()
+        );
+    }
+    // Every edge in exactly two triangles: closed.
+    let mut edges = std::collections::HashMap::new();
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    assert!(edges.values().all(|&c| c == 2));
+    assert!(std::fs::metadata(&field).unwrap().len() > 0);
+    assert!(std::fs::metadata(&shell).unwrap().len() > 0);
+}
+
+#[test]
+fn two_column_points_give_closed_curves() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("circle.xyz");
+    let output = dir.path().join("curve.ply");
+    write_points(&input, true);
+    let out = surfrecon()
+        .args(["reconstruct", "--json", "--resolution", "64"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&output)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["dimension"], 2);
+    assert_eq!(summary["output_counts"]["curves"], 1);
+    let curves = surfrecon_geom::io::read(&output).unwrap();
+    assert_eq!(curves.lines.len(), 1);
+    assert_eq!(curves.lines[0].first(), curves.lines[0].last());
+}
+
+#[test]
+fn bad_input_and_parameters_fail_with_one_clear_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("out.ply");
+    let missing = surfrecon()
+        .args(["reconstruct", "no/such/file.xyz", "-o"])
+        .arg(&output)
+        .output()
+        .unwrap();
+    assert!(!missing.status.success());
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert!(
+        err.starts_with("error:") && err.contains("no/such/file.xyz"),
+        "{err}"
+    );
+
+    let input = dir.path().join("sphere.xyz");
+    write_points(&input, false);
+    let bad_p = surfrecon()
+        .args(["reconstruct", "--p", "0.5"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&output)
+        .output()
+        .unwrap();
+    assert!(!bad_p.status.success());
+    let err = String::from_utf8_lossy(&bad_p.stderr);
+    assert!(err.contains("p") && err.contains("≥ 1"), "{err}");
+    assert!(!output.exists(), "a failed run must not leave an output");
+}
