@@ -638,10 +638,11 @@ mod tests {
             oriented_samples(&cuboid(DVec3::ZERO, DVec3::new(1.0, 2.0, 0.7)), 6000, 12);
         let fraction = outward_fraction(&found, &truth);
         assert!(fraction >= 0.99, "box {fraction}");
-        // A plate about as thick as the sample spacing: neighbourhoods reach
-        // the other side, where the normals are antiparallel.
-        let plate = cuboid(DVec3::ZERO, DVec3::new(1.0, 1.0, 0.03));
-        let (found, truth) = oriented_samples(&plate, 5000, 16);
+        // A plate about twice as thick as the sample spacing: 24-neighbour
+        // graphs reach the other side, where the normals are antiparallel
+        // (the plain n_i . n_j propagation gets 98.8% right here).
+        let plate = cuboid(DVec3::ZERO, DVec3::new(1.0, 1.0, 0.05));
+        let (found, truth) = oriented_samples(&plate, 5000, 24);
         let fraction = outward_fraction(&found, &truth);
         assert!(fraction >= 0.99, "plate {fraction}");
     }

@@ -481,6 +481,8 @@ fn refined_distance<const D: usize>(
     coarse: &Field<D>,
     band_cells: f64,
 ) -> Result<Field<D>> {
+    // Defaults for any other option, present or future.
+    #[allow(clippy::needless_update)]
     let options = distance::DistanceOptions {
         band_cells,
         propagate: false,

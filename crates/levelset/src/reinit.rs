@@ -249,12 +249,12 @@ pub(crate) fn godunov<const D: usize>(mut u: [f64; D], h: f64) -> f64 {
     u.sort_by(|a, b| a.total_cmp(b));
     let mut x = u[0] + h;
     let (mut s1, mut s2) = (u[0], u[0] * u[0]);
-    for k in 1..D {
-        if x <= u[k] {
+    for (k, &uk) in u.iter().enumerate().skip(1) {
+        if x <= uk {
             break;
         }
-        s1 += u[k];
-        s2 += u[k] * u[k];
+        s1 += uk;
+        s2 += uk * uk;
         let m = (k + 1) as f64;
         let disc = s1 * s1 - m * (s2 - h * h);
         x = (s1 + disc.max(0.0).sqrt()) / m;

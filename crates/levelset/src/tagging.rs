@@ -66,7 +66,7 @@ pub fn outer_contour<const D: usize>(
     let strides = spec.strides();
     let mut tags = vec![Tag::Interior; spec.node_count()];
     let mut queue: Vec<u32> = Vec::new();
-    for l in 0..spec.node_count() {
+    for (l, tag) in tags.iter_mut().enumerate() {
         let idx = spec.unlinear(l);
         let on_border = (0..D).any(|a| idx[a] == 0 || idx[a] + 1 == spec.dims[a]);
         let outside_box = bbox.is_some_and(|(lo, hi)| {
@@ -74,7 +74,7 @@ pub fn outer_contour<const D: usize>(
             (0..D).any(|a| p[a] < lo[a] || p[a] > hi[a])
         });
         if on_border || outside_box {
-            tags[l] = Tag::Exterior;
+            *tag = Tag::Exterior;
             queue.push(l as u32);
         }
     }
@@ -258,14 +258,14 @@ mod tests {
         let d = point_distance(spec, &circle_points(60, 1.0));
         let t = tag(&d, 0.15, false, spec.spacing, None);
         let inside = t.inside();
-        for l in 0..spec.node_count() {
+        for (l, &is_inside) in inside.iter().enumerate() {
             let [x, y] = spec.position(spec.unlinear(l));
             let r = (x * x + y * y).sqrt();
             if r < 0.85 {
-                assert!(inside[l], "node at r={r} should be inside");
+                assert!(is_inside, "node at r={r} should be inside");
             }
             if r > 1.1 {
-                assert!(!inside[l], "node at r={r} should be outside");
+                assert!(!is_inside, "node at r={r} should be outside");
             }
         }
         assert!(t.heap_pops > 0);

@@ -13,7 +13,6 @@ fn topology(mesh: &TriMesh) -> (bool, i64, usize) {
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
             *edges.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
-            *edges.entry((a.min(b) + 0, a.max(b))).or_default() += 0;
         }
     }
     let mut count: HashMap<(u32, u32), usize> = HashMap::new();
@@ -252,7 +251,7 @@ fn non_uniform_noisy_sphere_gives_one_closed_surface() {
     use rand::Rng;
     let mut g = rng(9);
     // Box–Muller normal samples.
-    let mut gauss = |g: &mut rand_pcg::Pcg64| {
+    let gauss = |g: &mut rand_pcg::Pcg64| {
         let (u, v): (f64, f64) = (g.random::<f64>().max(1e-300), g.random());
         (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
     };
@@ -342,4 +341,80 @@ fn convection_alone_reaches_the_data() {
         share > 0.9,
         "only {share} of the vertices within h of the data"
     );
+}
+
+#[test]
+fn two_levels_match_the_single_level_accuracy() {
+    let points = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 6000, 12).positions;
+    let p = ReconstructParams {
+        levels: Some(2),
+        full_field: true,
+        ..params(48)
+    };
+    let r = reconstruct_3d(&Input::from_points(points), &p).unwrap();
+    let (watertight, euler, comps) = topology(&r.mesh);
+    let h = r.report.spacing;
+    assert_eq!(r.report.levels, 2);
+    assert_eq!(r.report.flow.len(), 2);
+    let exact = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 5000, 13).positions;
+    let c = chamfer(&r.mesh, |v| v.length() - 1.0, &exact);
+    assert!(watertight && euler == 2 && comps == 1);
+    assert!(c < 0.5 * h, "chamfer {c} vs h {h}");
+    // The full field is a signed distance everywhere: compare with the
+    // exact sphere distance at every node (first-order sweeping: ≤ 2h).
+    let spec = r.field.spec;
+    let worst = (0..spec.node_count())
+        .map(|l| {
+            let [x, y, z] = spec.position(spec.unlinear(l));
+            (r.field.values[l] - (DVec3::new(x, y, z).length() - 1.0)).abs()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 2.0 * h, "signed distance off by {worst} (h {h})");
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    use surfrecon_levelset::LevelsetError;
+    let empty = reconstruct_3d(&Input::default(), &ReconstructParams::default());
+    assert!(matches!(empty, Err(LevelsetError::InvalidInput(_))));
+    let nan = Input::from_points(vec![DVec3::ZERO, DVec3::new(f64::NAN, 0.0, 0.0)]);
+    assert!(matches!(
+        reconstruct_3d(&nan, &ReconstructParams::default()),
+        Err(LevelsetError::InvalidInput(_))
+    ));
+    let pts = Input::from_points(vec![DVec3::ZERO, DVec3::ONE]);
+    for bad in [
+        ReconstructParams {
+            p: 0.5,
+            ..Default::default()
+        },
+        ReconstructParams {
+            band: 1.0,
+            ..Default::default()
+        },
+        ReconstructParams {
+            resolution: Some(0),
+            ..Default::default()
+        },
+        ReconstructParams {
+            epsilon: Some(-1.0),
+            ..Default::default()
+        },
+        ReconstructParams {
+            levels: Some(0),
+            ..Default::default()
+        },
+    ] {
+        let r = reconstruct_3d(&pts, &bad);
+        assert!(
+            matches!(r, Err(LevelsetError::InvalidParameter { .. })),
+            "{bad:?}"
+        );
+    }
+    // Degenerate but valid data: one point, or two, still give a closed
+    // (tiny) surface rather than a failure.
+    let one = reconstruct_3d(&Input::from_points(vec![DVec3::ONE]), &params(8)).unwrap();
+    assert!(topology(&one.mesh).0 || one.mesh.triangles.is_empty());
+    let two = reconstruct_3d(&pts, &params(16)).unwrap();
+    assert!(topology(&two.mesh).0 || two.mesh.triangles.is_empty());
 }

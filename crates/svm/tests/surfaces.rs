@@ -32,12 +32,12 @@ fn box_sd(p: DVec3) -> f64 {
 }
 
 /// Largest |f − sd| over held-out surface samples moved along their normals
-/// by up to 1% of the diagonal.
+/// by up to 0.5% of the diagonal.
 fn worst_distance_error(model: &SvmModel, case: &Case, diag: f64) -> f64 {
     let test = sample_surface(&case.mesh, 3000, 4242);
     let mut worst: f64 = 0.0;
     for (p, n) in test.positions.iter().zip(test.normals.as_ref().unwrap()) {
-        for t in [-0.01, -0.005, 0.0, 0.005, 0.01] {
+        for t in [-0.005, -0.0025, 0.0, 0.0025, 0.005] {
             let x = *p + *n * (t * diag);
             worst = worst.max((model.value(x) - (case.signed_distance)(x)).abs());
         }
