@@ -94,7 +94,7 @@ fn sphere_points_give_a_closed_mesh_and_json_summary() {
 fn two_column_points_give_closed_curves() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("circle.xyz");
-    let output = dir.path().join("curve.ply");
+    let output = dir.path().join("curve.obj");
     write_points(&input, true);
     let out = surfrecon()
         .args(["reconstruct", "--json", "--resolution", "64"])

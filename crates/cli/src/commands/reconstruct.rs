@@ -122,6 +122,16 @@ fn run_levelset(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Resu
     if planar && !args.two_d {
         ctx.say("all z coordinates are equal: reconstructing closed curves in 2D");
     }
+    let is_obj = args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    if two_d && !is_obj {
+        anyhow::bail!(
+            "2D reconstruction gives closed curves, which only OBJ stores here: use an .obj output instead of {}",
+            args.output.display()
+        );
+    }
     let spinner = ctx.spinner("reconstructing");
     let (output, report, counts) = if two_d {
         let r = reconstruct_2d(&input, &params(args)).context("level-set reconstruction failed")?;
