@@ -151,7 +151,7 @@ pub fn sample_surface(mesh: &TriMesh, n: usize, seed: u64) -> PointCloud {
         total += 0.5 * (b - a).cross(c - a).length();
         cumulative.push(total);
     }
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return PointCloud::default();
     }
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);

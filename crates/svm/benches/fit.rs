@@ -24,7 +24,12 @@ fn cpu_seconds() -> f64 {
 }
 
 fn load_average() -> String {
-    std::fs::read_to_string("/proc/loadavg").unwrap_or_default().split_whitespace().next().unwrap_or("?").to_string()
+    std::fs::read_to_string("/proc/loadavg")
+        .unwrap_or_default()
+        .split_whitespace()
+        .next()
+        .unwrap_or("?")
+        .to_string()
 }
 
 fn main() {
@@ -39,7 +44,11 @@ fn main() {
             return;
         }
     };
-    println!("mesh {path}: {} triangles; {} threads", mesh.triangles.len(), rayon::current_num_threads());
+    println!(
+        "mesh {path}: {} triangles; {} threads",
+        mesh.triangles.len(),
+        rayon::current_num_threads()
+    );
     let cases = [
         ("head-sized", 178_000usize, 34.9, 30_162usize, 3.0),
         ("dragon-sized", 400_000, 319.0, 284_003, 15.0),
@@ -52,7 +61,10 @@ fn main() {
         let (model, report) = fit(&pc.positions, normals, &FitOptions::default()).expect("fit");
         let secs = t.elapsed().as_secs_f64();
         let cpu = cpu_seconds() - cpu;
-        println!("  (load average before: {load}; CPU time {cpu:.2} s over {} threads)", rayon::current_num_threads());
+        println!(
+            "  (load average before: {load}; CPU time {cpu:.2} s over {} threads)",
+            rayon::current_num_threads()
+        );
         println!(
             "{name}: {n} points, fit {secs:.2} s (target < {target_s} s; paper {paper_s} s, ratio {:.1}x), \
              {} centres (paper {paper_centres}), {} levels",
@@ -67,7 +79,10 @@ fn main() {
             );
         }
         let (t, cpu) = (Instant::now(), cpu_seconds());
-        let opts = MeshOptions { resolution: 256, ..Default::default() };
+        let opts = MeshOptions {
+            resolution: 256,
+            ..Default::default()
+        };
         let (m, r) = mesh_model(&model, &pc.positions, pc.bounds(), &opts).expect("mesh");
         println!(
             "  mesh at 256: {:.2} s (CPU {:.2} s), {} nodes evaluated, {} triangles",

@@ -18,22 +18,66 @@ fn main() {
         pc.positions.push(p);
         normals.push(n.normalize());
     }
-    let mut opts = FitOptions { c, ..Default::default() };
-    if sq { opts.loss = Loss::Squared; }
+    let mut opts = FitOptions {
+        c,
+        ..Default::default()
+    };
+    if sq {
+        opts.loss = Loss::Squared;
+    }
     let (model, rep) = fit(&pc.positions, pc.normals.as_ref().unwrap(), &opts).unwrap();
-    for l in &rep.levels { println!("  {:?}", l); }
+    for l in &rep.levels {
+        println!("  {:?}", l);
+    }
     let outl = &pc.positions[4000..];
     for k in 1..=model.levels.len() {
         let m = model.without_finest(model.levels.len() - k);
-        let neg = outl.iter().filter(|p| (m.value(**p) < 0.0) != (p.length() < 1.0) && (p.length() - 1.0).abs() > 0.05).count();
-        let far = outl.iter().filter(|p| (p.length() - 1.0).abs() > 0.05).count();
+        let neg = outl
+            .iter()
+            .filter(|p| {
+                (m.value(**p) < 0.0) != (p.length() < 1.0) && (p.length() - 1.0).abs() > 0.05
+            })
+            .count();
+        let far = outl
+            .iter()
+            .filter(|p| (p.length() - 1.0).abs() > 0.05)
+            .count();
         println!("  levels {k}: {neg}/{far} far outliers with wrong sign");
     }
-    for p in outl { let v = model.value(*p); if (v < 0.0) != (p.length() < 1.0) && (p.length() - 1.0).abs() > 0.05 { println!("   wrong: sd {:.3} f {:.3} f1 {:.3} f3 {:.3}", p.length()-1.0, v, model.without_finest(5).value(*p), model.without_finest(3).value(*p)); } }
-    let (mesh, _) = mesh_model(&model, &pc.positions, pc.bounds(), &MeshOptions { resolution: 64, ..Default::default() }).unwrap();
+    for p in outl {
+        let v = model.value(*p);
+        if (v < 0.0) != (p.length() < 1.0) && (p.length() - 1.0).abs() > 0.05 {
+            println!(
+                "   wrong: sd {:.3} f {:.3} f1 {:.3} f3 {:.3}",
+                p.length() - 1.0,
+                v,
+                model.without_finest(5).value(*p),
+                model.without_finest(3).value(*p)
+            );
+        }
+    }
+    let (mesh, _) = mesh_model(
+        &model,
+        &pc.positions,
+        pc.bounds(),
+        &MeshOptions {
+            resolution: 64,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let t = topology(&mesh);
     let clean = sample_surface(&icosphere(DVec3::ZERO, 1.0, 5), 2000, 99);
-    let err = clean.positions.iter().map(|p| model.value(*p).abs()).fold(0.0, f64::max);
-    let mean = clean.positions.iter().map(|p| model.value(*p).abs()).sum::<f64>() / 2000.0;
+    let err = clean
+        .positions
+        .iter()
+        .map(|p| model.value(*p).abs())
+        .fold(0.0, f64::max);
+    let mean = clean
+        .positions
+        .iter()
+        .map(|p| model.value(*p).abs())
+        .sum::<f64>()
+        / 2000.0;
     println!("c={c} sq={sq}: components {} watertight {} centres {} levels {}; surface err max {:.4} mean {:.5} (diam {:.3})", t.components, t.watertight, model.centre_count(), rep.levels.len(), err, mean, rep.diameter);
 }

@@ -58,7 +58,11 @@ impl CellIndex {
     pub fn new(points: &[DVec3], cell: f64) -> CellIndex {
         let origin = points.iter().copied().fold(DVec3::INFINITY, DVec3::min);
         let mut idx = CellIndex {
-            origin: if origin.is_finite() { origin } else { DVec3::ZERO },
+            origin: if origin.is_finite() {
+                origin
+            } else {
+                DVec3::ZERO
+            },
             inv_cell: 1.0 / cell,
             map: CellMap::default(),
             occupied_min: [i64::MAX; 3],
@@ -125,7 +129,9 @@ impl CellIndex {
         for z in lo[2]..=hi[2] {
             for y in lo[1]..=hi[1] {
                 for x in lo[0]..=hi[0] {
-                    let Some(k) = self.key([x, y, z]) else { continue };
+                    let Some(k) = self.key([x, y, z]) else {
+                        continue;
+                    };
                     if let Some(&(s, e)) = self.map.get(&k) {
                         (s as usize..e as usize).for_each(&mut f);
                     }
@@ -141,7 +147,11 @@ impl CellIndex {
         }
         let c = self.cell_of(q);
         (0..27).any(|k: i64| {
-            let n = [c[0].saturating_add(k % 3 - 1), c[1].saturating_add((k / 3) % 3 - 1), c[2].saturating_add(k / 9 - 1)];
+            let n = [
+                c[0].saturating_add(k % 3 - 1),
+                c[1].saturating_add((k / 3) % 3 - 1),
+                c[2].saturating_add(k / 9 - 1),
+            ];
             self.key(n).is_some_and(|key| self.map.contains_key(&key))
         })
     }
@@ -157,7 +167,11 @@ impl CellIndex {
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    let n = [c[0].saturating_add(dx), c[1].saturating_add(dy), c[2].saturating_add(dz)];
+                    let n = [
+                        c[0].saturating_add(dx),
+                        c[1].saturating_add(dy),
+                        c[2].saturating_add(dz),
+                    ];
                     let Some(k) = self.key(n) else { continue };
                     if let Some(&(s, e)) = self.map.get(&k) {
                         (s as usize..e as usize).for_each(&mut f);

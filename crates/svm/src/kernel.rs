@@ -7,9 +7,9 @@
 //! constraint C (a bound on the coefficients) read in distance units. This
 //! only rescales the paper's coefficients and C by 4.
 
+use crate::cells::CellIndex;
 use glam::DVec3;
 use rayon::prelude::*;
-use crate::cells::CellIndex;
 
 /// k(r) for r = distance / width; zero for r ≥ 1, k(0) = 1.
 #[inline]

@@ -12,6 +12,8 @@
 //!   saves and loads models;
 //! - [`mesh::mesh_model`] extracts the zero set by surface-following
 //!   marching cubes;
+//! - [`warp::fit_warp`] computes a dense deformation field between two
+//!   fitted shapes (morphing).
 
 pub mod cells;
 pub mod error;
@@ -22,6 +24,7 @@ pub mod multiscale;
 pub mod regression;
 pub mod selection;
 pub mod training;
+pub mod warp;
 
 pub use error::SvmError;
 pub use model::SvmModel;

@@ -131,8 +131,15 @@ fn follow_surface(model: &SvmModel, seeds: &[DVec3], spec: &GridSpec<3>) -> Resu
         next.dedup();
         frontier = next;
     }
-    let unpack = |k: u64| [(k & 0x1f_ffff) as usize, ((k >> 21) & 0x1f_ffff) as usize, (k >> 42) as usize];
-    let mut nodes: Vec<([usize; 3], f64)> = values.into_iter().map(|(k, v)| (unpack(k), v)).collect();
+    let unpack = |k: u64| {
+        [
+            (k & 0x1f_ffff) as usize,
+            ((k >> 21) & 0x1f_ffff) as usize,
+            (k >> 42) as usize,
+        ]
+    };
+    let mut nodes: Vec<([usize; 3], f64)> =
+        values.into_iter().map(|(k, v)| (unpack(k), v)).collect();
     nodes.sort_unstable_by_key(|(i, _)| *i);
     Ok(Band {
         nodes,
@@ -160,7 +167,8 @@ fn block_cells(b: [usize; 3], cell_dims: [usize; 3]) -> [std::ops::Range<usize>;
 
 fn cells_of(r: &[std::ops::Range<usize>; 3]) -> impl Iterator<Item = [usize; 3]> + '_ {
     r[2].clone().flat_map(move |z| {
-        r[1].clone().flat_map(move |y| r[0].clone().map(move |x| [x, y, z]))
+        r[1].clone()
+            .flat_map(move |y| r[0].clone().map(move |x| [x, y, z]))
     })
 }
 
@@ -169,7 +177,12 @@ fn corners(c: [usize; 3]) -> impl Iterator<Item = [usize; 3]> {
 }
 
 /// Evaluate the not yet known nodes of `blocks`, one group per block.
-fn evaluate_blocks(model: &SvmModel, spec: &GridSpec<3>, blocks: &[[usize; 3]], values: &mut FastMap<f64>) {
+fn evaluate_blocks(
+    model: &SvmModel,
+    spec: &GridSpec<3>,
+    blocks: &[[usize; 3]],
+    values: &mut FastMap<f64>,
+) {
     let cell_dims = spec.dims.map(|n| n - 1);
     let mut claimed = FastSet::default();
     let mut keys = Vec::new();
@@ -178,7 +191,8 @@ fn evaluate_blocks(model: &SvmModel, spec: &GridSpec<3>, blocks: &[[usize; 3]], 
     for &b in blocks {
         let cells = block_cells(b, cell_dims);
         // Nodes of the block: one more than its cells along each axis.
-        let nodes: [std::ops::Range<usize>; 3] = std::array::from_fn(|a| cells[a].start..cells[a].end + 1);
+        let nodes: [std::ops::Range<usize>; 3] =
+            std::array::from_fn(|a| cells[a].start..cells[a].end + 1);
         let mut group = Vec::new();
         for n in cells_of(&nodes) {
             let k = pack(n);

@@ -19,13 +19,13 @@
 //! Levels are stored coarsest first; the file ends right after the last
 //! level. Every number must be finite.
 
+use crate::cells::CellIndex;
 use crate::error::{Result, SvmError};
 use crate::kernel::{kernel_gradient, kernel_hessian, wu};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::io::Write;
 use std::path::Path;
-use crate::cells::CellIndex;
 
 const MAGIC: &[u8; 8] = b"SRSVMMDL";
 const VERSION: u32 = 1;
@@ -46,11 +46,23 @@ impl Level {
     pub fn new(width: f64, centres: Vec<DVec3>, coefficients: Vec<f64>) -> Level {
         debug_assert_eq!(centres.len(), coefficients.len());
         let unsorted = CellIndex::new(&centres, width);
-        let centres: Vec<DVec3> = unsorted.order.iter().map(|&i| centres[i as usize]).collect();
-        let coefficients = unsorted.order.iter().map(|&i| coefficients[i as usize]).collect();
+        let centres: Vec<DVec3> = unsorted
+            .order
+            .iter()
+            .map(|&i| centres[i as usize])
+            .collect();
+        let coefficients = unsorted
+            .order
+            .iter()
+            .map(|&i| coefficients[i as usize])
+            .collect();
         // Re-index the sorted copy: its order is the identity.
         let index = CellIndex::new(&centres, width);
-        debug_assert!(index.order.iter().enumerate().all(|(i, &o)| o as usize == i));
+        debug_assert!(index
+            .order
+            .iter()
+            .enumerate()
+            .all(|(i, &o)| o as usize == i));
         Level {
             width,
             inverse_width: 1.0 / width,
@@ -226,7 +238,13 @@ impl SvmModel {
         out
     }
 
-    fn batch_of_group<T: Copy, F>(&self, points: &[DVec3], group: &[u32], zero: T, add: &F) -> Vec<T>
+    fn batch_of_group<T: Copy, F>(
+        &self,
+        points: &[DVec3],
+        group: &[u32],
+        zero: T,
+        add: &F,
+    ) -> Vec<T>
     where
         F: Fn(&mut T, DVec3, DVec3, f64, &Level),
     {
@@ -266,7 +284,10 @@ impl SvmModel {
     fn brick_size(&self, points: &[DVec3]) -> f64 {
         let finest = self.levels.last().map_or(1.0, |l| l.width);
         let bounds = surfrecon_geom::Aabb::from_points(points);
-        let volume = bounds.size().max(DVec3::splat(finest * 1e-3)).element_product();
+        let volume = bounds
+            .size()
+            .max(DVec3::splat(finest * 1e-3))
+            .element_product();
         let crowded = (16.0 * volume / points.len().max(1) as f64).cbrt();
         finest.max(crowded.min(finest * 4.0))
     }
@@ -274,7 +295,11 @@ impl SvmModel {
     /// The model without its `k` finest levels: a smoother function with
     /// the same offset (at least the coarsest level is always kept).
     pub fn without_finest(&self, k: usize) -> SvmModel {
-        let keep = self.levels.len().saturating_sub(k).max(1.min(self.levels.len()));
+        let keep = self
+            .levels
+            .len()
+            .saturating_sub(k)
+            .max(1.min(self.levels.len()));
         SvmModel {
             offset: self.offset,
             levels: self.levels[..keep].to_vec(),
@@ -331,7 +356,10 @@ impl SvmModel {
         }
         let version = r.u32("version")?;
         if version != VERSION {
-            return Err((8, format!("unsupported version {version} (expected {VERSION})")));
+            return Err((
+                8,
+                format!("unsupported version {version} (expected {VERSION})"),
+            ));
         }
         let offset = r.finite("offset b")?;
         let level_count = r.u32("level count")?;
@@ -350,7 +378,10 @@ fn read_level(r: &mut ByteReader, li: u32) -> std::result::Result<Level, (u64, S
     let at = r.pos as u64;
     let width = r.finite("kernel width")?;
     if !(width > 0.0) {
-        return Err((at, format!("level {li}: kernel width {width} is not positive")));
+        return Err((
+            at,
+            format!("level {li}: kernel width {width} is not positive"),
+        ));
     }
     let at = r.pos as u64;
     let n = r.u64("centre count")?;
@@ -477,7 +508,13 @@ mod tests {
         }
         assert!((m.value(x) - brute).abs() < 1e-12);
         let many: Vec<DVec3> = (0..500)
-            .map(|i| DVec3::new((i as f64 * 0.1).sin(), (i as f64 * 0.2).cos(), 0.01 * i as f64 - 2.0))
+            .map(|i| {
+                DVec3::new(
+                    (i as f64 * 0.1).sin(),
+                    (i as f64 * 0.2).cos(),
+                    0.01 * i as f64 - 2.0,
+                )
+            })
             .collect();
         for ((p, v), g) in many.iter().zip(m.values(&many)).zip(m.gradients(&many)) {
             assert!((m.value(*p) - v).abs() < 1e-12);

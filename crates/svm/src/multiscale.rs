@@ -4,8 +4,8 @@
 //! fitting accuracy. The offset b is the largest width, so f = b > 0 far
 //! from the data (outside positive, inside negative).
 
-use crate::error::{require_positive, Result, SvmError};
 use crate::cells::CellIndex;
+use crate::error::{require_positive, Result, SvmError};
 use crate::kernel::KernelMatrix;
 use crate::model::{Level, SvmModel};
 use crate::regression::{solve_weighted, Loss, RegressionParams};
@@ -111,7 +111,11 @@ pub struct FitReport {
 }
 
 /// Fit an implicit function to oriented surface samples.
-pub fn fit(points: &[DVec3], normals: &[DVec3], opts: &FitOptions) -> Result<(SvmModel, FitReport)> {
+pub fn fit(
+    points: &[DVec3],
+    normals: &[DVec3],
+    opts: &FitOptions,
+) -> Result<(SvmModel, FitReport)> {
     opts.validate()?;
     let start = Instant::now();
     let samples = SurfaceSamples::new(points, normals)?;
@@ -229,9 +233,15 @@ fn fit_level(
 
 /// For each box (representative, count): the number of samples in it and
 /// in its 26 neighbours.
-fn neighbourhood_counts(points: &[DVec3], boxes: &[(usize, usize)], origin: DVec3, h: f64) -> Vec<f64> {
+fn neighbourhood_counts(
+    points: &[DVec3],
+    boxes: &[(usize, usize)],
+    origin: DVec3,
+    h: f64,
+) -> Vec<f64> {
     let cell = |p: DVec3| ((p - origin) / h).floor().as_i64vec3();
-    let counts: HashMap<glam::I64Vec3, usize> = boxes.iter().map(|&(r, n)| (cell(points[r]), n)).collect();
+    let counts: HashMap<glam::I64Vec3, usize> =
+        boxes.iter().map(|&(r, n)| (cell(points[r]), n)).collect();
     boxes
         .par_iter()
         .map(|&(r, _)| {
@@ -301,7 +311,12 @@ fn propose(
     let reps: Vec<(usize, f64)> = boxes
         .iter()
         .zip(own.iter().zip(&around))
-        .map(|(&(r, _), (&o, &a))| (active[r], (o / typical_own).min(a / typical_around).min(1.0)))
+        .map(|(&(r, _), (&o, &a))| {
+            (
+                active[r],
+                (o / typical_own).min(a / typical_around).min(1.0),
+            )
+        })
         .collect();
     let y = opts.offset_ratio * width;
     let off = samples.off_surface_weighted(&reps, y);

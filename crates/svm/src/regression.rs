@@ -164,7 +164,11 @@ mod tests {
         let k = KernelMatrix::build(&pts, 0.35);
         let p = params(Loss::EpsilonInsensitive, 0.8, 0.05);
         let r = solve(&k, &t, &p);
-        assert!(r.last_change <= 1e-12, "did not converge: {}", r.last_change);
+        assert!(
+            r.last_change <= 1e-12,
+            "did not converge: {}",
+            r.last_change
+        );
         assert!(r.coefficients.iter().all(|b| b.abs() <= 0.8 + 1e-15));
         let best = objective(&k, &t, &p, &r.coefficients);
         let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
@@ -203,7 +207,9 @@ mod tests {
     #[test]
     fn box_constraint_bounds_an_outlier() {
         // One far target among zeros: its coefficient saturates at C.
-        let pts: Vec<DVec3> = (0..10).map(|i| DVec3::new(i as f64 * 0.1, 0.0, 0.0)).collect();
+        let pts: Vec<DVec3> = (0..10)
+            .map(|i| DVec3::new(i as f64 * 0.1, 0.0, 0.0))
+            .collect();
         let mut t = vec![0.0; 10];
         t[5] = 100.0;
         let k = KernelMatrix::build(&pts, 0.25);

@@ -75,7 +75,11 @@ pub fn select_parameters(
     let mut trials = Vec::new();
     for &epsilon in &sel.epsilon_values {
         for &c in &sel.c_values {
-            let opts = FitOptions { c, epsilon, ..*base };
+            let opts = FitOptions {
+                c,
+                epsilon,
+                ..*base
+            };
             let (model, _) = fit(&tp, &tn, &opts)?;
             let error = validation_error(&model, &validation, &reference) / reference.diameter;
             trials.push(Trial { c, epsilon, error });
@@ -116,7 +120,11 @@ fn validation_error(model: &SvmModel, valid: &SurfaceSamples, all: &SurfaceSampl
     let off = valid.off_surface(&reps, y);
     let consistent: Vec<_> = off
         .into_iter()
-        .filter(|t| all.tree.nearest(t.position).is_none_or(|n| n.distance >= 0.9 * y))
+        .filter(|t| {
+            all.tree
+                .nearest(t.position)
+                .is_none_or(|n| n.distance >= 0.9 * y)
+        })
         .collect();
     let on: f64 = model.values(&valid.points).iter().map(|v| v.abs()).sum();
     let positions: Vec<DVec3> = consistent.iter().map(|t| t.position).collect();
@@ -159,6 +167,10 @@ mod tests {
         .unwrap();
         // C = 0.002·width cannot move f far from the offset b: large error.
         assert_eq!(s.c, 1.0, "{:?}", s.trials);
-        assert!(s.trials[0].error > 5.0 * s.trials[1].error, "{:?}", s.trials);
+        assert!(
+            s.trials[0].error > 5.0 * s.trials[1].error,
+            "{:?}",
+            s.trials
+        );
     }
 }

@@ -1,12 +1,12 @@
 //! Robustness (the paper's Figure 6 and Figure 4): uniform outliers, and a
 //! hole in the sampling.
 
+use rand::{Rng, SeedableRng};
 use surfrecon_geom::metrics::topology;
 use surfrecon_geom::shapes::{icosphere, sample_surface};
 use surfrecon_geom::{DVec3, PointCloud};
 use surfrecon_svm::mesh::{mesh_model, MeshOptions};
 use surfrecon_svm::{fit, FitOptions, Loss};
-use rand::{Rng, SeedableRng};
 
 /// A sampled sphere plus 5% points uniform in its bounding box, with random
 /// unit normals (as a normal estimator would give isolated points).
@@ -58,9 +58,14 @@ fn outliers_give_spurious_pieces_with_the_squared_loss() {
 fn a_hole_in_a_sampled_sphere_is_closed_smoothly() {
     let full = sample_surface(&icosphere(DVec3::ZERO, 1.0, 5), 5000, 8);
     // Remove a cap of angular radius ~35° around +z.
-    let keep: Vec<usize> = (0..full.len()).filter(|&i| full.positions[i].z < 0.82).collect();
+    let keep: Vec<usize> = (0..full.len())
+        .filter(|&i| full.positions[i].z < 0.82)
+        .collect();
     let points: Vec<DVec3> = keep.iter().map(|&i| full.positions[i]).collect();
-    let normals: Vec<DVec3> = keep.iter().map(|&i| full.normals.as_ref().unwrap()[i]).collect();
+    let normals: Vec<DVec3> = keep
+        .iter()
+        .map(|&i| full.normals.as_ref().unwrap()[i])
+        .collect();
     let (model, report) = fit(&points, &normals, &FitOptions::default()).unwrap();
     let (mesh, _) = mesh_model(
         &model,
@@ -81,7 +86,10 @@ fn a_hole_in_a_sampled_sphere_is_closed_smoothly() {
         .map(|i| 0.8 + i as f64 * 0.002)
         .find(|&z| model.value(DVec3::new(0.0, 0.0, z)) >= 0.0)
         .expect("surface crosses the z axis above the hole");
-    assert!((top - 1.0).abs() < 0.05 * report.diameter, "crossing at z = {top}");
+    assert!(
+        (top - 1.0).abs() < 0.05 * report.diameter,
+        "crossing at z = {top}"
+    );
     for v in mesh.vertices.iter().filter(|v| v.z > 0.9) {
         let n = model.gradient(*v).normalize();
         assert!(n.dot(v.normalize()) > 0.9, "normal {n} at {v}");

@@ -47,11 +47,19 @@ fn worst_distance_error(model: &SvmModel, case: &Case, diag: f64) -> f64 {
 
 fn check(case: Case) {
     let pc = sample_surface(&case.mesh, case.samples, 7);
-    let (model, report) = fit(&pc.positions, pc.normals.as_ref().unwrap(), &FitOptions::default())
-        .expect("fit");
+    let (model, report) = fit(
+        &pc.positions,
+        pc.normals.as_ref().unwrap(),
+        &FitOptions::default(),
+    )
+    .expect("fit");
     let diag = report.diameter;
     let err = worst_distance_error(&model, &case, diag);
-    assert!(err < 0.01 * diag, "|f - sd| up to {:.3}% of the diagonal", 100.0 * err / diag);
+    assert!(
+        err < 0.01 * diag,
+        "|f - sd| up to {:.3}% of the diagonal",
+        100.0 * err / diag
+    );
 
     let opts = MeshOptions {
         resolution: 96,

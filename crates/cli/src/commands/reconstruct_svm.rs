@@ -98,12 +98,18 @@ pub fn reconstruct_with_resolution(
     }
     let started = ctx.elapsed();
     let (model, fit_summary) = match &args.model_in {
-        Some(path) => (load_model(path, ctx)?, json!({"loaded": path.display().to_string()})),
+        Some(path) => (
+            load_model(path, ctx)?,
+            json!({"loaded": path.display().to_string()}),
+        ),
         None => fit_model(points, args, ctx)?,
     };
     let fitted = ctx.elapsed();
     let model = if args.drop_levels > 0 {
-        ctx.detail(format!("leaving out the {} finest level(s)", args.drop_levels));
+        ctx.detail(format!(
+            "leaving out the {} finest level(s)",
+            args.drop_levels
+        ));
         model.without_finest(args.drop_levels)
     } else {
         model
@@ -143,8 +149,13 @@ pub fn reconstruct_with_resolution(
 }
 
 fn load_model(path: &PathBuf, ctx: &Context) -> anyhow::Result<SvmModel> {
-    let model = SvmModel::load(path).with_context(|| format!("cannot load model {}", path.display()))?;
-    ctx.detail(format!("loaded model {} ({} centres)", path.display(), model.centre_count()));
+    let model =
+        SvmModel::load(path).with_context(|| format!("cannot load model {}", path.display()))?;
+    ctx.detail(format!(
+        "loaded model {} ({} centres)",
+        path.display(),
+        model.centre_count()
+    ));
     Ok(model)
 }
 
@@ -170,8 +181,13 @@ fn fit_model(
         CSetting::Fixed(c) => c,
         CSetting::Auto => {
             let spinner = ctx.spinner("choosing C by validation");
-            let s = select_parameters(&points.positions, &normals, &opts, &SelectionOptions::default())
-                .context("parameter selection failed")?;
+            let s = select_parameters(
+                &points.positions,
+                &normals,
+                &opts,
+                &SelectionOptions::default(),
+            )
+            .context("parameter selection failed")?;
             spinner.finish_and_clear();
             ctx.say(format!("svm: C = {} chosen by validation", s.c));
             selection = json!(s
@@ -183,8 +199,8 @@ fn fit_model(
         }
     };
     let spinner = ctx.spinner("fitting the SVM implicit surface");
-    let (model, report) = surfrecon_svm::fit(&points.positions, &normals, &opts)
-        .context("SVM fit failed")?;
+    let (model, report) =
+        surfrecon_svm::fit(&points.positions, &normals, &opts).context("SVM fit failed")?;
     spinner.finish_and_clear();
     log_levels(&report, ctx);
     if let Some(path) = &args.model_out {
@@ -229,7 +245,9 @@ fn normals_for(points: &PointCloud, k: usize, ctx: &Context) -> Vec<DVec3> {
     if let Some(n) = &points.normals {
         return n.clone();
     }
-    ctx.say(format!("svm: no normals in the input; estimating them from {k} neighbours"));
+    ctx.say(format!(
+        "svm: no normals in the input; estimating them from {k} neighbours"
+    ));
     let mut normals = estimate_normals(&points.positions, k);
     orient_normals(&points.positions, &mut normals, k);
     normals

@@ -1,0 +1,144 @@
+//! End-to-end: `surfrecon reconstruct --method svm` and `surfrecon morph`.
+
+use std::path::Path;
+use std::process::Command;
+use surfrecon_geom::metrics::topology;
+use surfrecon_geom::shapes::{icosphere, sample_surface};
+use surfrecon_geom::{io, DVec3, Geometry};
+
+fn surfrecon(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
+        .args(args)
+        .output()
+        .expect("run surfrecon")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn reconstruct_svm_saves_reloads_and_meshes_a_closed_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("sphere.ply");
+    let pc = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 3000, 5);
+    io::write(&input, &Geometry::from_points(pc)).unwrap();
+    let out = dir.path().join("out.ply");
+    let model = dir.path().join("m.svm");
+    let run = surfrecon(&[
+        "--json",
+        "reconstruct",
+        s(&input),
+        "-o",
+        s(&out),
+        "--method",
+        "svm",
+        "--resolution",
+        "48",
+        "--model-out",
+        s(&model),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let mesh = io::read(&out).unwrap().to_mesh();
+    let t = topology(&mesh);
+    assert!(t.watertight && t.components == 1, "{t:?}");
+    let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert!(json["svm"]["centres"].as_u64().unwrap() > 0, "{json}");
+
+    // Mesh the saved model again, smoother, without fitting.
+    let again = dir.path().join("again.ply");
+    let run = surfrecon(&[
+        "reconstruct",
+        s(&input),
+        "-o",
+        s(&again),
+        "--method",
+        "svm",
+        "--resolution",
+        "48",
+        "--model-in",
+        s(&model),
+        "--drop-levels",
+        "1",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(topology(&io::read(&again).unwrap().to_mesh()).watertight);
+
+    // A malformed model is one clear error line naming the file.
+    std::fs::write(&model, b"SRSVMMDL\x01\x00").unwrap();
+    let run = surfrecon(&[
+        "reconstruct",
+        s(&input),
+        "-o",
+        s(&again),
+        "--method",
+        "svm",
+        "--model-in",
+        s(&model),
+    ]);
+    assert!(!run.status.success());
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("m.svm") && err.contains("truncated"), "{err}");
+}
+
+#[test]
+fn morph_writes_frames_from_source_to_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path().join("src.ply");
+    let dst = dir.path().join("dst.ply");
+    let sphere = icosphere(DVec3::ZERO, 1.0, 3);
+    let mut ellipsoid = sphere.clone();
+    for v in &mut ellipsoid.vertices {
+        *v *= DVec3::new(1.3, 1.0, 0.8);
+    }
+    io::write(&src, &Geometry::from_mesh(sphere.clone())).unwrap();
+    io::write(&dst, &Geometry::from_mesh(ellipsoid)).unwrap();
+    let pairs = dir.path().join("pairs.txt");
+    std::fs::write(
+        &pairs,
+        "# source -> target\n1 0 0 1.3 0 0\n0 0 1  0 0 0.8\n",
+    )
+    .unwrap();
+    let prefix = dir.path().join("m");
+    let run = surfrecon(&[
+        "morph",
+        s(&src),
+        s(&dst),
+        "--pairs",
+        s(&pairs),
+        "-o",
+        s(&prefix),
+        "--frames",
+        "3",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let last = io::read(dir.path().join("m_002.ply")).unwrap().to_mesh();
+    assert_eq!(last.triangles.len(), sphere.triangles.len());
+    let tip = last.vertices.iter().map(|v| v.x).fold(f64::MIN, f64::max);
+    assert!((tip - 1.3).abs() < 0.03, "x extent {tip}");
+
+    std::fs::write(&pairs, "1 0 0 1.3 0\n").unwrap();
+    let run = surfrecon(&[
+        "morph",
+        s(&src),
+        s(&dst),
+        "--pairs",
+        s(&pairs),
+        "-o",
+        s(&prefix),
+    ]);
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("line 1"));
+}
