@@ -71,9 +71,9 @@ impl CellIndex {
         };
         for p in points {
             let c = idx.cell_of(*p);
-            for a in 0..3 {
-                idx.occupied_min[a] = idx.occupied_min[a].min(c[a]);
-                idx.occupied_max[a] = idx.occupied_max[a].max(c[a]);
+            for (a, &v) in c.iter().enumerate() {
+                idx.occupied_min[a] = idx.occupied_min[a].min(v);
+                idx.occupied_max[a] = idx.occupied_max[a].max(v);
             }
         }
         let mut keyed: Vec<(u64, u32)> = points

@@ -152,7 +152,7 @@ fn cell_of(spec: &GridSpec<3>, p: DVec3) -> Option<[usize; 3]> {
     let g = spec.to_grid(p.to_array());
     let mut c = [0usize; 3];
     for a in 0..3 {
-        if !(g[a] >= 0.0) || g[a] >= (spec.dims[a] - 1) as f64 {
+        if g[a].is_nan() || g[a] < 0.0 || g[a] >= (spec.dims[a] - 1) as f64 {
             return None;
         }
         c[a] = g[a] as usize;

@@ -175,7 +175,7 @@ impl SvmModel {
     pub fn curvature(&self, x: DVec3) -> Option<Curvature> {
         let g = self.gradient(x);
         let len = g.length();
-        if !(len > 0.0) {
+        if len.is_nan() || len <= 0.0 {
             return None;
         }
         let h = self.hessian(x);
@@ -377,7 +377,7 @@ impl SvmModel {
 fn read_level(r: &mut ByteReader, li: u32) -> std::result::Result<Level, (u64, String)> {
     let at = r.pos as u64;
     let width = r.finite("kernel width")?;
-    if !(width > 0.0) {
+    if width <= 0.0 {
         return Err((
             at,
             format!("level {li}: kernel width {width} is not positive"),

@@ -103,7 +103,7 @@ fn split(n: usize, holdout: usize, max_points: usize) -> (Vec<usize>, Vec<usize>
     let (mut train, mut valid) = (Vec::new(), Vec::new());
     for i in (0..n).step_by(stride) {
         let scrambled = (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 32;
-        if scrambled % holdout as u64 == 0 {
+        if scrambled.is_multiple_of(holdout as u64) {
             valid.push(i);
         } else {
             train.push(i);

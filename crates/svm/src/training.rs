@@ -59,7 +59,7 @@ impl SurfaceSamples {
         let normals = unit_normals(normals)?;
         let bounds = Aabb::from_points(points);
         let diameter = bounds.diagonal();
-        if !(diameter > 0.0) {
+        if diameter.is_nan() || diameter <= 0.0 {
             return Err(SvmError::InvalidInput(
                 "all points coincide: the input has no extent".into(),
             ));

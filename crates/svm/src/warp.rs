@@ -390,7 +390,7 @@ fn conjugate_gradient(sys: &Normal, b: &[DVec3], iterations: usize) -> Vec<DVec3
         }
         let ap = sys.apply(&p);
         let pap = dot(&p, &ap);
-        if !(pap > 0.0) {
+        if pap.is_nan() || pap <= 0.0 {
             break;
         }
         let alpha = rr / pap;
