@@ -58,17 +58,4 @@ impl Context {
         pb.enable_steady_tick(std::time::Duration::from_millis(120));
         pb
     }
-
-    /// A progress bar over `len` items when stderr is a terminal.
-    pub fn progress(&self, len: u64, msg: &str) -> ProgressBar {
-        if self.quiet || self.json || !std::io::stderr().is_terminal() {
-            return ProgressBar::hidden();
-        }
-        let pb = ProgressBar::new(len);
-        pb.set_style(
-            ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} [{elapsed}<{eta}]").unwrap(),
-        );
-        pb.set_message(msg.to_string());
-        pb
-    }
 }

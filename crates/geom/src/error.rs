@@ -14,6 +14,16 @@ pub enum Location {
     File,
 }
 
+impl Location {
+    /// "line 3: " or "byte 80: "; nothing for the file as a whole.
+    fn prefix(&self) -> String {
+        match self {
+            Location::File => String::new(),
+            other => format!("{other}: "),
+        }
+    }
+}
+
 impl fmt::Display for Location {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -26,13 +36,15 @@ impl fmt::Display for Location {
 
 #[derive(Debug, thiserror::Error)]
 pub enum GeomError {
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        // Not a `source`: the message already shows it, so `{:#}` chains
+        // would print it twice.
+        error: std::io::Error,
     },
     /// Malformed content: names the file, the position and the problem.
-    #[error("{}: {location}: {message}", path.display())]
+    #[error("{}: {}{message}", path.display(), location.prefix())]
     Parse {
         path: PathBuf,
         location: Location,

@@ -20,10 +20,12 @@ pub enum GridError {
         message: String,
     },
     /// Reading or writing a field or shell file failed.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     FieldIo {
         path: std::path::PathBuf,
-        source: std::io::Error,
+        // Not a `source`: the message already shows it, so `{:#}` chains
+        // would print it twice.
+        error: std::io::Error,
     },
     #[error(transparent)]
     Geom(#[from] surfrecon_geom::GeomError),

@@ -208,7 +208,7 @@ pub fn read_field(path: impl AsRef<Path>) -> Result<AnyField, GridError> {
     let format = FieldFormat::from_path(path)?;
     let bytes = std::fs::read(path).map_err(|source| GridError::FieldIo {
         path: path.to_path_buf(),
-        source,
+        error: source,
     })?;
     let src = Source {
         path: path.to_path_buf(),

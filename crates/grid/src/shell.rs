@@ -229,7 +229,7 @@ pub fn read_shell(path: impl AsRef<Path>) -> Result<AnyShell, GridError> {
     let path = path.as_ref();
     let bytes = std::fs::read(path).map_err(|source| GridError::FieldIo {
         path: path.to_path_buf(),
-        source,
+        error: source,
     })?;
     let fail = |at: usize, message: String| GridError::FieldFile {
         path: path.to_path_buf(),

@@ -51,7 +51,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
 }
 
 fn read_surface(path: &Path) -> anyhow::Result<Surface> {
-    let geometry = io::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let geometry = io::read(path)?;
     Ok(Surface::from(geometry))
 }
 

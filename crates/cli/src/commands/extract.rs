@@ -27,7 +27,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         bail!("--iso must be a finite number, not {}", args.iso);
     }
     let field = read_field(&args.input)
-        .with_context(|| format!("cannot read field {}", args.input.display()))?;
+        ?;
     check_crosses(&field, args.iso, &args)?;
     let spinner = ctx.spinner("extracting");
     let (geometry, summary) = match &field {

@@ -49,7 +49,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     }
     let source = read_mesh(&args.source)?;
     let target =
-        io::read(&args.target).with_context(|| format!("cannot read {}", args.target.display()))?;
+        io::read(&args.target)?;
     let carried: Vec<TriMesh> = args
         .carry
         .iter()
@@ -110,7 +110,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
 }
 
 fn read_mesh(path: &Path) -> anyhow::Result<TriMesh> {
-    let g = io::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let g = io::read(path)?;
     if !g.is_mesh() {
         anyhow::bail!("{}: has no triangles; morph warps a mesh", path.display());
     }

@@ -32,7 +32,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         );
     }
     let mut geometry =
-        io::read(&args.input).with_context(|| format!("cannot read {}", args.input.display()))?;
+        io::read(&args.input)?;
     let points = &geometry.points.positions;
     if points.is_empty() {
         bail!(

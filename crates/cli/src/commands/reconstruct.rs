@@ -65,7 +65,7 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     let geometry =
-        io::read(&args.input).with_context(|| format!("cannot read {}", args.input.display()))?;
+        io::read(&args.input)?;
     match args.method {
         Method::Levelset => run_levelset(&args, &geometry, ctx),
         Method::Svm => run_svm(&args, &geometry, ctx),

@@ -148,7 +148,7 @@ pub fn reconstruct_with_resolution(
     Ok((mesh, summary))
 }
 
-fn load_model(path: &PathBuf, ctx: &Context) -> anyhow::Result<SvmModel> {
+fn load_model(path: &std::path::Path, ctx: &Context) -> anyhow::Result<SvmModel> {
     let model =
         SvmModel::load(path).with_context(|| format!("cannot load model {}", path.display()))?;
     ctx.detail(format!(

@@ -18,7 +18,7 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     let field = read_field(&args.input)
-        .with_context(|| format!("cannot read field {}", args.input.display()))?;
+        ?;
     let (nodes, shell_nodes, written) = match &field {
         AnyField::D2(f) => store(&Shell::from_field(f), &args.output)?,
         AnyField::D3(f) => store(&Shell::from_field(f), &args.output)?,

@@ -20,7 +20,7 @@ pub struct Args {
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     surfrecon_grid::field_io::FieldFormat::from_path(&args.output)?;
     let shell = read_shell(&args.input)
-        .with_context(|| format!("cannot read shell {}", args.input.display()))?;
+        ?;
     let spinner = ctx.spinner("rebuilding the distance field");
     let start = Instant::now();
     let rebuilt = match &shell {

@@ -163,7 +163,7 @@ pub fn read_as(path: impl AsRef<Path>, format: Format) -> Result<Geometry, GeomE
     let path = path.as_ref();
     let bytes = std::fs::read(path).map_err(|source| GeomError::Io {
         path: path.to_path_buf(),
-        source,
+        error: source,
     })?;
     read_bytes(&bytes, format, path)
 }
@@ -223,7 +223,7 @@ pub fn to_bytes(
     let mut out = Vec::new();
     encode(&mut out, geom, format, options).map_err(|source| GeomError::Io {
         path: "<memory>".into(),
-        source,
+        error: source,
     })?;
     Ok(out)
 }
@@ -254,7 +254,7 @@ where
     let path = path.as_ref();
     let io_err = |source| GeomError::Io {
         path: path.to_path_buf(),
-        source,
+        error: source,
     };
     // Same directory as the target, so the final rename cannot cross
     // file systems.

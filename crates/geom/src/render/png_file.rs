@@ -41,7 +41,7 @@ pub fn read_png(path: impl AsRef<Path>) -> Result<Image, GeomError> {
     };
     let file = std::fs::File::open(path).map_err(|source| GeomError::Io {
         path: path.to_path_buf(),
-        source,
+        error: source,
     })?;
     let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
     decoder.set_transformations(png::Transformations::normalize_to_color8());
