@@ -540,11 +540,7 @@ fn propagate_closest<const D: usize>(
             }
         });
     }
-    let mut open: Vec<bool> = nodes
-        .values
-        .par_iter()
-        .map(|&v| v > final_below)
-        .collect();
+    let mut open: Vec<bool> = nodes.values.par_iter().map(|&v| v > final_below).collect();
     for _ in 0..MAX_ROUNDS {
         for order in 0..1usize << D {
             sweeps += 1;

@@ -62,8 +62,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         }
     }
     let t_read = Instant::now();
-    let geometry =
-        io::read(&args.input)?;
+    let geometry = io::read(&args.input)?;
     let read_secs = t_read.elapsed().as_secs_f64();
     let flat = geometry.points.positions.iter().all(|p| p.z == 0.0);
     let two_d = args.two_d || (flat && !args.three_d && !geometry.is_mesh() && !args.signed);

@@ -26,8 +26,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     if !args.iso.is_finite() {
         bail!("--iso must be a finite number, not {}", args.iso);
     }
-    let field = read_field(&args.input)
-        ?;
+    let field = read_field(&args.input)?;
     check_crosses(&field, args.iso, &args)?;
     let spinner = ctx.spinner("extracting");
     let (geometry, summary) = match &field {

@@ -48,8 +48,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         anyhow::bail!("--frames must be at least 2 (the source and the result)");
     }
     let source = read_mesh(&args.source)?;
-    let target =
-        io::read(&args.target)?;
+    let target = io::read(&args.target)?;
     let carried: Vec<TriMesh> = args
         .carry
         .iter()

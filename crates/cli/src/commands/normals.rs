@@ -31,8 +31,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
             args.k
         );
     }
-    let mut geometry =
-        io::read(&args.input)?;
+    let mut geometry = io::read(&args.input)?;
     let points = &geometry.points.positions;
     if points.is_empty() {
         bail!(

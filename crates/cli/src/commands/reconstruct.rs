@@ -64,8 +64,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
-    let geometry =
-        io::read(&args.input)?;
+    let geometry = io::read(&args.input)?;
     match args.method {
         Method::Levelset => run_levelset(&args, &geometry, ctx),
         Method::Svm => run_svm(&args, &geometry, ctx),

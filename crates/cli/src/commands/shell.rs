@@ -17,8 +17,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
-    let field = read_field(&args.input)
-        ?;
+    let field = read_field(&args.input)?;
     let (nodes, shell_nodes, written) = match &field {
         AnyField::D2(f) => store(&Shell::from_field(f), &args.output)?,
         AnyField::D3(f) => store(&Shell::from_field(f), &args.output)?,

@@ -19,8 +19,7 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     surfrecon_grid::field_io::FieldFormat::from_path(&args.output)?;
-    let shell = read_shell(&args.input)
-        ?;
+    let shell = read_shell(&args.input)?;
     let spinner = ctx.spinner("rebuilding the distance field");
     let start = Instant::now();
     let rebuilt = match &shell {
