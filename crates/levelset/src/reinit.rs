@@ -241,25 +241,7 @@ fn godunov_from_layers<const D: usize>(
             }
         }
     }
-    godunov(u, h)
-}
-
-/// Solve Σₐ (x − uₐ)₊² = h² for the smallest admissible x (uₐ may be ∞).
-pub(crate) fn godunov<const D: usize>(mut u: [f64; D], h: f64) -> f64 {
-    u.sort_by(|a, b| a.total_cmp(b));
-    let mut x = u[0] + h;
-    let (mut s1, mut s2) = (u[0], u[0] * u[0]);
-    for (k, &uk) in u.iter().enumerate().skip(1) {
-        if x <= uk {
-            break;
-        }
-        s1 += uk;
-        s2 += uk * uk;
-        let m = (k + 1) as f64;
-        let disc = s1 * s1 - m * (s2 - h * h);
-        x = (s1 + disc.max(0.0).sqrt()) / m;
-    }
-    x
+    surfrecon_grid::sweep::godunov_update(&mut u, h)
 }
 
 #[cfg(test)]
@@ -297,14 +279,5 @@ mod tests {
             assert!((got - exact).abs() < 0.3 * spec.spacing, "{got} vs {exact}");
             assert!(got.abs() < band.half_width);
         }
-    }
-
-    #[test]
-    fn godunov_matches_planar_solutions() {
-        assert!((godunov([0.0, f64::INFINITY], 1.0) - 1.0).abs() < 1e-12);
-        // Diagonal plane: both neighbours at 0 → x = h/√2.
-        assert!((godunov([0.0, 0.0], 1.0) - 0.5f64.sqrt()).abs() < 1e-12);
-        assert!((godunov([0.0, 0.0, 0.0], 1.0) - (1.0f64 / 3.0).sqrt()).abs() < 1e-12);
-        assert!(godunov([f64::INFINITY; 3], 1.0).is_infinite());
     }
 }
