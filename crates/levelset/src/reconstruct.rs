@@ -356,7 +356,7 @@ fn fine_grid<const D: usize>(
     let max_auto = if D == 2 { 1024 } else { 256 };
     let resolution = params.resolution.unwrap_or_else(|| {
         if sampling > 0.0 && longest > 0.0 {
-            ((longest / (1.5 * sampling)).round() as usize).clamp(32, max_auto)
+            ((longest / sampling).round() as usize).clamp(32, max_auto)
         } else {
             64
         }
