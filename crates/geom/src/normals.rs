@@ -685,35 +685,9 @@ mod tests {
         let truth = cloud.normals.unwrap();
         assert!(outward_fraction(&normals[..500], &truth) >= 0.99);
     }
-    /// Vertices and triangles of an ascii PLY such as the Stanford bunny
-    /// (kept here so this test does not depend on the io module).
-    fn read_ascii_ply(path: &str) -> Option<TriMesh> {
-        let text = std::fs::read_to_string(path).ok()?;
-        let count = |name: &str| -> Option<usize> {
-            let line = text.lines().find(|l| l.starts_with(name))?;
-            line.split_whitespace().nth(2)?.parse().ok()
-        };
-        let (nv, nf) = (count("element vertex")?, count("element face")?);
-        let body = text.split("end_header").nth(1)?;
-        let mut lines = body.lines().filter(|l| !l.trim().is_empty());
-        let mut mesh = TriMesh::default();
-        for line in lines.by_ref().take(nv) {
-            let v: Vec<f64> = line
-                .split_whitespace()
-                .take(3)
-                .map(|t| t.parse().unwrap())
-                .collect();
-            mesh.vertices.push(DVec3::new(v[0], v[1], v[2]));
-        }
-        for line in lines.take(nf) {
-            let f: Vec<u32> = line
-                .split_whitespace()
-                .skip(1)
-                .map(|t| t.parse().unwrap())
-                .collect();
-            mesh.triangles.push([f[0], f[1], f[2]]);
-        }
-        Some(mesh)
+    /// The mesh in a geometry file, or `None` when the file is absent.
+    fn read_mesh(path: &str) -> Option<TriMesh> {
+        crate::io::read(path).ok().map(|g| g.to_mesh())
     }
 
     /// Area-weighted vertex normals from the faces' winding.
@@ -730,8 +704,12 @@ mod tests {
 
     #[test]
     fn bunny_scan_normals_point_outward() {
-        let path = "/work/shared/data/stanford_bunny/reconstruction/bun_zipper_res2.ply";
-        let Some(mesh) = read_ascii_ply(path) else {
+        // `shared/` sits beside the repository (as in CI).
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../../shared/data/stanford_bunny/reconstruction/bun_zipper_res2.ply"
+        );
+        let Some(mesh) = read_mesh(path) else {
             eprintln!("note: {path} absent; bunny orientation test skipped");
             return;
         };
