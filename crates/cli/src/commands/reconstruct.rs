@@ -65,10 +65,13 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     let geometry = io::read(&args.input)?;
-    match args.method {
+    let spinner = ctx.spinner("reconstructing");
+    let result = match args.method {
         Method::Levelset => run_levelset(&args, &geometry, ctx),
         Method::Svm => run_svm(&args, &geometry, ctx),
-    }
+    };
+    spinner.finish_and_clear();
+    result
 }
 
 fn run_svm(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()> {
