@@ -1,32 +1,14 @@
 //! End-to-end tests of `surfrecon distance`: real files in a temporary
 //! directory, the real binary, its output files, stdout/stderr and exit code.
 
+mod common;
+use common::{json_of, path_str, surfrecon};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use surfrecon_geom::shapes::icosphere;
 use surfrecon_geom::{io, DVec3, Geometry};
 use surfrecon_grid::field_io::{read_field, AnyField};
-
-fn surfrecon(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
-        .args(args)
-        .output()
-        .expect("the surfrecon binary runs")
-}
-
-fn path_str(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn json_of(out: &Output) -> serde_json::Value {
-    assert!(
-        out.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout.clone()).unwrap();
-    serde_json::from_str(text.trim()).unwrap()
-}
 
 /// A failed run: exit code 1, one `error:` line naming `needle`.
 fn assert_fails_with(out: &Output, needle: &str) {

@@ -1,32 +1,12 @@
 //! End-to-end tests of `surfrecon eval` and `surfrecon normals`: real files
 //! in a temporary directory, the real binary, its stdout/stderr and exit code.
 
+mod common;
+use common::{json_of, path_str, surfrecon};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
 use surfrecon_geom::{io, DVec3, Geometry, PointCloud};
-
-fn surfrecon(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
-        .args(args)
-        .output()
-        .expect("the surfrecon binary runs")
-}
-
-fn path_str(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn json_of(out: &Output) -> serde_json::Value {
-    assert!(
-        out.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout.clone()).unwrap();
-    assert_eq!(text.trim().lines().count(), 1, "one JSON object: {text}");
-    serde_json::from_str(text.trim()).unwrap()
-}
 
 fn write_sphere(dir: &Path, name: &str, radius: f64) -> PathBuf {
     let path = dir.join(name);

@@ -1,21 +1,11 @@
 //! End-to-end tests of `extract`, `shell` and `unshell` through the binary.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
+use common::{path_str, surfrecon};
+
 use surfrecon_geom::{io, metrics, DVec3};
 use surfrecon_grid::field_io::{read_field, write_field, AnyField};
 use surfrecon_grid::{Field, Field2, Field3, GridSpec};
-
-fn surfrecon(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn path_str(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 fn sphere_field(n: usize) -> Field3 {
     let spec = GridSpec {

@@ -1,16 +1,12 @@
 //! `surfrecon convert` and `surfrecon info` end to end.
 
+mod common;
+use common::surfrecon;
+
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 use surfrecon_geom::io::{self, Format};
 use surfrecon_geom::{shapes, DVec3, Geometry, PointCloud};
-
-fn surfrecon(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
-        .args(args)
-        .output()
-        .expect("run surfrecon")
-}
 
 fn arg(p: &Path) -> &str {
     p.to_str().expect("utf-8 temp path")

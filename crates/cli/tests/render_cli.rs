@@ -1,21 +1,11 @@
 //! End-to-end tests of `surfrecon render`: real files in, decoded PNGs out.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
+use common::{path_str, surfrecon};
+
 use surfrecon_geom::render::read_png;
 use surfrecon_geom::shapes::{cuboid, icosphere, sample_surface};
 use surfrecon_geom::{io, DVec3, Geometry, PointCloud};
-
-fn surfrecon(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
-        .args(args)
-        .output()
-        .expect("run surfrecon")
-}
-
-fn path_str(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
 
 const BACKGROUND: [u8; 3] = [250, 250, 248];
 

@@ -1,17 +1,12 @@
 //! End-to-end: `surfrecon reconstruct --method svm` and `surfrecon morph`.
 
+mod common;
+use common::surfrecon;
+
 use std::path::Path;
-use std::process::Command;
 use surfrecon_geom::metrics::topology;
 use surfrecon_geom::shapes::{icosphere, sample_surface};
 use surfrecon_geom::{io, DVec3, Geometry};
-
-fn surfrecon(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
-        .args(args)
-        .output()
-        .expect("run surfrecon")
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
