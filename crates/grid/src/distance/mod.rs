@@ -3,46 +3,34 @@
 //!
 //! Two stages, both O(N + M) for N nodes and M data:
 //!
-//! 1. **Exact band.** Every node within `band_cells` cells of a datum's
-//!    bounding box gets the exact distance to that datum (and the datum's
-//!    nearest point, its "foot"); a node keeps the smallest. A node whose
-//!    value ends up at most the band radius is final: its nearest datum lies
-//!    within the band radius, so it was evaluated. The grid is cut into
-//!    fixed slabs along the last axis, data are binned per slab, and slabs
-//!    run in parallel; ties go to the smaller datum index, so the result is
-//!    the same for any number of threads.
-//! 2. **Closest-datum sweeping.** Gauss–Seidel sweeps in the 2^D alternating
-//!    orders of fast sweeping (see [`crate::sweep`]), where a node tries the
-//!    closest data of its neighbours and keeps the exact distance to the
-//!    best one (closest-point propagation). Information travels along the
-//!    same characteristics as in Godunov fast sweeping, but the value
-//!    carried is an exact distance to a real datum instead of a first-order
-//!    approximation, so the field stays near-exact far from the data. It
-//!    ends at a fixed point (see [`propagate_closest`]).
+//! 1. **Exact band** ([`band`]). Every node within `band_cells` cells of a
+//!    datum's bounding box gets the exact distance to that datum (and the
+//!    datum's nearest point, its "foot"); a node keeps the smallest. A node
+//!    whose value ends up at most the band radius is final: its nearest
+//!    datum lies within the band radius, so it was evaluated.
+//! 2. **Propagation** ([`propagate`]). Separable passes along each axis
+//!    carry the closest data to every other node, and the nodes near point
+//!    data get their exact nearest point.
 //!
-//! Why no Godunov value is mixed in: a candidate distance is an upper bound
-//! of the true distance and exact whenever the propagated datum is the true
-//! nearest one, which fails only where Voronoi cells get thinner than a cell,
-//! by little. The first-order Godunov value is off by O(h) and
-//! *under*estimates where fronts converge (inside curved data), so keeping
-//! `min(Godunov, candidate)` would pull those errors into the field. The
-//! test `godunov_sweeping_from_the_band_is_less_accurate` measures both.
+//! Both stages run in parallel over disjoint parts of the grid with fixed
+//! tie-breaking (the smaller datum index), so the result is the same for
+//! any number of threads.
 
-use crate::sweep::for_each_node_ordered;
+mod band;
+mod primitives;
+mod propagate;
+
+pub use primitives::{segment_closest, segment_dist2, triangle_closest, triangle_dist2};
+pub use propagate::NEAR_CELLS;
+
 use crate::{Field, GridError, GridSpec};
+use band::{exact_band, Node, SortedData};
+use primitives::dist2;
 use rayon::prelude::*;
 use surfrecon_geom::{DVec3, Geometry, TriMesh};
 
 /// `closest` entry of nodes that have no datum (empty band, no propagation).
 pub const NO_DATUM: u32 = u32::MAX;
-
-/// Layers (along the last axis) per slab of the parallel band stage; fixed,
-/// so the work split never depends on the thread count.
-const SLAB_LAYERS: usize = 4;
-
-/// Bound on closest-datum sweep rounds (2^D sweeps each); convergence
-/// normally takes two.
-const MAX_ROUNDS: usize = 64;
 
 /// Points, segments and triangles in `D` dimensions. Datum indices (as in
 /// [`DistanceField::closest`]) count points first, then segments, then
@@ -91,6 +79,12 @@ impl Default for DistanceOptions {
 }
 
 impl<const D: usize> DataSet<D> {
+    /// Datum index ranges of the points, the segments and the triangles.
+    pub fn kind_ranges(&self) -> [std::ops::Range<usize>; 3] {
+        let (np, ns) = (self.points.len(), self.segments.len());
+        [0..np, np..np + ns, np + ns..self.len()]
+    }
+
     /// Number of data (points + segments + triangles).
     pub fn len(&self) -> usize {
         self.points.len() + self.segments.len() + self.triangles.len()
@@ -308,32 +302,44 @@ pub fn unsigned_distance_with<const D: usize>(
         )));
     }
     // Distance, closest datum and its foot point per node.
-    spec.check_memory(std::mem::size_of::<(f64, u32, [f64; D])>())?;
+    spec.check_memory(std::mem::size_of::<Node<D>>())?;
     let radius = options.band_cells * spec.spacing;
-    let (sorted, original) = spatially_sorted(data, spec);
-    let data = &sorted;
-    let mut nodes = Nodes::new(spec.node_count());
-    exact_band(data, spec, radius, &mut nodes);
+
+    let sorted = SortedData::new(data, spec);
+    // Dense point samples hide points between the nodes from propagation,
+    // so the exact band of points reaches over the whole near region.
+    let point_radius = if options.propagate {
+        radius.max(NEAR_CELLS * spec.spacing)
+    } else {
+        radius
+    };
+    let radii = [point_radius, radius, radius];
+    let final_radius = data
+        .kind_ranges()
+        .iter()
+        .zip(radii)
+        .filter(|(kind, _)| !kind.is_empty())
+        .map(|(_, r)| r)
+        .fold(f64::INFINITY, f64::min);
+    let mut nodes = exact_band(&sorted.data, spec, radii);
     if options.propagate {
-        propagate_closest(data, spec, radius, &mut nodes);
+        propagate::propagate_closest(&sorted.data, spec, final_radius.powi(2), &mut nodes);
     }
-    let Nodes {
-        mut values,
-        mut closest,
-        ..
-    } = nodes;
-    // Exact distance to the chosen datum (the sweeps compared distances to
-    // propagated foot points, which are upper bounds).
-    values
-        .par_iter_mut()
-        .zip(closest.par_iter_mut())
+    let data = &sorted.data;
+    // The exact distance to the chosen datum: passes compare distances to
+    // feet, which on segments and triangles are not the nearest points,
+    // and sum their squares in another order.
+    let (values, closest) = nodes
+        .par_iter()
         .enumerate()
-        .for_each(|(l, (v, c))| {
-            if *c != NO_DATUM {
-                *v = data.distance(*c as usize, &spec.position(spec.unlinear(l)));
-                *c = original[*c as usize];
-            }
-        });
+        .map(|(l, n)| match n.datum {
+            NO_DATUM => (f64::INFINITY, NO_DATUM),
+            c => (
+                data.distance(c as usize, &spec.position(spec.unlinear(l))),
+                sorted.original[c as usize],
+            ),
+        })
+        .unzip();
     Ok(DistanceField {
         field: Field {
             spec: *spec,
@@ -341,470 +347,6 @@ pub fn unsigned_distance_with<const D: usize>(
         },
         closest,
     })
-}
-
-/// Working state per node during the computation.
-struct Nodes<const D: usize> {
-    /// Squared distance to the foot point (INFINITY when none yet).
-    values: Vec<f64>,
-    /// Closest datum known so far.
-    closest: Vec<u32>,
-    /// Nearest point of that datum to the node where it was found exactly;
-    /// propagated with the datum so that trying a neighbour's candidate
-    /// costs a point distance, whatever the datum kind, with no lookup.
-    feet: Vec<[f64; D]>,
-}
-
-impl<const D: usize> Nodes<D> {
-    fn new(n: usize) -> Self {
-        Nodes {
-            values: vec![f64::INFINITY; n],
-            closest: vec![NO_DATUM; n],
-            feet: vec![[f64::NAN; D]; n],
-        }
-    }
-}
-
-/// A copy of `data` with each kind (points, segments, triangles) ordered by
-/// the grid node nearest its bounding-box centre, so data close in space
-/// are close in memory (the sweeps look data up by neighbouring nodes; in
-/// input order those reads miss the cache). Also returns, per sorted index,
-/// the original index.
-fn spatially_sorted<const D: usize>(
-    data: &DataSet<D>,
-    spec: &GridSpec<D>,
-) -> (DataSet<D>, Vec<u32>) {
-    let key = |i: usize| -> usize {
-        let (lo, hi) = data.datum_bounds(i);
-        let idx = std::array::from_fn(|a| {
-            let g = ((lo[a] + hi[a]) * 0.5 - spec.origin[a]) / spec.spacing;
-            g.round().clamp(0.0, (spec.dims[a] - 1) as f64) as usize
-        });
-        spec.linear(idx)
-    };
-    let (np, ns) = (data.points.len(), data.segments.len());
-    let mut original = Vec::with_capacity(data.len());
-    for range in [0..np, np..np + ns, np + ns..data.len()] {
-        let mut keyed: Vec<(usize, u32)> =
-            range.into_par_iter().map(|i| (key(i), i as u32)).collect();
-        keyed.par_sort_unstable();
-        original.extend(keyed.into_iter().map(|(_, i)| i));
-    }
-    let sorted = DataSet {
-        points: original[..np]
-            .iter()
-            .map(|&i| data.points[i as usize])
-            .collect(),
-        segments: original[np..np + ns]
-            .iter()
-            .map(|&i| data.segments[i as usize - np])
-            .collect(),
-        triangles: original[np + ns..]
-            .iter()
-            .map(|&i| data.triangles[i as usize - np - ns])
-            .collect(),
-    };
-    (sorted, original)
-}
-
-/// Range of node indices within `radius` of the box `lo..hi`, clamped to
-/// the grid; `None` when it misses the grid.
-fn node_box<const D: usize>(
-    spec: &GridSpec<D>,
-    (lo, hi): ([f64; D], [f64; D]),
-    radius: f64,
-) -> Option<([usize; D], [usize; D])> {
-    let mut first = [0usize; D];
-    let mut last = [0usize; D];
-    for a in 0..D {
-        let top = (spec.dims[a] - 1) as f64;
-        let f = ((lo[a] - radius - spec.origin[a]) / spec.spacing).ceil();
-        let l = ((hi[a] + radius - spec.origin[a]) / spec.spacing).floor();
-        if f > top || l < 0.0 || f > l {
-            return None;
-        }
-        first[a] = f.max(0.0) as usize;
-        last[a] = l.min(top) as usize;
-    }
-    Some((first, last))
-}
-
-/// Visit every node index in the box `first..=last` (axis 0 fastest).
-#[inline(always)]
-fn for_each_in_box<const D: usize>(
-    first: [usize; D],
-    last: [usize; D],
-    mut visit: impl FnMut(&[usize; D]),
-) {
-    let mut idx = first;
-    loop {
-        visit(&idx);
-        let mut a = 0;
-        loop {
-            if a == D {
-                return;
-            }
-            if idx[a] < last[a] {
-                idx[a] += 1;
-                break;
-            }
-            idx[a] = first[a];
-            a += 1;
-        }
-    }
-}
-
-/// Stage 1: squared exact distances, closest data and foot points at the
-/// nodes within `radius` of each datum's bounding box; parallel over fixed
-/// slabs. Ties go to the smaller (sorted) datum index, so the result does
-/// not depend on the order data are applied in.
-fn exact_band<const D: usize>(
-    data: &DataSet<D>,
-    spec: &GridSpec<D>,
-    radius: f64,
-    nodes: &mut Nodes<D>,
-) {
-    let last_axis = D - 1;
-    let layer = spec.strides()[last_axis];
-    let slabs = spec.dims[last_axis].div_ceil(SLAB_LAYERS);
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); slabs];
-    for i in 0..data.len() {
-        if let Some((first, last)) = node_box(spec, data.datum_bounds(i), radius) {
-            for bin in &mut bins[first[last_axis] / SLAB_LAYERS..=last[last_axis] / SLAB_LAYERS] {
-                bin.push(i as u32);
-            }
-        }
-    }
-    let chunk = SLAB_LAYERS * layer;
-    nodes
-        .values
-        .par_chunks_mut(chunk)
-        .zip(nodes.closest.par_chunks_mut(chunk))
-        .zip(nodes.feet.par_chunks_mut(chunk))
-        .zip(bins.par_iter())
-        .enumerate()
-        .for_each(|(s, (((vals, ids), feet), bin))| {
-            let slab_first = s * SLAB_LAYERS;
-            let slab_last = (slab_first + SLAB_LAYERS).min(spec.dims[last_axis]) - 1;
-            for &i in bin {
-                let Some((mut first, mut last)) =
-                    node_box(spec, data.datum_bounds(i as usize), radius)
-                else {
-                    continue;
-                };
-                first[last_axis] = first[last_axis].max(slab_first);
-                last[last_axis] = last[last_axis].min(slab_last);
-                for_each_in_box(first, last, |idx| {
-                    let l = spec.linear(*idx) - slab_first * layer;
-                    let p = spec.position(*idx);
-                    let foot = data.closest_point(i as usize, &p);
-                    let d2 = dist2(&p, &foot);
-                    if d2 < vals[l] || (d2 == vals[l] && i < ids[l]) {
-                        vals[l] = d2;
-                        ids[l] = i;
-                        feet[l] = foot;
-                    }
-                });
-            }
-        });
-}
-
-/// Stage 2: closest-datum fast sweeping; returns the number of sweeps. A node tries the candidates
-/// (datum + foot point) of its neighbours, axis and diagonal (diagonals
-/// matter: a Voronoi cell can be too thin to hold an axis-connected chain
-/// of nodes), and adopts the nearest datum. Sweeps run in the 2^D
-/// alternating orders, so a candidate travels in every direction.
-///
-/// The first round uses only the 2^D - 1 upwind neighbours of each order
-/// (cheap, and it carries nearly every node to its final datum). Then
-/// sweeps with locking follow: every node is open once, later only the
-/// neighbours of nodes that changed; an open node tries all 3^D - 1
-/// neighbours. A sweep that changes nothing leaves every node closed, i.e.
-/// each has tried the current candidate of every neighbour: a fixed point.
-/// Nodes of the exact band are final throughout.
-fn propagate_closest<const D: usize>(
-    data: &DataSet<D>,
-    spec: &GridSpec<D>,
-    radius: f64,
-    nodes: &mut Nodes<D>,
-) -> usize {
-    let stencil = Stencil::new(spec);
-    let final_below = radius * radius;
-    let mut sweeps = 0;
-    for order in 0..1usize << D {
-        sweeps += 1;
-        for_each_node_ordered(&spec.dims, order, |l, idx| {
-            if nodes.values[l] > final_below {
-                let room = stencil.room(idx);
-                update_node(data, spec, nodes, l, idx, room, &stencil.upwind[order]);
-            }
-        });
-    }
-    let mut open: Vec<bool> = nodes.values.par_iter().map(|&v| v > final_below).collect();
-    for _ in 0..MAX_ROUNDS {
-        for order in 0..1usize << D {
-            sweeps += 1;
-            let mut changed = false;
-            for_each_node_ordered(&spec.dims, order, |l, idx| {
-                if !open[l] {
-                    return;
-                }
-                open[l] = false;
-                let room = stencil.room(idx);
-                if update_node(data, spec, nodes, l, idx, room, &stencil.all) {
-                    changed = true;
-                    for &(down, up, offset, _) in &stencil.all {
-                        if room.allows(down, up) {
-                            let n = (l as isize + offset) as usize;
-                            open[n] = nodes.values[n] > final_below;
-                        }
-                    }
-                }
-            });
-            if !changed {
-                return sweeps;
-            }
-        }
-    }
-    sweeps
-}
-
-/// Try the candidates of the neighbours `offsets` of node `l`; adopt the
-/// nearest datum if it beats the node's own. Returns whether it changed.
-#[inline(always)]
-fn update_node<const D: usize>(
-    data: &DataSet<D>,
-    spec: &GridSpec<D>,
-    nodes: &mut Nodes<D>,
-    l: usize,
-    idx: &[usize; D],
-    room: Room,
-    offsets: &[(usize, usize, isize, f64)],
-) -> bool {
-    let points = data.points.len();
-    let p = spec.position(*idx);
-    let (mut best, mut best_id) = (nodes.values[l], nodes.closest[l]);
-    let mut tried = best_id;
-    let interior = room.is_full::<D>();
-    for &(down, up, offset, step) in offsets {
-        if !interior && !room.allows(down, up) {
-            continue;
-        }
-        let n = (l as isize + offset) as usize;
-        let c = nodes.closest[n];
-        if c == NO_DATUM || c == tried || c == best_id {
-            continue;
-        }
-        tried = c;
-        let mut d2 = dist2(&p, &nodes.feet[n]);
-        if c as usize >= points {
-            // The foot of `n` is within `step` of this node's foot on the
-            // same (convex) datum, so the exact distance is at least
-            // sqrt(d2) - step.
-            if d2.sqrt() - step >= best.sqrt() {
-                continue;
-            }
-            d2 = data.distance_squared(c as usize, &p);
-        }
-        if d2 < best || (d2 == best && c < best_id) {
-            (best, best_id) = (d2, c);
-        }
-    }
-    if best_id == nodes.closest[l] {
-        return false;
-    }
-    // Own exact foot on the adopted datum: copying the neighbour's would let
-    // feet lag along long segments and large triangles.
-    let foot = data.closest_point(best_id as usize, &p);
-    nodes.values[l] = dist2(&p, &foot);
-    nodes.closest[l] = best_id;
-    nodes.feet[l] = foot;
-    true
-}
-
-/// The 3^D - 1 neighbour offsets of a node (axis and diagonal).
-struct Stencil<const D: usize> {
-    dims: [usize; D],
-    /// Axes stepped down along (bit mask), axes stepped up along, linear
-    /// offset and length of the step, per neighbour.
-    all: Vec<(usize, usize, isize, f64)>,
-    /// Per sweep order, the 2^D - 1 neighbours on the side the sweep comes
-    /// from (order bit a set: axis a runs backwards).
-    upwind: Vec<Vec<(usize, usize, isize, f64)>>,
-}
-
-/// Which axes a node may step down (bit set: index > 0) and up along.
-#[derive(Clone, Copy)]
-struct Room {
-    down: usize,
-    up: usize,
-}
-
-impl Room {
-    /// Every step is possible (the node is not on the grid boundary).
-    #[inline(always)]
-    fn is_full<const D: usize>(self) -> bool {
-        let all = (1 << D) - 1;
-        self.down == all && self.up == all
-    }
-
-    #[inline(always)]
-    fn allows(self, down: usize, up: usize) -> bool {
-        down & !self.down == 0 && up & !self.up == 0
-    }
-}
-
-impl<const D: usize> Stencil<D> {
-    fn new(spec: &GridSpec<D>) -> Self {
-        let strides = spec.strides();
-        let mut all = Vec::new();
-        for code in 0..3usize.pow(D as u32) {
-            let (mut down, mut up, mut offset, mut rest) = (0usize, 0usize, 0isize, code);
-            for (a, &stride) in strides.iter().enumerate() {
-                match rest % 3 {
-                    1 => {
-                        down |= 1 << a;
-                        offset -= stride as isize;
-                    }
-                    2 => {
-                        up |= 1 << a;
-                        offset += stride as isize;
-                    }
-                    _ => {}
-                }
-                rest /= 3;
-            }
-            if down | up != 0 {
-                let axes = (down | up).count_ones() as f64;
-                all.push((down, up, offset, spec.spacing * axes.sqrt()));
-            }
-        }
-        let upwind = (0..1usize << D)
-            .map(|order| {
-                let (backward, forward) = (order, !order & ((1 << D) - 1));
-                all.iter()
-                    .filter(|&&(down, up, _, _)| down & !forward == 0 && up & !backward == 0)
-                    .copied()
-                    .collect()
-            })
-            .collect();
-        Stencil {
-            dims: spec.dims,
-            all,
-            upwind,
-        }
-    }
-
-    #[inline(always)]
-    fn room(&self, idx: &[usize; D]) -> Room {
-        let mut room = Room { down: 0, up: 0 };
-        for (a, (&i, &n)) in idx.iter().zip(&self.dims).enumerate() {
-            room.down |= usize::from(i > 0) << a;
-            room.up |= usize::from(i + 1 < n) << a;
-        }
-        room
-    }
-}
-
-#[inline(always)]
-fn sub<const D: usize>(a: &[f64; D], b: &[f64; D]) -> [f64; D] {
-    std::array::from_fn(|k| a[k] - b[k])
-}
-
-#[inline(always)]
-fn dot<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
-    (0..D).map(|k| a[k] * b[k]).sum()
-}
-
-#[inline(always)]
-fn dist2<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
-    let d = sub(a, b);
-    dot(&d, &d)
-}
-
-/// Squared distance from `p` to the segment `a..b` (a point when a = b).
-#[inline]
-pub fn segment_dist2<const D: usize>(p: &[f64; D], a: &[f64; D], b: &[f64; D]) -> f64 {
-    dist2(p, &segment_closest(p, a, b))
-}
-
-/// The point of segment `a..b` nearest to `p`.
-#[inline]
-pub fn segment_closest<const D: usize>(p: &[f64; D], a: &[f64; D], b: &[f64; D]) -> [f64; D] {
-    let ab = sub(b, a);
-    let len2 = dot(&ab, &ab);
-    let t = if len2 > 0.0 {
-        (dot(&sub(p, a), &ab) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    std::array::from_fn(|k| a[k] + t * ab[k])
-}
-
-/// Squared distance from `p` to the triangle `a, b, c` (any dimension).
-#[inline]
-pub fn triangle_dist2<const D: usize>(
-    p: &[f64; D],
-    a: &[f64; D],
-    b: &[f64; D],
-    c: &[f64; D],
-) -> f64 {
-    dist2(p, &triangle_closest(p, a, b, c))
-}
-
-/// The point of triangle `a, b, c` nearest to `p`, in any dimension:
-/// classify `p` against the Voronoi regions of the corners, edges and face
-/// using dot products only; degenerate triangles fall back to their edges.
-#[inline]
-pub fn triangle_closest<const D: usize>(
-    p: &[f64; D],
-    a: &[f64; D],
-    b: &[f64; D],
-    c: &[f64; D],
-) -> [f64; D] {
-    let ab = sub(b, a);
-    let ac = sub(c, a);
-    let ap = sub(p, a);
-    let (d1, d2) = (dot(&ab, &ap), dot(&ac, &ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return *a;
-    }
-    let bp = sub(p, b);
-    let (d3, d4) = (dot(&ab, &bp), dot(&ac, &bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return *b;
-    }
-    let cp = sub(p, c);
-    let (d5, d6) = (dot(&ab, &cp), dot(&ac, &cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return *c;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return segment_closest(p, a, b);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return segment_closest(p, a, c);
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 >= d3 && d5 >= d6 {
-        return segment_closest(p, b, c);
-    }
-    let sum = va + vb + vc;
-    if sum.is_nan() || sum <= 0.0 {
-        let edges = [
-            segment_closest(p, a, b),
-            segment_closest(p, a, c),
-            segment_closest(p, b, c),
-        ];
-        return edges
-            .into_iter()
-            .min_by(|x, y| dist2(p, x).total_cmp(&dist2(p, y)))
-            .unwrap_or(*a);
-    }
-    let (v, w) = (vb / sum, vc / sum);
-    std::array::from_fn(|k| a[k] + v * ab[k] + w * ac[k])
 }
 
 #[cfg(test)]
@@ -820,6 +362,9 @@ mod tests {
     fn random_point<const D: usize>(r: &mut rand_pcg::Pcg64, lo: f64, hi: f64) -> [f64; D] {
         std::array::from_fn(|_| r.random_range(lo..hi))
     }
+
+    /// Bound on the far-field error, in cells (see `propagate`'s docs).
+    const FAR_TOLERANCE: f64 = 0.3;
 
     /// Grid of `n` cells along each axis over the unit box, 3 cells padding.
     fn unit_grid<const D: usize>(n: usize) -> GridSpec<D> {
@@ -858,6 +403,7 @@ mod tests {
         let (near, far) = errors(data, &df);
         println!("{name}: max error within 5h {near:.2e} h, far field {far:.2e} h");
         assert!(near <= 0.05, "{name}: near error {near} h");
+        assert!(far <= FAR_TOLERANCE, "{name}: far error {far} h");
         (near, far)
     }
 
@@ -869,7 +415,7 @@ mod tests {
             ..Default::default()
         };
         let (_, far) = check("2D random points", &data, &unit_grid(160));
-        assert!(far <= 0.05);
+        assert!(far <= FAR_TOLERANCE, "far error {far} h");
     }
 
     #[test]
@@ -954,7 +500,7 @@ mod tests {
             e_god = e_god.max((godunov.values[l] - exact).abs() / spec.spacing);
         }
         println!("sphere mesh, max error: closest-datum {e_cpp:.2e} h, Godunov {e_god:.2e} h");
-        assert!(e_cpp < 0.1 && e_god > 5.0 * e_cpp.max(0.01));
+        assert!(e_cpp <= FAR_TOLERANCE && e_god > 5.0 * e_cpp.max(0.01));
     }
 
     #[test]
