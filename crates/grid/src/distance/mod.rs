@@ -4,13 +4,18 @@
 //! Two stages, both O(N + M) for N nodes and M data:
 //!
 //! 1. **Exact band** ([`band`]). Every node within `band_cells` cells of a
-//!    datum's bounding box gets the exact distance to that datum (and the
-//!    datum's nearest point, its "foot"); a node keeps the smallest. A node
-//!    whose value ends up at most the band radius is final: its nearest
-//!    datum lies within the band radius, so it was evaluated.
+//!    datum gets the exact distance to that datum (and the datum's nearest
+//!    point, its "foot"); a node keeps the smallest. A node whose value
+//!    ends up at most the band radius is final: its nearest datum lies
+//!    within the band radius, so it was evaluated. When propagating, the
+//!    band of points reaches [`NEAR_CELLS`] cells, so that distances to
+//!    points are exact there.
 //! 2. **Propagation** ([`propagate`]). Separable passes along each axis
-//!    carry the closest data to every other node, and the nodes near point
-//!    data get their exact nearest point.
+//!    carry the closest data to every other node; near segments and
+//!    triangles, rounds of neighbour offers settle the nodes to a local
+//!    fixed point. Accuracy (tests, against brute force): exact within
+//!    [`NEAR_CELLS`] cells of points, within 0.05 h near segments and
+//!    triangles, and within 0.3 h farther out.
 //!
 //! Both stages run in parallel over disjoint parts of the grid with fixed
 //! tie-breaking (the smaller datum index), so the result is the same for
@@ -304,7 +309,6 @@ pub fn unsigned_distance_with<const D: usize>(
     // Distance, closest datum and its foot point per node.
     spec.check_memory(std::mem::size_of::<Node<D>>())?;
     let radius = options.band_cells * spec.spacing;
-
     let sorted = SortedData::new(data, spec);
     // Dense point samples hide points between the nodes from propagation,
     // so the exact band of points reaches over the whole near region.
