@@ -215,9 +215,14 @@ fn settle_near<const D: usize>(
                 let p = spec.position(idx);
                 let mut node = nodes[l as usize];
                 let mut changed = false;
+                // Neighbours in a row often share a datum: offer it once.
+                let mut offered = NO_DATUM;
                 for (m, step) in neighbours.of(idx) {
                     let n = &nodes[m];
-                    changed |= offer(data, &p, &mut node, n.datum, &n.foot, step);
+                    if n.datum != offered {
+                        offered = n.datum;
+                        changed |= offer(data, &p, &mut node, n.datum, &n.foot, step);
+                    }
                 }
                 changed.then_some((l, node))
             })
