@@ -71,27 +71,44 @@ fn line_passes<const D: usize>(
     nodes: &mut [Node<D>],
     axis: usize,
 ) {
+    // Lines across axis 0 go in bundles of neighbours along axis 0, so that
+    // gathering them reads whole runs of memory rather than one node per
+    // cache line.
+    const BUNDLE: usize = 16;
     let strides = spec.strides();
+    let bundle = if axis == 0 { 1 } else { BUNDLE };
     let mut outer = spec.dims;
     outer[axis] = 1;
-    let mut starts = Vec::with_capacity(spec.node_count() / spec.dims[axis]);
-    super::band::for_each_in_box([0; D], outer.map(|n| n - 1), |idx| {
-        starts.push(spec.linear(*idx))
+    outer[0] = outer[0].div_ceil(bundle);
+    let mut bundles = Vec::with_capacity(spec.node_count() / spec.dims[axis] / bundle + 1);
+    for_each_in_box([0; D], outer.map(|n| n - 1), |idx| {
+        let mut first = *idx;
+        first[0] *= bundle;
+        let width = bundle.min(spec.dims[0] - first[0]);
+        bundles.push((spec.linear(first), width));
     });
     let shared = LineAccess::new(nodes);
-    starts.par_iter().for_each_init(
-        || (Vec::new(), Vec::new(), Vec::new()),
-        |(line, sites, hull), &start| {
-            let stride = strides[axis];
-            line.clear();
-            // SAFETY: each line (`start`, `stride`) is visited by one task
-            // only, and lines parallel to one axis share no node.
-            line.extend((0..spec.dims[axis]).map(|j| unsafe { shared.get(start + j * stride) }));
-            let base = spec.position(spec.unlinear(start));
-            if lower_envelope(line, &base, axis, sites, hull) {
-                assign_nearest(line, &base, axis, spec.spacing, final_below, sites, hull);
-                for (j, node) in line.iter().enumerate() {
-                    unsafe { shared.set(start + j * stride, *node) };
+    let (len, stride) = (spec.dims[axis], strides[axis]);
+    bundles.par_iter().for_each_init(
+        || (vec![Vec::new(); bundle], Vec::new(), Vec::new()),
+        |(lines, sites, hull), &(start, width)| {
+            // SAFETY: each bundle of lines is visited by one task only, and
+            // lines parallel to one axis share no node.
+            for line in &mut lines[..width] {
+                line.clear();
+            }
+            for j in 0..len {
+                for (b, line) in lines[..width].iter_mut().enumerate() {
+                    line.push(unsafe { shared.get(start + j * stride + b) });
+                }
+            }
+            for (b, line) in lines[..width].iter_mut().enumerate() {
+                let base = spec.position(spec.unlinear(start + b));
+                if lower_envelope(line, &base, axis, sites, hull) {
+                    assign_nearest(line, &base, axis, spec.spacing, final_below, sites, hull);
+                    for (j, node) in line.iter().enumerate() {
+                        unsafe { shared.set(start + j * stride + b, *node) };
+                    }
                 }
             }
         },
