@@ -154,49 +154,121 @@ fn inside_nodes(field: &Field3, tree: &WindingTree) -> Vec<bool> {
 
 /// Connected regions of nodes over free edges (`d(a) + d(b) > h`).
 struct Regions {
-    /// All nodes, grouped by region (breadth-first order within each).
+    /// All nodes, grouped by region (ascending index within each).
     order: Vec<u32>,
     /// (start in `order`, length) per region.
     spans: Vec<(usize, usize)>,
 }
 
 impl Regions {
+    /// Layers (along z) per slab of the parallel labelling; fixed, so the
+    /// result never depends on the thread count.
+    const SLAB_LAYERS: usize = 8;
+
+    /// Label each slab's regions in parallel (a region's label is its
+    /// smallest node index), join labels across slab boundaries, and group
+    /// the nodes by region in index order.
     fn new(field: &Field3) -> Self {
         let spec = field.spec;
-        let d = &field.values;
-        let h = spec.spacing;
+        let layer = spec.strides()[2];
+        let mut label = vec![0u32; spec.node_count()];
+        label
+            .par_chunks_mut(Self::SLAB_LAYERS * layer)
+            .enumerate()
+            .for_each(|(s, slab)| Self::label_slab(field, s * Self::SLAB_LAYERS * layer, slab));
+        let mut parent: Vec<u32> = (0..spec.node_count() as u32).collect();
+        for z in (Self::SLAB_LAYERS..spec.dims[2]).step_by(Self::SLAB_LAYERS) {
+            for a in (z - 1) * layer..z * layer {
+                if Self::free(field, a, a + layer) {
+                    union(&mut parent, label[a], label[a + layer]);
+                }
+            }
+        }
+        for l in &mut label {
+            *l = find(&mut parent, *l);
+        }
+        drop(parent);
+        Self::group(&label)
+    }
+
+    /// No surface can cross the edge between nodes `a` and `b`.
+    fn free(field: &Field3, a: usize, b: usize) -> bool {
+        field.values[a] + field.values[b] > field.spec.spacing
+    }
+
+    /// Breadth-first labelling of the regions of one slab (nodes `offset..`).
+    fn label_slab(field: &Field3, offset: usize, label: &mut [u32]) {
+        let spec = field.spec;
         let strides = spec.strides();
-        let n = spec.node_count();
-        let mut seen = vec![false; n];
-        let mut order: Vec<u32> = Vec::with_capacity(n);
-        let mut spans = Vec::new();
-        for seed in 0..n {
+        let mut seen = vec![false; label.len()];
+        let mut queue = Vec::new();
+        for seed in 0..label.len() {
             if seen[seed] {
                 continue;
             }
-            let start = order.len();
             seen[seed] = true;
-            order.push(seed as u32);
-            let mut head = start;
-            while head < order.len() {
-                let l = order[head] as usize;
-                head += 1;
-                let idx = spec.unlinear(l);
+            queue.clear();
+            queue.push(seed);
+            while let Some(l) = queue.pop() {
+                label[l] = (offset + seed) as u32;
+                let idx = spec.unlinear(offset + l);
                 for a in 0..3 {
-                    let lower = (idx[a] > 0).then(|| l - strides[a]);
+                    let lower = (idx[a] > 0).then(|| l.wrapping_sub(strides[a]));
                     let upper = (idx[a] + 1 < spec.dims[a]).then(|| l + strides[a]);
                     for m in lower.into_iter().chain(upper) {
-                        if !seen[m] && d[l] + d[m] > h {
+                        if m < label.len() && !seen[m] && Self::free(field, offset + l, offset + m)
+                        {
                             seen[m] = true;
-                            order.push(m as u32);
+                            queue.push(m);
                         }
                     }
                 }
             }
-            spans.push((start, order.len() - start));
+        }
+    }
+
+    /// Nodes grouped by their region's root, roots and nodes ascending.
+    fn group(root: &[u32]) -> Self {
+        // Node counts per root, then turned in place into start offsets.
+        let mut start = vec![0u32; root.len()];
+        for &r in root {
+            start[r as usize] += 1;
+        }
+        let mut spans = Vec::new();
+        let mut next = 0u32;
+        for s in start.iter_mut() {
+            let count = *s;
+            if count > 0 {
+                spans.push((next as usize, count as usize));
+            }
+            *s = next;
+            next += count;
+        }
+        let mut order = vec![0u32; root.len()];
+        for (l, &r) in root.iter().enumerate() {
+            order[start[r as usize] as usize] = l as u32;
+            start[r as usize] += 1;
         }
         Regions { order, spans }
     }
+}
+
+/// Root of `x` in the union-find forest `parent`, halving the path.
+fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        let up = parent[parent[x as usize] as usize];
+        parent[x as usize] = up;
+        x = up;
+    }
+    x
+}
+
+/// Join the sets of `a` and `b` under the smaller root (so roots are the
+/// smallest labels, whatever the order of joins).
+fn union(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    let (lo, hi) = (ra.min(rb), ra.max(rb));
+    parent[hi as usize] = lo;
 }
 
 /// Bounding-volume tree over triangles for fast generalized winding
