@@ -1,7 +1,7 @@
 //! End-to-end: `surfrecon reconstruct --method svm` and `surfrecon morph`.
 
 mod common;
-use common::surfrecon;
+use common::{json_of, surfrecon};
 
 use std::path::Path;
 use surfrecon_geom::metrics::topology;
@@ -82,6 +82,59 @@ fn reconstruct_svm_saves_reloads_and_meshes_a_closed_surface() {
     assert!(!run.status.success());
     let err = String::from_utf8_lossy(&run.stderr);
     assert!(err.contains("m.svm") && err.contains("truncated"), "{err}");
+}
+
+#[test]
+fn svm_c_auto_reports_the_chosen_parameters_and_meshes_well() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("sphere.ply");
+    let pc = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 3000, 9);
+    io::write(&input, &Geometry::from_points(pc)).unwrap();
+    let out = dir.path().join("out.ply");
+    let run = surfrecon(&[
+        "--json",
+        "reconstruct",
+        s(&input),
+        "-o",
+        s(&out),
+        "--method",
+        "svm",
+        "--svm-c",
+        "auto",
+        "--resolution",
+        "48",
+    ]);
+    let json = json_of(&run);
+    let fit = &json["svm"]["fit"];
+    let trials = fit["selection"].as_array().expect("selection trials");
+    assert!(trials.len() >= 2, "{fit}");
+    // The reported C and ε are those of the trial with the least error.
+    let best = trials
+        .iter()
+        .min_by(|a, b| {
+            let e = |t: &serde_json::Value| t["validation_error"].as_f64().unwrap();
+            e(a).total_cmp(&e(b))
+        })
+        .unwrap();
+    assert_eq!(fit["c"], best["c"], "{fit}");
+    assert_eq!(fit["epsilon"], best["epsilon"], "{fit}");
+    assert!(trials
+        .iter()
+        .all(|t| t["validation_error"].as_f64().unwrap() > 0.0));
+
+    let mesh = io::read(&out).unwrap().to_mesh();
+    let t = topology(&mesh);
+    assert!(t.watertight && t.components == 1 && t.euler == 2, "{t:?}");
+    // Every vertex within 1% of the diagonal (2√3) of the unit sphere.
+    let worst = mesh
+        .vertices
+        .iter()
+        .map(|v| (v.length() - 1.0).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        worst < 0.01 * 2.0 * 3f64.sqrt(),
+        "vertex {worst} off the sphere"
+    );
 }
 
 #[test]

@@ -6,7 +6,7 @@
 //! inside). Entry points:
 //! - [`multiscale::fit`] fits an [`model::SvmModel`] to points + normals
 //!   (training set in [`training`], ε-insensitive or squared-loss solve in
-//!   [`regression`]);
+//!   [`regression`]; the noise level it adapts to in [`noise`]);
 //! - [`selection::select_parameters`] picks the regularization by validation;
 //! - [`model::SvmModel`] evaluates f, ∇f and curvature, drops fine levels,
 //!   saves and loads models;
@@ -21,6 +21,7 @@ pub mod kernel;
 pub mod mesh;
 pub mod model;
 pub mod multiscale;
+pub mod noise;
 pub mod regression;
 pub mod selection;
 pub mod training;

@@ -3,13 +3,20 @@
 //! that width, leaving out base points whose residual is already within the
 //! fitting accuracy. The offset b is the largest width, so f = b > 0 far
 //! from the data (outside positive, inside negative).
+//!
+//! Robustness: the estimated noise σ sets lower bounds for ε, the accuracy,
+//! the off-surface distance and the finest width; isolated samples, samples
+//! whose normal disagrees with their neighbours' (no off-surface points) and
+//! samples further from the coarser surface than a level can bridge are
+//! kept out of the training set, each counted in the [`FitReport`].
 
 use crate::cells::CellIndex;
 use crate::error::{require_positive, Result, SvmError};
 use crate::kernel::KernelMatrix;
 use crate::model::{Level, SvmModel};
+use crate::noise::estimate_noise;
 use crate::regression::{solve_weighted, Loss, RegressionParams};
-use crate::training::{box_representatives, SurfaceSamples, TrainingPoint};
+use crate::training::{box_representatives_preferring, SurfaceSamples, TrainingPoint};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -28,7 +35,8 @@ pub struct FitOptions {
     /// local residuals: a sharp feature, whose neighbours all need the same
     /// correction, is fitted, while a stray point (an outlier) among well
     /// fitted neighbours, or alone in space, cannot pull the surface to
-    /// itself. Squared loss: per-point ridge 1/(c · w_i) (dimensionless).
+    /// itself. Squared loss: the plain ridge 1/c (dimensionless), as in the
+    /// paper's comparison.
     pub c: f64,
     /// ε-insensitive tube width, relative to the diagonal.
     pub epsilon: f64,
@@ -45,7 +53,33 @@ pub struct FitOptions {
     pub max_levels: usize,
     /// Coordinate-descent sweeps per level at most.
     pub max_sweeps: usize,
+    /// Estimate the sampling noise σ ([`crate::noise`]) and raise ε, the
+    /// accuracy and the finest width to multiples of it, so that no level
+    /// fits the noise itself.
+    pub adapt_to_noise: bool,
+    /// Consistency of a surface sample with the coarser levels: below the
+    /// first level, a sample whose residual exceeds this many level widths
+    /// is not a base point of the level. A kernel of width s only moves the
+    /// surface by about s; pulling it to a sample further away would grow a
+    /// separate blob around the sample (an outlier), not refine the surface.
+    pub consistency_ratio: f64,
+    /// A sample whose k-th nearest neighbour
+    /// (k = [`crate::training::LOCAL_NEIGHBOURS`]) is more than this many times further than typical is isolated: it
+    /// is no evidence of a surface at any scale the fit resolves (the
+    /// finest level is a few spacings wide) and proposes no base points,
+    /// so stray points in empty space cannot hold f near zero there.
+    /// Infinity turns the check off.
+    pub isolation_ratio: f64,
 }
+
+/// ε ≥ this · σ (estimated noise): residuals within the noise are free.
+const NOISE_EPSILON: f64 = 1.0;
+/// Fitting accuracy ≥ this · σ: base points within it are not refined.
+const NOISE_ACCURACY: f64 = 2.0;
+/// Off-surface distance ≥ this · σ (at most half the finest width).
+const NOISE_OFFSET: f64 = 3.0;
+/// Finest width ≥ this · σ: narrower kernels would follow single samples.
+const NOISE_MIN_WIDTH: f64 = 4.0;
 
 impl Default for FitOptions {
     fn default() -> Self {
@@ -59,6 +93,9 @@ impl Default for FitOptions {
             min_width_spacings: 1.5,
             max_levels: 16,
             max_sweeps: 200,
+            adapt_to_noise: true,
+            consistency_ratio: 1.0,
+            isolation_ratio: 4.0,
         }
     }
 }
@@ -71,6 +108,8 @@ impl FitOptions {
         require_positive("offset_ratio", self.offset_ratio)?;
         require_positive("cell_ratio", self.cell_ratio)?;
         require_positive("min_width_spacings", self.min_width_spacings)?;
+        require_positive_or_infinite("consistency_ratio", self.consistency_ratio)?;
+        require_positive_or_infinite("isolation_ratio", self.isolation_ratio)?;
         if !(self.epsilon.is_finite() && self.epsilon >= 0.0) {
             return Err(SvmError::InvalidParameter {
                 name: "epsilon",
@@ -87,6 +126,18 @@ impl FitOptions {
     }
 }
 
+/// Error unless `value` is positive (infinity allowed: a check turned off).
+fn require_positive_or_infinite(name: &'static str, value: f64) -> Result<()> {
+    if value > 0.0 {
+        Ok(())
+    } else {
+        Err(SvmError::InvalidParameter {
+            name,
+            message: format!("must be positive (infinity turns the check off), got {value}"),
+        })
+    }
+}
+
 /// What one level did.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LevelReport {
@@ -97,6 +148,10 @@ pub struct LevelReport {
     pub base_points: usize,
     /// Kernel centres kept (base points with a non-zero coefficient).
     pub centres: usize,
+    /// Surface samples (with their off-surface points) left out because
+    /// they lie further from the coarser levels' surface than this level
+    /// can bridge (see [`FitOptions::consistency_ratio`]).
+    pub inconsistent: usize,
     pub sweeps: usize,
     pub seconds: f64,
 }
@@ -107,7 +162,35 @@ pub struct FitReport {
     pub levels: Vec<LevelReport>,
     pub diameter: f64,
     pub spacing: f64,
+    /// Estimated noise σ of the samples (absolute; 0 when not estimated).
+    pub noise: f64,
+    /// Samples left out as isolated (see [`FitOptions::isolation_ratio`]).
+    pub isolated: usize,
+    /// The absolute ε, fitting accuracy and finest width the fit used
+    /// (the options', raised to the noise where `adapt_to_noise`).
+    pub epsilon: f64,
+    pub tolerance: f64,
+    pub min_width: f64,
     pub seconds: f64,
+}
+
+/// Absolute lengths a fit works with.
+#[derive(Clone, Copy, Debug)]
+struct Scales {
+    epsilon: f64,
+    tolerance: f64,
+    min_width: f64,
+}
+
+impl Scales {
+    /// The options' lengths made absolute, raised to multiples of `noise`.
+    fn new(samples: &SurfaceSamples, opts: &FitOptions, noise: f64) -> Scales {
+        Scales {
+            epsilon: (opts.epsilon * samples.diameter).max(NOISE_EPSILON * noise),
+            tolerance: (opts.accuracy * samples.diameter).max(NOISE_ACCURACY * noise),
+            min_width: (opts.min_width_spacings * samples.spacing).max(NOISE_MIN_WIDTH * noise),
+        }
+    }
 }
 
 /// Fit an implicit function to oriented surface samples.
@@ -118,20 +201,31 @@ pub fn fit(
 ) -> Result<(SvmModel, FitReport)> {
     opts.validate()?;
     let start = Instant::now();
-    let samples = SurfaceSamples::new(points, normals)?;
+    let mut samples = SurfaceSamples::new(points, normals)?;
     let diameter = samples.diameter;
     let mut model = SvmModel {
         offset: diameter / 2.0,
         levels: Vec::new(),
     };
     let mut reports = Vec::new();
-    let min_width = opts.min_width_spacings * samples.spacing;
+    let noise = if opts.adapt_to_noise {
+        estimate_noise(&samples.points, &samples.normals, &samples.tree)
+    } else {
+        0.0
+    };
+    let scales = Scales::new(&samples, opts, noise);
     let mut width = diameter / 2.0;
-    // Surface samples still being refined: all at first, then those within
-    // the previous level's width of one of its base points.
-    let mut active: Vec<usize> = (0..samples.points.len()).collect();
+    // Surface samples still being refined: all but the isolated ones at
+    // first, then those within the previous level's width of one of its
+    // base points.
+    let mut active = samples.unisolated(opts.isolation_ratio);
+    let isolated = samples.points.len() - active.len();
+    samples.exclude_from_consistency(&active);
+    samples.set_noise(noise);
     for _ in 0..opts.max_levels {
-        let (level, base, report) = fit_level(&samples, &active, &model, width, opts);
+        let first = reports.is_empty();
+        let (level, base, report) =
+            fit_level(&samples, &active, &model, width, first, &scales, opts);
         let added = report.base_points > 0;
         reports.push(report);
         if !added {
@@ -142,7 +236,7 @@ pub fn fit(
         }
         active = near_base_points(&samples.points, &active, &base, width);
         width /= 2.0;
-        if width < min_width {
+        if width < scales.min_width {
             break;
         }
     }
@@ -150,6 +244,11 @@ pub fn fit(
         levels: reports,
         diameter,
         spacing: samples.spacing,
+        noise,
+        isolated,
+        epsilon: scales.epsilon,
+        tolerance: scales.tolerance,
+        min_width: scales.min_width,
         seconds: start.elapsed().as_secs_f64(),
     };
     Ok((model, report))
@@ -170,36 +269,45 @@ fn near_base_points(points: &[DVec3], active: &[usize], base: &[DVec3], width: f
 }
 
 /// One level: propose base points among the `active` samples, drop the
-/// well-fitted ones, solve for the residual, keep the centres with non-zero
-/// coefficients. Also returns all base points (zero coefficients included).
+/// well-fitted and the inconsistent ones, solve for the residual, keep the
+/// centres with non-zero coefficients. Also returns all base points (zero
+/// coefficients included).
 fn fit_level(
     samples: &SurfaceSamples,
     active: &[usize],
     model: &SvmModel,
     width: f64,
+    first: bool,
+    scales: &Scales,
     opts: &FitOptions,
 ) -> (Level, Vec<DVec3>, LevelReport) {
     let start = Instant::now();
-    let candidates = propose(samples, active, width, opts);
-    let tolerance = opts.accuracy * samples.diameter;
+    let (candidates, groups) = propose(samples, active, width, opts);
+    let tolerance = scales.tolerance;
     let positions: Vec<DVec3> = candidates.iter().map(|t| t.position).collect();
-    let residuals: Vec<f64> = model
+    let mut residuals: Vec<f64> = model
         .values(&positions)
         .into_iter()
         .zip(&candidates)
         .map(|(f, t)| t.target - f)
         .collect();
+    let inconsistent = if first {
+        0
+    } else {
+        mark_inconsistent(&groups, &mut residuals, opts.consistency_ratio * width)
+    };
     let local = local_median_residuals(&positions, &residuals, opts.cell_ratio * width);
     // Per-point C factor: box constraints are in distance units (scaled by
-    // the local residual); the squared loss's ridge is dimensionless.
+    // the local residual and the sample support). The squared loss is the
+    // plain ridge 1/C of the paper's comparison: every point counts fully.
     let scale = |t: &TrainingPoint, local: f64| match opts.loss {
         Loss::EpsilonInsensitive => t.weight * local.max(tolerance),
-        Loss::Squared => t.weight,
+        Loss::Squared => 1.0,
     };
     let kept: Vec<(DVec3, f64, f64)> = candidates
         .iter()
         .zip(residuals.iter().zip(&local))
-        .filter(|(_, (r, _))| r.abs() > tolerance)
+        .filter(|(_, (r, _))| r.abs() > tolerance && r.is_finite())
         .map(|(t, (r, l))| (t.position, *r, scale(t, *l)))
         .collect();
     let base: Vec<DVec3> = kept.iter().map(|k| k.0).collect();
@@ -209,7 +317,7 @@ fn fit_level(
     let params = RegressionParams {
         loss: opts.loss,
         c: opts.c,
-        epsilon: opts.epsilon * samples.diameter,
+        epsilon: scales.epsilon,
         tolerance: 0.1 * tolerance,
         max_sweeps: opts.max_sweeps,
     };
@@ -225,6 +333,7 @@ fn fit_level(
         candidates: candidates.len(),
         base_points: base.len(),
         centres: centres.len(),
+        inconsistent,
         sweeps: solution.sweeps,
         seconds: start.elapsed().as_secs_f64(),
     };
@@ -262,7 +371,12 @@ fn local_median_residuals(positions: &[DVec3], residuals: &[f64], h: f64) -> Vec
     let origin = positions.iter().copied().fold(DVec3::INFINITY, DVec3::min);
     let cell = |p: DVec3| ((p - origin) / h).floor().as_i64vec3();
     let mut boxes: HashMap<glam::I64Vec3, Vec<f64>> = HashMap::new();
-    for (p, r) in positions.iter().zip(residuals) {
+    // Left-out candidates (NaN residuals) do not count.
+    for (p, r) in positions
+        .iter()
+        .zip(residuals)
+        .filter(|(_, r)| r.is_finite())
+    {
         boxes.entry(cell(*p)).or_default().push(r.abs());
     }
     positions
@@ -281,6 +395,25 @@ fn local_median_residuals(positions: &[DVec3], residuals: &[f64], h: f64) -> Vec
         .collect()
 }
 
+/// The median of `values` where value i counts `weights[i]` times.
+fn sample_weighted_median(values: &[f64], weights: &[f64]) -> f64 {
+    let mut pairs: Vec<(f64, f64)> = values
+        .iter()
+        .copied()
+        .zip(weights.iter().copied())
+        .collect();
+    pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let half = 0.5 * pairs.iter().map(|p| p.1).sum::<f64>();
+    let mut seen = 0.0;
+    for (value, weight) in &pairs {
+        seen += weight;
+        if seen >= half {
+            return *value;
+        }
+    }
+    pairs.last().map_or(0.0, |p| p.0)
+}
+
 fn median(v: &[f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
@@ -290,24 +423,53 @@ fn median(v: &[f64]) -> f64 {
     *m.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
+/// Leave out every candidate of a group (a surface sample, first, and its
+/// off-surface points) whose surface sample's residual exceeds `reach`, by
+/// setting their residuals to NaN; returns how many groups were left out.
+fn mark_inconsistent(
+    groups: &[std::ops::Range<usize>],
+    residuals: &mut [f64],
+    reach: f64,
+) -> usize {
+    let mut count = 0;
+    for g in groups {
+        if residuals[g.start].abs() > reach {
+            residuals[g.clone()].fill(f64::NAN);
+            count += 1;
+        }
+    }
+    count
+}
+
 /// Base-point candidates of a level: one surface sample per box of side
-/// cell_ratio·s, each followed by its consistent off-surface points.
+/// cell_ratio·s, each followed by its consistent off-surface points; with
+/// the index range of each such group.
 fn propose(
     samples: &SurfaceSamples,
     active: &[usize],
     width: f64,
     opts: &FitOptions,
-) -> Vec<TrainingPoint> {
+) -> (Vec<TrainingPoint>, Vec<std::ops::Range<usize>>) {
     let h = opts.cell_ratio * width;
     let points: Vec<DVec3> = active.iter().map(|&i| samples.points[i]).collect();
-    let boxes = box_representatives(&points, samples.bounds.min, h);
+    let boxes = box_representatives_preferring(
+        &points,
+        |i| samples.is_typical(active[i]),
+        samples.bounds.min,
+        h,
+    );
     // A base point with far fewer samples around it (in its box and the 26
     // next to it) than is typical is suspect, e.g. a stray point alone in
     // space: its base points get a proportionally smaller C, so they cannot
     // outvote boxes full of surface samples.
     let own: Vec<f64> = boxes.iter().map(|b| b.1 as f64).collect();
     let around = neighbourhood_counts(&points, &boxes, samples.bounds.min, h);
-    let (typical_own, typical_around) = (median(&own).max(1.0), median(&around).max(1.0));
+    // "Typical" is what the box of a typical sample holds (the median
+    // weighted by the box's own count): where stray points outnumber the
+    // occupied surface boxes, a plain median over boxes would call a lone
+    // point typical.
+    let typical_own = sample_weighted_median(&own, &own).max(1.0);
+    let typical_around = sample_weighted_median(&around, &own).max(1.0);
     let reps: Vec<(usize, f64)> = boxes
         .iter()
         .zip(own.iter().zip(&around))
@@ -318,23 +480,30 @@ fn propose(
             )
         })
         .collect();
-    let y = opts.offset_ratio * width;
-    let off = samples.off_surface_weighted(&reps, y);
-    // Interleave surface and off-surface points by representative so rows
-    // of the kernel matrix stay spatially coherent.
-    let mut out = Vec::with_capacity(reps.len() + off.len());
-    let mut off_iter = off.into_iter().peekable();
-    for &(i, weight) in &reps {
-        let p = samples.points[i];
-        out.push(TrainingPoint {
-            position: p,
-            target: 0.0,
-            weight,
-        });
-        while let Some(t) = off_iter.next_if(|t| t.position.distance(p) <= y * 1.000001) {
-            out.push(t);
-        }
+    // On noisy samples, off-surface points closer than a few σ would sit
+    // inside the scatter of the samples themselves.
+    let y = (opts.offset_ratio * width).max(NOISE_OFFSET * samples.noise());
+    // Each group is built from its own sample (surface point first), in
+    // the order of the boxes, so rows of the kernel matrix stay spatially
+    // coherent.
+    let per_rep: Vec<Vec<TrainingPoint>> = reps
+        .par_iter()
+        .map(|&(i, weight)| {
+            let surface = TrainingPoint {
+                position: samples.points[i],
+                target: 0.0,
+                weight,
+            };
+            std::iter::once(surface)
+                .chain(samples.off_surface_of(i, y, weight))
+                .collect()
+        })
+        .collect();
+    let mut out = Vec::with_capacity(per_rep.iter().map(Vec::len).sum());
+    let mut groups = Vec::with_capacity(per_rep.len());
+    for group in per_rep {
+        groups.push(out.len()..out.len() + group.len());
+        out.extend(group);
     }
-    out.extend(off_iter);
-    out
+    (out, groups)
 }

@@ -32,7 +32,34 @@ pub struct SurfaceSamples {
     pub diameter: f64,
     /// Median distance from a sample to its nearest other sample.
     pub spacing: f64,
+    /// Per sample: distance to its [`LOCAL_NEIGHBOURS`]-th nearest other
+    /// sample (how isolated it is).
+    pub reach: Vec<f64>,
+    /// Median of `reach`.
+    pub typical_reach: f64,
+    /// When set, the samples the off-surface consistency check looks at
+    /// (all samples otherwise): see [`Self::exclude_from_consistency`].
+    consistency_tree: Option<KdTree>,
+    /// Noise σ the consistency check allows for (see [`Self::set_noise`]).
+    noise: f64,
+    /// Per sample: its normal agrees with the mean normal of its
+    /// [`LOCAL_NEIGHBOURS`] nearest other samples (cosine ≥
+    /// [`MIN_NORMAL_AGREEMENT`]). A stray point with an arbitrary normal
+    /// next to a surface fails this, and its off-surface points, which
+    /// would claim the wrong side, are not used.
+    pub normal_agrees: Vec<bool>,
 }
+
+/// Scatter of noisy samples about the surface, in noise σ.
+const NOISE_SCATTER: f64 = 2.0;
+
+/// Neighbours that define a sample's local reach and normal agreement.
+pub const LOCAL_NEIGHBOURS: usize = 6;
+
+/// Lowest cosine between a sample's normal and its neighbours' mean normal
+/// that counts as agreement; a cube corner's normal still agrees (its
+/// neighbours' mean lies at 55° from each face normal, cosine 0.58).
+pub const MIN_NORMAL_AGREEMENT: f64 = 0.3;
 
 impl SurfaceSamples {
     /// Check and index `points` with `normals` (normalized here); rejects
@@ -66,6 +93,8 @@ impl SurfaceSamples {
         }
         let tree = KdTree::new(points);
         let spacing = median_spacing(points, &tree).max(diameter * 1e-9);
+        let (reach, normal_agrees) = local_reach_and_agreement(points, &normals, &tree);
+        let typical_reach = median(&reach);
         Ok(SurfaceSamples {
             points: points.to_vec(),
             normals,
@@ -73,6 +102,11 @@ impl SurfaceSamples {
             bounds,
             diameter,
             spacing,
+            reach,
+            typical_reach,
+            normal_agrees,
+            consistency_tree: None,
+            noise: 0.0,
         })
     }
 
@@ -88,24 +122,86 @@ impl SurfaceSamples {
     /// point inherits its sample's weight.
     pub fn off_surface_weighted(&self, reps: &[(usize, f64)], y: f64) -> Vec<TrainingPoint> {
         reps.par_iter()
-            .flat_map_iter(|&(i, weight)| {
-                [1.0, -1.0].into_iter().filter_map(move |sign| {
-                    let position = self.points[i] + self.normals[i] * (sign * y);
-                    self.is_consistent(position, y).then_some(TrainingPoint {
-                        position,
-                        target: sign * y,
-                        weight,
-                    })
-                })
-            })
+            .flat_map_iter(|&(i, weight)| self.off_surface_of(i, y, weight))
             .collect()
     }
 
-    /// No surface sample lies closer to `position` than 0.9·y.
+    /// The off-surface points of sample `i` at distance `y` (+ then −)
+    /// that pass the consistency check, with weight `weight`; none when
+    /// the sample's normal disagrees with its neighbours'.
+    pub fn off_surface_of(
+        &self,
+        i: usize,
+        y: f64,
+        weight: f64,
+    ) -> impl Iterator<Item = TrainingPoint> + '_ {
+        let signs: &[f64] = if self.normal_agrees[i] {
+            &[1.0, -1.0]
+        } else {
+            &[]
+        };
+        signs.iter().filter_map(move |&sign| {
+            let position = self.points[i] + self.normals[i] * (sign * y);
+            self.is_consistent(position, y).then_some(TrainingPoint {
+                position,
+                target: sign * y,
+                weight,
+            })
+        })
+    }
+
+    /// Indices of the samples that are not isolated: whose [`Self::reach`]
+    /// is at most `ratio` times its median over all samples.
+    pub fn unisolated(&self, ratio: f64) -> Vec<usize> {
+        let all = 0..self.points.len();
+        if ratio.is_infinite() {
+            return all.collect();
+        }
+        all.filter(|&i| self.reach[i] <= ratio * self.typical_reach)
+            .collect()
+    }
+
+    /// A sample that makes a good box representative: about as close to
+    /// its neighbours as typical (not a stray point in a gap between
+    /// sheets, where a box's mean often falls) and with an agreeing normal.
+    pub fn is_typical(&self, i: usize) -> bool {
+        self.normal_agrees[i] && self.reach[i] <= 2.0 * self.typical_reach
+    }
+
+    /// Let the off-surface consistency check look only at the samples in
+    /// `kept`: stray samples left out of the fit must not veto off-surface
+    /// points of the real surface either.
+    pub fn exclude_from_consistency(&mut self, kept: &[usize]) {
+        if kept.len() == self.points.len() {
+            self.consistency_tree = None;
+        } else {
+            let points: Vec<DVec3> = kept.iter().map(|&i| self.points[i]).collect();
+            self.consistency_tree = Some(KdTree::new(&points));
+        }
+    }
+
+    /// Declare the samples' noise σ (0 by default): noisy samples scatter
+    /// about 2σ either side of the surface, so the consistency check
+    /// allows that much on top of its 10% (otherwise it would reject most
+    /// off-surface points of a noisy scan and leave f undetermined).
+    pub fn set_noise(&mut self, sigma: f64) {
+        self.noise = sigma.max(0.0);
+    }
+
+    /// The noise σ declared with [`Self::set_noise`].
+    pub fn noise(&self) -> f64 {
+        self.noise
+    }
+
+    /// No surface sample lies closer to `position` than 0.9·y (less the
+    /// noise scatter, but never under half of y).
     fn is_consistent(&self, position: DVec3, y: f64) -> bool {
-        self.tree
+        let least = (0.9 * y - NOISE_SCATTER * self.noise).max(0.5 * y);
+        self.consistency_tree
+            .as_ref()
+            .unwrap_or(&self.tree)
             .nearest(position)
-            .is_none_or(|n| n.distance >= 0.9 * y)
+            .is_none_or(|n| n.distance >= least)
     }
 }
 
@@ -124,6 +220,41 @@ fn unit_normals(normals: &[DVec3]) -> Result<Vec<DVec3>> {
             }
         })
         .collect()
+}
+
+/// Per sample: the distance to its [`LOCAL_NEIGHBOURS`]-th nearest other
+/// sample, and whether its normal agrees with theirs.
+fn local_reach_and_agreement(
+    points: &[DVec3],
+    normals: &[DVec3],
+    tree: &KdTree,
+) -> (Vec<f64>, Vec<bool>) {
+    points
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let near = tree.knn(*p, LOCAL_NEIGHBOURS + 1);
+            let reach = near.last().map_or(f64::INFINITY, |n| n.distance);
+            let mean: DVec3 = near
+                .iter()
+                .filter(|n| n.index != i)
+                .map(|n| normals[n.index])
+                .sum();
+            let agrees = mean
+                .try_normalize()
+                .is_none_or(|m| m.dot(normals[i]) >= MIN_NORMAL_AGREEMENT);
+            (reach, agrees)
+        })
+        .unzip()
+}
+
+fn median(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mut sorted = values.to_vec();
+    let mid = sorted.len() / 2;
+    *sorted.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// Median nearest-neighbour distance over an evenly strided subset.
@@ -151,6 +282,17 @@ fn median_spacing(points: &[DVec3], tree: &KdTree) -> f64 {
 /// number of points in its cube. Returned in Morton order of the cubes,
 /// which keeps neighbours close in memory.
 pub fn box_representatives(points: &[DVec3], origin: DVec3, h: f64) -> Vec<(usize, usize)> {
+    box_representatives_preferring(points, |_| true, origin, h)
+}
+
+/// [`box_representatives`] choosing among the cube's points for which
+/// `preferred` holds, when it has any (the count covers all its points).
+pub fn box_representatives_preferring(
+    points: &[DVec3],
+    preferred: impl Fn(usize) -> bool + Sync,
+    origin: DVec3,
+    h: f64,
+) -> Vec<(usize, usize)> {
     let mut keyed: Vec<(u64, u32)> = points
         .par_iter()
         .enumerate()
@@ -160,19 +302,24 @@ pub fn box_representatives(points: &[DVec3], origin: DVec3, h: f64) -> Vec<(usiz
     let groups: Vec<&[(u64, u32)]> = keyed.chunk_by(|a, b| a.0 == b.0).collect();
     groups
         .par_iter()
-        .map(|g| (representative(points, g), g.len()))
+        .map(|g| (representative(points, g, &preferred), g.len()))
         .collect()
 }
 
-fn representative(points: &[DVec3], group: &[(u64, u32)]) -> usize {
+fn representative(
+    points: &[DVec3],
+    group: &[(u64, u32)],
+    preferred: &impl Fn(usize) -> bool,
+) -> usize {
     let mean = group
         .iter()
         .map(|&(_, i)| points[i as usize])
         .sum::<DVec3>()
         / group.len() as f64;
-    group
-        .iter()
-        .map(|&(_, i)| i as usize)
+    let members = || group.iter().map(|&(_, i)| i as usize);
+    let any_preferred = members().any(preferred);
+    members()
+        .filter(|&i| !any_preferred || preferred(i))
         .min_by(|&a, &b| {
             points[a]
                 .distance_squared(mean)
@@ -221,6 +368,58 @@ mod tests {
         let small = s.off_surface(&reps, 0.05);
         let inside = small.iter().filter(|p| p.target < 0.0).count();
         assert!(inside > 2500, "inside {inside}");
+    }
+
+    #[test]
+    fn declared_noise_keeps_off_surface_points_of_a_noisy_plane() {
+        // A plane z = 0 sampled on a grid of spacing 0.02, the samples
+        // shifted in z by ±sigma alternately: an off-surface point at 3σ on
+        // the side its sample leans away from is nearer (0.022) to the
+        // neighbours leaning the other way than 0.9·y = 0.027.
+        let sigma = 0.01;
+        let mut points = Vec::new();
+        for i in 0..60 {
+            for j in 0..60 {
+                let shift = if (i + j) % 2 == 0 { sigma } else { -sigma };
+                points.push(DVec3::new(i as f64 * 0.02, j as f64 * 0.02, shift));
+            }
+        }
+        let normals = vec![DVec3::Z; points.len()];
+        let mut s = SurfaceSamples::new(&points, &normals).unwrap();
+        let reps: Vec<usize> = (0..points.len()).collect();
+        let y = 3.0 * sigma;
+        let strict = s.off_surface(&reps, y).len();
+        s.set_noise(sigma);
+        let allowing = s.off_surface(&reps, y);
+        assert!(strict <= points.len(), "strict check kept {strict}");
+        assert!(
+            allowing.len() > 19 * 2 * points.len() / 20,
+            "{}",
+            allowing.len()
+        );
+        // Still a real check: nothing closer than half of y survives.
+        for p in &allowing {
+            assert!(s.tree.nearest(p.position).unwrap().distance >= 0.5 * y);
+        }
+    }
+
+    #[test]
+    fn isolated_samples_and_disagreeing_normals_are_found() {
+        let pc = sample_surface(&icosphere(DVec3::ZERO, 1.0, 3), 4000, 6);
+        let mut points = pc.positions.clone();
+        let mut normals = pc.normals.clone().unwrap();
+        // A stray point far out, and a surface sample with a flipped normal.
+        points.push(DVec3::new(3.0, 0.0, 0.0));
+        normals.push(DVec3::X);
+        normals[0] = -normals[0];
+        let s = SurfaceSamples::new(&points, &normals).unwrap();
+        let kept = s.unisolated(4.0);
+        assert_eq!(kept.len(), points.len() - 1);
+        assert!(!kept.contains(&(points.len() - 1)));
+        assert!(!s.normal_agrees[0]);
+        let agreeing = s.normal_agrees.iter().filter(|a| **a).count();
+        assert!(agreeing >= points.len() - 3, "{agreeing}");
+        assert!(s.off_surface(&[0], 0.05).is_empty());
     }
 
     #[test]

@@ -26,15 +26,17 @@ pub enum LossArg {
 /// SVM-specific flags of `surfrecon reconstruct --method svm`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct SvmArgs {
-    /// Box constraint C relative to each level's kernel width, or "auto" to
-    /// choose it by validation on held-out points.
+    /// Box constraint C relative to each level's local residual, or "auto"
+    /// to choose C and ε by validation on held-out points.
     #[arg(long = "svm-c", default_value = "1", value_parser = parse_c)]
     pub svm_c: CSetting,
-    /// Width of the ε-insensitive tube, relative to the bounding-box diagonal.
+    /// Width of the ε-insensitive tube, relative to the bounding-box
+    /// diagonal; raised to the estimated noise level of the input.
     #[arg(long = "svm-epsilon", default_value_t = 5e-4)]
     pub svm_epsilon: f64,
     /// Fitting accuracy relative to the diagonal: refinement stops when all
-    /// proposed base points are fitted within it.
+    /// proposed base points are fitted within it; raised to twice the
+    /// estimated noise level of the input.
     #[arg(long = "svm-accuracy", default_value_t = 1e-3)]
     pub svm_accuracy: f64,
     /// Residual penalty.
@@ -180,16 +182,20 @@ fn fit_model(
     opts.c = match args.svm_c {
         CSetting::Fixed(c) => c,
         CSetting::Auto => {
-            let spinner = ctx.spinner("choosing C by validation");
-            let s = select_parameters(
-                &points.positions,
-                &normals,
-                &opts,
-                &SelectionOptions::default(),
-            )
-            .context("parameter selection failed")?;
+            let spinner = ctx.spinner("choosing C and ε by validation");
+            // ε: the given tube and a wider one, which suits noisy data.
+            let candidates = SelectionOptions {
+                epsilon_values: vec![opts.epsilon, 4.0 * opts.epsilon],
+                ..Default::default()
+            };
+            let s = select_parameters(&points.positions, &normals, &opts, &candidates)
+                .context("parameter selection failed")?;
             spinner.finish_and_clear();
-            ctx.say(format!("svm: C = {} chosen by validation", s.c));
+            ctx.say(format!(
+                "svm: C = {}, ε = {} chosen by validation",
+                s.c, s.epsilon
+            ));
+            opts.epsilon = s.epsilon;
             selection = json!(s
                 .trials
                 .iter()
@@ -218,11 +224,17 @@ fn fit_model(
         "seconds": report.seconds,
         "diameter": report.diameter,
         "spacing": report.spacing,
+        "noise_estimate": report.noise,
+        "isolated_samples": report.isolated,
+        "epsilon_used": report.epsilon,
+        "accuracy_used": report.tolerance,
+        "min_width": report.min_width,
         "levels": report.levels.iter().map(|l| json!({
             "width": l.width,
             "candidates": l.candidates,
             "base_points": l.base_points,
             "centres": l.centres,
+            "inconsistent": l.inconsistent,
             "sweeps": l.sweeps,
             "seconds": l.seconds,
         })).collect::<Vec<_>>(),
