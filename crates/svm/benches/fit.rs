@@ -11,7 +11,11 @@ use surfrecon_geom::{io, TriMesh};
 use surfrecon_svm::mesh::{mesh_model, MeshOptions};
 use surfrecon_svm::{fit, FitOptions};
 
-const DEFAULT_MESH: &str = "/work/shared/data/stanford_bunny/reconstruction/bun_zipper.ply";
+/// The shared data folder sits beside the repository.
+const DEFAULT_MESH: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../../shared/data/stanford_bunny/reconstruction/bun_zipper.ply"
+);
 
 /// CPU seconds (user + system) of this process so far, from /proc.
 fn cpu_seconds() -> f64 {
