@@ -57,6 +57,21 @@ fn sphere_points_give_a_closed_mesh_and_json_summary() {
     assert_eq!(summary["dimension"], 3);
     assert!(summary["output_counts"]["triangles"].as_u64().unwrap() > 1000);
     assert!(summary["band_nodes"].as_u64().unwrap() > 0);
+    // The band lives in a few 8³ blocks near the surface, far fewer than
+    // the grid has.
+    let blocks = summary["band"]["blocks"].as_u64().unwrap();
+    let nodes = summary["grid"]["nodes"].as_u64().unwrap();
+    assert!(
+        blocks > 0 && blocks * 512 < nodes,
+        "{blocks} blocks, {nodes} nodes"
+    );
+    // Every stage ends by its convergence test, and says so.
+    for stage in ["convection", "flow", "settle"] {
+        for level in summary[stage].as_array().unwrap() {
+            assert_eq!(level["stopped_by"], "convergence", "{stage}: {level}");
+        }
+    }
+    assert_eq!(summary["cleaning"]["outliers_removed"], 0);
     let stages: Vec<&str> = summary["timings"]
         .as_array()
         .unwrap()

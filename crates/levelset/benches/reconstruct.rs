@@ -52,11 +52,15 @@ fn main() {
     let initial = rep.seconds("distance") + rep.seconds("tagging") + rep.seconds("reinit");
     // The paper's "initial" is distance + tagging on the full grid; our first
     // distance is on the coarse level, so report the fine-level figure too.
-    println!("band nodes (final): {}", rep.band_nodes);
+    println!("cleaning: {:?}", rep.cleaning);
+    println!(
+        "band (final): {} nodes in {} blocks of 8³",
+        rep.band_nodes, rep.band_blocks
+    );
     for (i, (c, f)) in rep.convection.iter().zip(&rep.flow).enumerate() {
         println!(
-            "  level {i}: convection {} steps (converged {}), flow {} steps (converged {}), max band {}",
-            c.steps, c.converged, f.steps, f.converged, c.max_band.max(f.max_band)
+            "  level {i}: convection {} steps (converged {}), flow {} steps (converged {}, last change {:.4}), max band {}",
+            c.steps, c.converged, f.steps, f.converged, f.last_change, c.max_band.max(f.max_band)
         );
     }
     println!(

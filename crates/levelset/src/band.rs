@@ -5,6 +5,7 @@
 //! every stencil may read any neighbour while all work stays proportional to
 //! the band size, i.e. to the surface area.
 
+use surfrecon_grid::sparse::BLOCK;
 use surfrecon_grid::{Field, GridSpec};
 
 /// Nodes this close to the grid border never join the band, so stencils
@@ -80,6 +81,26 @@ impl<const D: usize> NarrowBand<D> {
     pub fn is_empty(&self) -> bool {
         self.active.is_empty()
     }
+
+    /// Number of blocks of [`surfrecon_grid::sparse::BLOCK`]^D nodes that
+    /// hold band nodes: what a sparse block grid would allocate for it.
+    pub fn block_count(&self) -> usize {
+        let spec = self.phi.spec;
+        let block_dims = spec.dims.map(|n| n.div_ceil(BLOCK));
+        let mut blocks: Vec<usize> = self
+            .active
+            .iter()
+            .map(|&l| {
+                let idx = spec.unlinear(l as usize);
+                (0..D)
+                    .rev()
+                    .fold(0, |b, a| b * block_dims[a] + idx[a] / BLOCK)
+            })
+            .collect();
+        blocks.sort_unstable();
+        blocks.dedup();
+        blocks.len()
+    }
 }
 
 /// Inner nodes (at least [`BORDER`] from the grid border) with a neighbour of
@@ -125,4 +146,32 @@ pub(crate) fn det_sum<T: Sync>(items: &[T], f: impl Fn(&T) -> f64 + Sync) -> f64
         .map(|c| c.iter().map(&f).sum::<f64>())
         .collect();
     partial.iter().sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn band_blocks_follow_the_surface_not_the_grid() {
+        // A circle of radius 0.3 in a 161² grid of the unit square.
+        let spec = GridSpec::<2> {
+            origin: [-0.5, -0.5],
+            spacing: 1.0 / 160.0,
+            dims: [161, 161],
+        };
+        let values = (0..spec.node_count())
+            .map(|l| {
+                let [x, y] = spec.position(spec.unlinear(l));
+                x.hypot(y) - 0.3
+            })
+            .collect();
+        let mut band = NarrowBand::from_field(Field { spec, values }, 3.0 * spec.spacing);
+        crate::reinit::reinitialize(&mut band);
+        let blocks = band.block_count();
+        // Circumference 1.9 = 302 cells; a 6-cell wide ring crosses about
+        // 302 / 8 · 2 blocks, out of 21² in the grid.
+        assert!(band.len() <= blocks * 64);
+        assert!((40..=120).contains(&blocks), "{blocks} blocks");
+    }
 }

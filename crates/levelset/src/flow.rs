@@ -3,20 +3,25 @@
 //! Gradient flow of E(Γ) = (∫_Γ d^p ds)^(1/p), p ≥ 1:
 //! φ_t = F · d^(p−1) · [∇d·∇φ + (1/p) d |∇φ| κ], F = (∫ d^p δ(φ)|∇φ| dx)^(1/p−1).
 //! For p = 1 this is φ_t = ∇d·∇φ + d|∇φ|κ. The first term is upwinded (as
-//! in convection), the curvature term uses central differences. Explicit
-//! steps are stable for Δt ≤ h / max(F d^(p−1) Σ|∂ₐd|) (advection) and
-//! Δt ≤ h² / (2·dim·max(F d^p / p)) (the curvature term is a diffusion with
-//! coefficient F d^p/p); both are evaluated near the zero set after every
-//! reinitialization. Near the data d = O(h), so steps stay O(h) there.
+//! in convection), the curvature term uses central differences. d and ∇d
+//! are taken at each node's closest point on the zero set and extended
+//! along the normals (see `NodeSpeed`). Each node steps with its own
+//! stable Δt ≤ h / (F d^(p−1) Σ|∂ₐd|) (advection) and
+//! Δt ≤ h² / (2·dim·F d^p / p) (the curvature term is a diffusion with
+//! coefficient F d^p/p): local time stepping, which leaves the steady
+//! state unchanged and reaches it without waiting for the slowest node
+//! (the surface spanning a wide hole, where d is large).
 //!
 //! [`evolve`] runs either motion on the narrow band: steps, reinitializes
-//! before the zero set can leave the band, and stops when the zero set has
-//! stopped moving (mean displacement per step below a tolerance) or after a
-//! maximum number of steps.
+//! before the zero set can leave the band, and stops when the zero set near
+//! the data has stopped moving (mean displacement per step below a
+//! tolerance) or after a maximum number of steps. With `keep_topology`, no
+//! step changes the surface's topology.
 
-use crate::band::{det_sum, NarrowBand};
+use crate::band::{det_sum, inside, NarrowBand};
 use crate::convection::advection_term;
 use crate::reinit::reinitialize;
+use crate::topology::Neighbourhood;
 use rayon::prelude::*;
 use surfrecon_grid::Field;
 
@@ -34,12 +39,16 @@ pub enum Motion {
 pub struct EvolveParams {
     /// Upper bound on time steps.
     pub max_steps: usize,
-    /// Converged when the zero set's mean speed between two
-    /// reinitializations falls below this fraction of the motion's speed
-    /// scale (1 for convection and p = 1).
+    /// Converged when the mean displacement per step of the zero set near
+    /// the data falls below this fraction of the largest possible (the
+    /// CFL fraction of a cell; for convection: of its speed scale).
     pub tolerance: f64,
     /// Fraction of the stable time step used.
     pub cfl: f64,
+    /// Never change the surface's topology: a node changes side only if it
+    /// is a simple point ([`crate::topology`]), so no handle opens or
+    /// closes and no component splits off, merges or vanishes.
+    pub keep_topology: bool,
 }
 
 impl Default for EvolveParams {
@@ -48,6 +57,7 @@ impl Default for EvolveParams {
             max_steps: 200,
             tolerance: 0.02,
             cfl: 0.5,
+            keep_topology: false,
         }
     }
 }
@@ -86,30 +96,68 @@ pub fn evolve<const D: usize>(
     };
     // The zero set moves at most cfl·h per step; reinitialize before it can
     // come within a cell of the band's edge.
-    let interval = (((band.half_width / h) - 1.0) / params.cfl.max(0.05))
+    let interval = (((band.half_width / h) - 1.0) / params.cfl.max(0.05) + 1e-9)
         .floor()
         .max(1.0) as usize;
-    let mut snapshot = zero_set_snapshot(band);
+    // An even number of steps between measurements: explicit steps near
+    // the stability limit leave a period-two jitter of the zero set at the
+    // data, which must not count as motion.
+    let interval = if interval >= 2 {
+        interval & !1
+    } else {
+        interval
+    };
+    let mut snapshot = zero_set_snapshot(band, d);
+    // The flow's zero set from one interval earlier, with its step count.
+    let mut earlier: Option<(Vec<(u32, f64)>, usize)> = None;
     stats.max_band = band.len();
+    let topology = params
+        .keep_topology
+        .then(|| Neighbourhood::new(&band.phi.spec.strides()));
     while stats.steps < params.max_steps {
         stats.energy = weighted_area(band, d, p);
         let factor = global_factor(stats.energy, p);
         let coef = Coefficients { motion, p, factor };
-        let (stable, speed_scale) = stable_step(band, d, &coef);
-        let dt = stable * params.cfl;
         let n = interval.min(params.max_steps - stats.steps);
-        for _ in 0..n {
-            step(band, d, &coef, dt);
-        }
+        let change = match motion {
+            Motion::Convection => {
+                let (stable, speed_scale) = stable_step(band, d, &coef);
+                let dt = stable * params.cfl;
+                for _ in 0..n {
+                    step(band, d, &coef, dt, topology.as_ref());
+                }
+                reinitialize(band);
+                // Mean zero-set speed relative to the motion's own speed
+                // scale: small time steps do not fake convergence.
+                zero_set_change(band, &snapshot) * h / (n as f64 * dt * speed_scale)
+            }
+            Motion::MinimalSurface { .. } => {
+                for _ in 0..n {
+                    // Recomputed every step: speeds frozen over several
+                    // steps overshoot where the zero set crosses the data.
+                    let speeds = interface_speeds(band, d, &coef);
+                    interface_step(band, &speeds, params.cfl, topology.as_ref());
+                }
+                reinitialize(band);
+                // Every node moves at most `cfl` cells per step: the mean
+                // displacement per step as a share of that, measured over
+                // the last two intervals. Near the data the explicit
+                // scheme leaves the zero set jittering in place by a small
+                // fraction of a cell; over a longer span that jitter
+                // averages out while a real drift adds up.
+                let (base, span) = match earlier.take() {
+                    Some((old, steps)) => (old, steps + n),
+                    None => (snapshot.clone(), n),
+                };
+                earlier = Some((snapshot.clone(), n));
+                zero_set_change(band, &base) / (span as f64 * params.cfl)
+            }
+        };
         stats.steps += n;
-        reinitialize(band);
         stats.reinitializations += 1;
         stats.max_band = stats.max_band.max(band.len());
-        // Mean zero-set speed relative to the flow's own speed scale: small
-        // time steps (large d in holes) do not fake convergence.
-        let change = zero_set_change(band, &snapshot) * h / (n as f64 * dt * speed_scale);
         stats.last_change = change;
-        snapshot = zero_set_snapshot(band);
+        snapshot = zero_set_snapshot(band, d);
         if change < params.tolerance {
             stats.converged = true;
             break;
@@ -151,7 +199,13 @@ fn global_factor(energy: f64, p: f64) -> f64 {
 }
 
 /// One explicit Euler step of the motion on the band nodes.
-fn step<const D: usize>(band: &mut NarrowBand<D>, d: &Field<D>, coef: &Coefficients, dt: f64) {
+fn step<const D: usize>(
+    band: &mut NarrowBand<D>,
+    d: &Field<D>,
+    coef: &Coefficients,
+    dt: f64,
+    topology: Option<&Neighbourhood>,
+) {
     let spec = band.phi.spec;
     let strides = spec.strides();
     let h = spec.spacing;
@@ -166,12 +220,208 @@ fn step<const D: usize>(band: &mut NarrowBand<D>, d: &Field<D>, coef: &Coefficie
             if c != 0.0 {
                 r += c * curvature_term(phi, l, &strides, h);
             }
-            r
+            dt * r
         })
         .collect();
-    for (&l, r) in band.active.iter().zip(rates) {
-        band.phi.values[l as usize] += dt * r;
+    apply(band, rates, topology);
+}
+
+/// Adds `updates` (one per band node) to φ. With `topology`, a node that
+/// would change side does so only if it is a simple point at that moment;
+/// such nodes are visited in index order so the result is deterministic.
+fn apply<const D: usize>(
+    band: &mut NarrowBand<D>,
+    updates: Vec<f64>,
+    topology: Option<&Neighbourhood>,
+) {
+    let phi = &mut band.phi.values;
+    let mut flips = Vec::new();
+    for (&l, u) in band.active.iter().zip(updates) {
+        let l = l as usize;
+        let new = phi[l] + u;
+        if topology.is_some() && inside(new) != inside(phi[l]) {
+            flips.push((l, new));
+        } else {
+            phi[l] = new;
+        }
     }
+    let Some(cube) = topology else {
+        return;
+    };
+    for (l, new) in flips {
+        if cube.is_simple(l, |n| inside(phi[n])) {
+            phi[l] = new;
+        }
+    }
+}
+
+/// Speed of one band node for the minimal surface flow, taken at the zero
+/// set and extended along the normals: the weight d and the direction ∇d
+/// found at the node's closest point on the zero set (x − φ n), not at the
+/// node itself. Nodes next to the surface sit up to a cell off the data,
+/// where d is a cell larger than on the surface; taking d there would
+/// overweight the curvature term and shrink the surface by O(h²κ) and eat
+/// thin features.
+struct NodeSpeed<const D: usize> {
+    /// Advection and curvature coefficients.
+    advection: f64,
+    curvature: f64,
+    /// ∇d at the closest point, per cell.
+    grad: [f64; D],
+    /// The node's own stable time step (before the CFL fraction): local
+    /// time steps reach the steady state, which they do not change,
+    /// without the whole surface waiting for its slowest node.
+    dt: f64,
+}
+
+fn interface_speeds<const D: usize>(
+    band: &NarrowBand<D>,
+    d: &Field<D>,
+    coef: &Coefficients,
+) -> Vec<NodeSpeed<D>> {
+    let spec = band.phi.spec;
+    let strides = spec.strides();
+    let h = spec.spacing;
+    let phi = &band.phi.values;
+    band.active
+        .par_iter()
+        .map(|&l| {
+            let (dist, grad) = at_interface(phi, d, l as usize, &strides, h);
+            let (advection, curvature) = coef.at(dist);
+            let rate: f64 = grad.iter().map(|g| g.abs()).sum::<f64>() * advection / h;
+            let mut dt = h;
+            if rate > 0.0 {
+                dt = dt.min(h / rate);
+            }
+            if curvature > 0.0 {
+                dt = dt.min(h * h / (2.0 * D as f64 * curvature));
+            }
+            NodeSpeed {
+                advection,
+                curvature,
+                grad,
+                dt,
+            }
+        })
+        .collect()
+}
+
+/// One explicit step of the minimal surface flow with the band nodes'
+/// extended speeds (same order as the band).
+fn interface_step<const D: usize>(
+    band: &mut NarrowBand<D>,
+    speeds: &[NodeSpeed<D>],
+    cfl: f64,
+    topology: Option<&Neighbourhood>,
+) {
+    let spec = band.phi.spec;
+    let strides = spec.strides();
+    let h = spec.spacing;
+    let phi = &band.phi.values;
+    let updates: Vec<f64> = band
+        .active
+        .par_iter()
+        .zip(speeds)
+        .map(|(&l, s)| {
+            let l = l as usize;
+            let mut rate = s.advection * upwind_advection(phi, l, &strides, &s.grad, h);
+            if s.curvature != 0.0 {
+                rate += s.curvature * curvature_term(phi, l, &strides, h);
+            }
+            cfl * s.dt * rate
+        })
+        .collect();
+    apply(band, updates, topology);
+}
+
+/// ∇d·∇φ for a given ∇d (per cell), φ differenced on the upwind side of
+/// the velocity −∇d.
+#[inline]
+fn upwind_advection<const D: usize>(
+    phi: &[f64],
+    l: usize,
+    strides: &[usize; D],
+    grad: &[f64; D],
+    h: f64,
+) -> f64 {
+    let mut sum = 0.0;
+    for (&s, &g) in strides.iter().zip(grad) {
+        let dphi = if g < 0.0 {
+            phi[l] - phi[l - s]
+        } else {
+            phi[l + s] - phi[l]
+        };
+        sum += g * dphi;
+    }
+    sum / (h * h)
+}
+
+/// d and its gradient (per cell) at the point of the zero set closest to
+/// node `l`, x − φ ∇φ/|∇φ|, by multilinear interpolation; the node's own
+/// values where φ has no usable gradient.
+fn at_interface<const D: usize>(
+    phi: &[f64],
+    d: &Field<D>,
+    l: usize,
+    strides: &[usize; D],
+    h: f64,
+) -> (f64, [f64; D]) {
+    let g: [f64; D] = std::array::from_fn(|a| (phi[l + strides[a]] - phi[l - strides[a]]) * 0.5);
+    let norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if norm.is_nan() || norm <= 1e-6 * h {
+        let grad =
+            std::array::from_fn(|a| (d.values[l + strides[a]] - d.values[l - strides[a]]) * 0.5);
+        return (d.values[l], grad);
+    }
+    let spec = &d.spec;
+    let idx = spec.unlinear(l);
+    let shift = phi[l] / norm;
+    let x: [f64; D] = std::array::from_fn(|a| {
+        (idx[a] as f64 - shift * g[a]).clamp(0.0, (spec.dims[a] - 1) as f64)
+    });
+    multilinear_with_gradient(d, x)
+}
+
+/// Value and gradient (per cell) of the multilinear interpolant of `field`
+/// at grid coordinates `x` (inside the grid).
+fn multilinear_with_gradient<const D: usize>(field: &Field<D>, x: [f64; D]) -> (f64, [f64; D]) {
+    let spec = &field.spec;
+    let strides = spec.strides();
+    let mut base = 0;
+    let mut t = [0.0; D];
+    for a in 0..D {
+        let i = (x[a].floor() as usize).min(spec.dims[a] - 2);
+        base += i * strides[a];
+        t[a] = x[a] - i as f64;
+    }
+    let mut value = 0.0;
+    let mut grad = [0.0; D];
+    for corner in 0..1usize << D {
+        let mut l = base;
+        let mut w = 1.0;
+        // Weight of this corner without axis a's factor, per axis.
+        let mut partial = [1.0; D];
+        for a in 0..D {
+            let high = corner >> a & 1 == 1;
+            if high {
+                l += strides[a];
+            }
+            let wa = if high { t[a] } else { 1.0 - t[a] };
+            w *= wa;
+            for (b, p) in partial.iter_mut().enumerate() {
+                if b != a {
+                    *p *= wa;
+                }
+            }
+        }
+        let v = field.values[l];
+        value += w * v;
+        for a in 0..D {
+            let sign = if corner >> a & 1 == 1 { 1.0 } else { -1.0 };
+            grad[a] += sign * partial[a] * v;
+        }
+    }
+    (value, grad)
 }
 
 /// |∇φ|κ at node `l` by central differences:
@@ -271,14 +521,34 @@ pub fn weighted_area<const D: usize>(band: &NarrowBand<D>, d: &Field<D>, p: f64)
     })
 }
 
-/// φ at the nodes next to the zero set (|φ| ≤ h).
-fn zero_set_snapshot<const D: usize>(band: &NarrowBand<D>) -> Vec<(u32, f64)> {
+/// Nodes farther than this many cells from the data do not count for
+/// convergence.
+const SUPPORTED_CELLS: f64 = 2.0;
+
+/// φ at the nodes next to the zero set (|φ| ≤ h) that are near the data.
+/// Convergence is judged there: where the surface spans a hole in the
+/// data, nothing holds it, and the flow keeps reshaping it long after the
+/// surface on the data has settled.
+fn zero_set_snapshot<const D: usize>(band: &NarrowBand<D>, d: &Field<D>) -> Vec<(u32, f64)> {
     let h = band.phi.spec.spacing;
-    band.active
+    let supported = |l: u32| d.values[l as usize] <= SUPPORTED_CELLS * h;
+    let near: Vec<(u32, f64)> = band
+        .active
         .iter()
         .map(|&l| (l, band.phi.values[l as usize]))
-        .filter(|&(_, v)| v.abs() <= h)
-        .collect()
+        .filter(|&(l, v)| v.abs() <= h && supported(l))
+        .collect();
+    if near.is_empty() {
+        // No data near the surface at all (e.g. a single point): judge
+        // the whole zero set.
+        return band
+            .active
+            .iter()
+            .map(|&l| (l, band.phi.values[l as usize]))
+            .filter(|&(_, v)| v.abs() <= h)
+            .collect();
+    }
+    near
 }
 
 /// Mean displacement of the zero set since `snapshot`, in cells: the mean

@@ -3,14 +3,19 @@
 //! Fedkiw: "Fast surface reconstruction using the level set method").
 //!
 //! Pipeline ([`reconstruct::reconstruct_field`], [`reconstruct::reconstruct_3d`],
-//! [`reconstruct::reconstruct_2d`]): unsigned distance d to the data on a
-//! padded grid → initial surface by an outer distance contour and the fast
-//! [`tagging`] algorithm → [`convection`] φ_t = ∇d·∇φ → weighted minimal
-//! surface [`flow`] → marching cubes (squares in 2D). Evolution runs on a
-//! narrow band ([`band`]) kept a signed distance by [`reinit`]; large grids
-//! are solved coarse-to-fine ([`multires`]).
+//! [`reconstruct::reconstruct_2d`]): point [`cleaning`] (outliers, noise) →
+//! unsigned distance d to the data on a padded grid → initial surface by an
+//! outer distance contour and the fast [`tagging`] algorithm, which keeps
+//! the contour's topology and drops inside components without data →
+//! [`convection`] φ_t = ∇d·∇φ → weighted minimal surface [`flow`] → a last
+//! convection that settles the zero set on the data → marching cubes
+//! (squares in 2D). Every evolution stops by its convergence test; none
+//! changes the topology (simple point test). Evolution runs on a narrow
+//! band ([`band`]) kept a signed distance by [`reinit`]; large grids are
+//! solved coarse-to-fine ([`multires`]).
 
 pub mod band;
+pub mod cleaning;
 pub mod convection;
 pub mod error;
 pub mod flow;
@@ -18,6 +23,7 @@ pub mod multires;
 pub mod reconstruct;
 pub mod reinit;
 pub mod tagging;
+mod topology;
 
 pub use band::NarrowBand;
 pub use error::{LevelsetError, Result};

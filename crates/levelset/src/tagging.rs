@@ -9,9 +9,16 @@
 //!    neighbours enter the heap. Stop when the largest d in the heap is
 //!    below the tolerance; the rest become final boundary nodes.
 //!
+//! 3. Optionally (the default in the pipeline) tagging keeps the topology
+//!    of the outer contour: a node is only turned exterior if it is a
+//!    simple point, so the exterior cannot tunnel through a hole in the
+//!    data that ε closed. Afterwards [`remove_unsupported`] drops separate
+//!    inside pieces that hold (almost) no data.
+//!
 //! The result is the inside/outside labelling whose interface is the
 //! initial surface: roughly a polyhedron with vertices on the data.
 
+use crate::topology::Neighbourhood;
 use std::collections::BinaryHeap;
 use surfrecon_grid::Field;
 
@@ -124,14 +131,21 @@ fn key(d: f64, l: usize) -> (u64, u32) {
 }
 
 /// The fast tagging algorithm on `tags` (from [`outer_contour`]; the seeds
-/// in `front` must be tagged [`Tag::Temporary`]). Returns the heap pops.
+/// in `front` must be tagged [`Tag::Temporary`]). With `keep_topology`, a
+/// node whose removal would change the topology of the inside (a simple
+/// point test on its 3^D neighbourhood) stays a final boundary node, so the
+/// exterior cannot tunnel through gaps in the data that the outer contour
+/// closed. Returns the heap pops.
 pub fn fast_tag<const D: usize>(
     d: &Field<D>,
     tags: &mut [Tag],
     front: &[u32],
     tolerance: f64,
+    keep_topology: bool,
 ) -> usize {
     let strides = d.spec.strides();
+    let cube = Neighbourhood::new(&strides);
+    let is_inside = |tags: &[Tag], n: usize| tags[n] != Tag::Exterior;
     let mut heap: BinaryHeap<(u64, u32)> = front
         .iter()
         .map(|&l| key(d.values[l as usize], l as usize))
@@ -148,7 +162,8 @@ pub fn fast_tag<const D: usize>(
         // Interior nodes never touch the grid border (the border is
         // exterior), so their neighbours are all in range.
         let neighbours = || strides.iter().flat_map(move |&s| [l - s, l + s]);
-        let blocked = neighbours().any(|n| tags[n] == Tag::Interior && d.values[n] >= dist);
+        let blocked = neighbours().any(|n| tags[n] == Tag::Interior && d.values[n] >= dist)
+            || (keep_topology && !cube.is_simple(l, |n| is_inside(tags, n)));
         if blocked {
             tags[l] = Tag::Boundary;
             continue;
@@ -183,6 +198,7 @@ pub fn tag<const D: usize>(
     grow_epsilon: bool,
     tolerance: f64,
     bbox: Option<&BoundingBox<D>>,
+    keep_topology: bool,
 ) -> Tagging {
     let spec = d.spec;
     let largest = (0..D)
@@ -209,12 +225,71 @@ pub fn tag<const D: usize>(
             }
         }
     }
-    let heap_pops = fast_tag(d, &mut tags, &front, tolerance);
+    let heap_pops = fast_tag(d, &mut tags, &front, tolerance, keep_topology);
     Tagging {
         tags,
         epsilon: eps,
         heap_pops,
     }
+}
+
+/// Data items a separate inside component needs to be kept.
+pub const MIN_SUPPORT: usize = 10;
+
+/// Removes (turns exterior) every face-connected inside component that
+/// holds fewer than [`MIN_SUPPORT`] of the `data_nodes` (the node nearest to
+/// each datum), except the best supported one: isolated data far from the
+/// bulk (outliers the cleaning kept) must not become surfaces of their own.
+/// Returns the number of components removed.
+pub fn remove_unsupported<const D: usize>(
+    spec: &surfrecon_grid::GridSpec<D>,
+    inside: &mut [bool],
+    data_nodes: &[usize],
+) -> usize {
+    let strides = spec.strides();
+    let mut component = vec![u32::MAX; inside.len()];
+    let mut sizes: Vec<usize> = Vec::new();
+    let mut stack = Vec::new();
+    for start in 0..inside.len() {
+        if !inside[start] || component[start] != u32::MAX {
+            continue;
+        }
+        let id = sizes.len() as u32;
+        sizes.push(0);
+        component[start] = id;
+        stack.push(start);
+        while let Some(l) = stack.pop() {
+            let idx = spec.unlinear(l);
+            for a in 0..D {
+                let below = (idx[a] > 0).then(|| l - strides[a]);
+                let above = (idx[a] + 1 < spec.dims[a]).then(|| l + strides[a]);
+                for n in [below, above].into_iter().flatten() {
+                    if inside[n] && component[n] == u32::MAX {
+                        component[n] = id;
+                        stack.push(n);
+                    }
+                }
+            }
+        }
+    }
+    if sizes.len() < 2 {
+        return 0;
+    }
+    for &l in data_nodes {
+        if let Some(&c) = component.get(l).filter(|&&c| c != u32::MAX) {
+            sizes[c as usize] += 1;
+        }
+    }
+    let best = (0..sizes.len()).max_by_key(|&c| (sizes[c], std::cmp::Reverse(c)));
+    let doomed: Vec<bool> = (0..sizes.len())
+        .map(|c| Some(c) != best && sizes[c] < MIN_SUPPORT)
+        .collect();
+    for (l, c) in component.iter().enumerate() {
+        if *c != u32::MAX && doomed[*c as usize] {
+            inside[l] = false;
+        }
+    }
+    doomed.iter().filter(|&&x| x).count()
 }
 
 #[cfg(test)]
@@ -256,7 +331,7 @@ mod tests {
     fn circle_is_tagged_close_to_the_data() {
         let spec = grid();
         let d = point_distance(spec, &circle_points(60, 1.0));
-        let t = tag(&d, 0.15, false, spec.spacing, None);
+        let t = tag(&d, 0.15, false, spec.spacing, None, false);
         let inside = t.inside();
         for (l, &is_inside) in inside.iter().enumerate() {
             let [x, y] = spec.position(spec.unlinear(l));
@@ -278,7 +353,7 @@ mod tests {
         let mut pts = circle_points(80, 1.2);
         pts.extend((0..20).map(|i| [0.3 + i as f64 * 0.045, 0.0]));
         let d = point_distance(spec, &pts);
-        let t = tag(&d, 0.6, false, spec.spacing, None);
+        let t = tag(&d, 0.6, false, spec.spacing, None, false);
         // With ε = 0.6 the contour alone keeps (1.0, 0.6) inside; tagging
         // must still leave it inside (inside the circle) but the node far
         // outside the circle is exterior.
@@ -294,9 +369,30 @@ mod tests {
         let spec = grid();
         // 8 points on a circle of radius 1: gaps of 0.77 need ε ≳ 0.4.
         let d = point_distance(spec, &circle_points(8, 1.0));
-        let t = tag(&d, 0.1, true, spec.spacing, None);
+        let t = tag(&d, 0.1, true, spec.spacing, None, false);
         assert!(t.epsilon > 0.35, "ε = {}", t.epsilon);
         let centre = spec.linear([40, 40]);
         assert!(t.tags[centre] != Tag::Exterior);
+    }
+
+    #[test]
+    fn components_without_data_support_are_removed() {
+        let spec = grid();
+        let mut pts = circle_points(60, 1.0);
+        // A lone outlier far outside the circle, beyond ε of it.
+        pts.push([1.7, 1.7]);
+        let d = point_distance(spec, &pts);
+        let t = tag(&d, 0.15, false, spec.spacing, None, true);
+        let mut inside = t.inside();
+        let node = |p: &[f64; 2]| {
+            let g = spec.to_grid(*p);
+            spec.linear([g[0].round() as usize, g[1].round() as usize])
+        };
+        let lone = node(&[1.7, 1.7]);
+        assert!(inside[lone], "the outlier's own node survives tagging");
+        let data: Vec<usize> = pts.iter().map(node).collect();
+        assert_eq!(remove_unsupported(&spec, &mut inside, &data), 1);
+        assert!(!inside[lone]);
+        assert!(inside[spec.linear([40, 40])], "the circle stays");
     }
 }

@@ -65,6 +65,16 @@ fn chamfer(mesh: &TriMesh, surface_distance: impl Fn(DVec3) -> f64, samples: &[D
     0.5 * (to_surface + to_mesh)
 }
 
+/// Whether every convection and flow stage stopped by its convergence test.
+fn ended_by_convergence(report: &surfrecon_levelset::Report) -> bool {
+    report
+        .convection
+        .iter()
+        .chain(&report.flow)
+        .chain(&report.settle)
+        .all(|s| s.converged)
+}
+
 fn params(resolution: usize) -> ReconstructParams {
     ReconstructParams {
         resolution: Some(resolution),
@@ -89,6 +99,7 @@ fn sphere_from_points() {
     assert_eq!(euler, 2);
     assert_eq!(comps, 1);
     assert!(c < 0.5 * h, "chamfer {c} vs h {h}");
+    assert!(ended_by_convergence(&r.report), "{:?}", r.report);
 }
 
 #[test]
@@ -110,6 +121,7 @@ fn torus_from_points() {
     assert_eq!(euler, 0);
     assert_eq!(comps, 1);
     assert!(c < 0.5 * h, "chamfer {c} vs h {h}");
+    assert!(ended_by_convergence(&r.report), "{:?}", r.report);
 }
 
 #[test]
@@ -315,7 +327,9 @@ fn polygon_in_2d() {
         .map(|&i| edge_distance(r.curves.vertices[i as usize]))
         .fold(0.0, f64::max);
     eprintln!("polygon: worst {worst} h {h}");
-    assert!(worst < h, "worst {worst} vs h {h}");
+    // The curvature term of the flow rounds the sharp corners by about a
+    // cell (convection alone stays within h/2); the edges stay on the data.
+    assert!(worst < 1.5 * h, "worst {worst} vs h {h}");
 }
 
 #[test]
@@ -417,4 +431,116 @@ fn bad_input_is_an_error_not_a_panic() {
     assert!(topology(&one.mesh).0 || one.mesh.triangles.is_empty());
     let two = reconstruct_3d(&pts, &params(16)).unwrap();
     assert!(topology(&two.mesh).0 || two.mesh.triangles.is_empty());
+}
+
+/// Box–Muller standard normal sample.
+fn gauss(g: &mut rand_pcg::Pcg64) -> f64 {
+    use rand::Rng;
+    let (u, v): (f64, f64) = (g.random::<f64>().max(1e-300), g.random());
+    (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+}
+
+fn sphere_points(n: usize, seed: u64) -> Vec<DVec3> {
+    sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), n, seed).positions
+}
+
+#[test]
+fn outliers_make_no_surface_of_their_own() {
+    use rand::Rng;
+    let mut g = rng(21);
+    let mut points = sphere_points(5000, 22);
+    // 5% of points uniform in the bounding box of the sphere, like a scan
+    // with stray returns: most fall inside or far outside the surface.
+    let outliers = points.len() / 20;
+    points.extend(
+        (0..outliers)
+            .map(|_| DVec3::new(g.random(), g.random(), g.random()) * 2.2 - DVec3::splat(1.1)),
+    );
+    let r = reconstruct_3d(&Input::from_points(points), &params(40)).unwrap();
+    let (watertight, euler, comps) = topology(&r.mesh);
+    let h = r.report.spacing;
+    let exact = sphere_points(5000, 23);
+    let c = chamfer(&r.mesh, |v| v.length() - 1.0, &exact);
+    eprintln!(
+        "outliers: {:?} chamfer {c} h {h} cleaning {:?}",
+        (watertight, euler, comps),
+        r.report.cleaning
+    );
+    assert!(r.report.cleaning.outliers > outliers / 2);
+    assert!(watertight);
+    assert_eq!((euler, comps), (2, 1));
+    assert!(c < 0.5 * h, "chamfer {c} vs h {h}");
+    assert!(ended_by_convergence(&r.report), "{:?}", r.report);
+}
+
+#[test]
+fn strong_noise_is_averaged_out() {
+    let mut g = rng(31);
+    // Gaussian noise of 1% of the bounding box diagonal (2√3).
+    let sigma = 0.01 * 2.0 * 3f64.sqrt();
+    let points: Vec<DVec3> = sphere_points(8000, 32)
+        .into_iter()
+        .map(|p| p + sigma * DVec3::new(gauss(&mut g), gauss(&mut g), gauss(&mut g)))
+        .collect();
+    let raw = ReconstructParams {
+        clean: false,
+        ..params(64)
+    };
+    let with = reconstruct_3d(&Input::from_points(points.clone()), &params(64)).unwrap();
+    let without = reconstruct_3d(&Input::from_points(points), &raw).unwrap();
+    // Mean distance of the output vertices from the sphere.
+    let deviation = |m: &TriMesh| {
+        m.vertices
+            .iter()
+            .map(|v| (v.length() - 1.0).abs())
+            .sum::<f64>()
+            / m.vertices.len() as f64
+    };
+    let (d_with, d_without) = (deviation(&with.mesh), deviation(&without.mesh));
+    let (watertight, euler, comps) = topology(&with.mesh);
+    eprintln!(
+        "noise σ {sigma}: deviation {d_with} (raw points {d_without}), h {}, {:?}",
+        with.report.spacing,
+        (watertight, euler, comps)
+    );
+    assert!(watertight);
+    assert_eq!((euler, comps), (2, 1));
+    // Well inside the noise, and clearly better than on the raw points.
+    assert!(d_with < 0.3 * sigma, "deviation {d_with} vs σ {sigma}");
+    assert!(d_with < 0.85 * d_without, "{d_with} vs raw {d_without}");
+    assert!(ended_by_convergence(&with.report), "{:?}", with.report);
+}
+
+#[test]
+fn scan_holes_are_closed_without_handles() {
+    // Three ball-shaped holes of radius 0.35 (10% of the bounding box
+    // diagonal) cut out of a sampled sphere, as in a scan with missing
+    // patches: the result is one closed surface of genus 0.
+    let centres = [
+        DVec3::new(1.0, 0.0, 0.0),
+        DVec3::new(0.0, 0.6, 0.8),
+        DVec3::new(-0.6, -0.8, 0.0),
+    ];
+    let points: Vec<DVec3> = sphere_points(8000, 41)
+        .into_iter()
+        .filter(|p| centres.iter().all(|c| p.distance(*c) > 0.35))
+        .collect();
+    let r = reconstruct_3d(&Input::from_points(points), &params(48)).unwrap();
+    let (watertight, euler, comps) = topology(&r.mesh);
+    let h = r.report.spacing;
+    let worst = r
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| (v.length() - 1.0).abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "scan holes: {:?} worst {worst} h {h}",
+        (watertight, euler, comps)
+    );
+    assert!(watertight);
+    assert_eq!((euler, comps), (2, 1), "genus 0, one piece");
+    // The patches over the holes stay near the sphere (their sagitta).
+    assert!(worst < 2.0 * h, "worst {worst} vs h {h}");
+    assert!(ended_by_convergence(&r.report), "{:?}", r.report);
 }

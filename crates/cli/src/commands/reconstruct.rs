@@ -50,6 +50,14 @@ pub struct Args {
     /// Treat everything outside the data's bounding box as exterior (for very non-uniform data).
     #[arg(long)]
     pub bounding_box: bool,
+    /// Let tagging and evolution change the topology (open handles narrower
+    /// than ε, split or drop components) [default: the topology of the
+    /// initial outer contour is kept].
+    #[arg(long)]
+    pub free_topology: bool,
+    /// Use the points as given: no outlier removal, no noise smoothing.
+    #[arg(long)]
+    pub no_cleaning: bool,
     /// Also write the signed distance field (.nrrd or .vtk).
     #[arg(long, value_name = "F.nrrd")]
     pub field: Option<PathBuf>,
@@ -111,6 +119,8 @@ fn params(args: &Args) -> ReconstructParams {
         band: args.band,
         levels: args.levels,
         bounding_box: args.bounding_box,
+        clean: !args.no_cleaning,
+        keep_topology: !args.free_topology,
         // The shell needs only the nodes next to the surface (in the band).
         full_field: args.field.is_some(),
         ..Default::default()
@@ -224,7 +234,16 @@ fn summarize(
         .collect();
     let steps = |v: &[surfrecon_levelset::flow::EvolveStats]| -> Vec<serde_json::Value> {
         v.iter()
-            .map(|s| json!({"steps": s.steps, "converged": s.converged, "energy": s.energy, "max_band": s.max_band}))
+            .map(|s| {
+                json!({
+                    "steps": s.steps,
+                    "converged": s.converged,
+                    "stopped_by": if s.converged { "convergence" } else { "step cap" },
+                    "last_change": s.last_change,
+                    "energy": s.energy,
+                    "max_band": s.max_band,
+                })
+            })
             .collect()
     };
     ctx.emit_json(&json!({
@@ -235,11 +254,14 @@ fn summarize(
         "dimension": if two_d { 2 } else { 3 },
         "data": {"points": input.points.len(), "segments": input.segments.len(), "triangles": input.triangles.len()},
         "grid": {"dims": report.dims, "spacing": report.spacing, "nodes": report.dims.iter().product::<usize>(), "levels": report.levels},
+        "cleaning": {"outliers_removed": report.cleaning.outliers, "projected": report.cleaning.projected, "rms_shift": report.cleaning.rms_shift},
         "epsilon": report.epsilon,
-        "tagging": {"heap_pops": report.heap_pops, "inside_nodes": report.tagged_inside},
+        "tagging": {"heap_pops": report.heap_pops, "inside_nodes": report.tagged_inside, "removed_components": report.removed_components},
         "band_nodes": report.band_nodes,
+        "band": {"nodes": report.band_nodes, "blocks": report.band_blocks, "block_nodes": surfrecon_grid::sparse::BLOCK.pow(if two_d { 2 } else { 3 })},
         "convection": steps(&report.convection),
         "flow": steps(&report.flow),
+        "settle": steps(&report.settle),
         "timings": stages,
         "seconds_total": total,
         "output_counts": counts,
