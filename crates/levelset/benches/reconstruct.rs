@@ -9,7 +9,11 @@ use surfrecon_geom::shapes::sample_surface;
 use surfrecon_geom::{io, DVec3};
 use surfrecon_levelset::{reconstruct_3d, Input, ReconstructParams};
 
-const BUNNY: &str = "/work/shared/data/stanford_bunny/reconstruction/bun_zipper.ply";
+/// The shared data folder sits beside the repository.
+const BUNNY: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../../shared/data/stanford_bunny/reconstruction/bun_zipper.ply"
+);
 const POINTS: usize = 437_645;
 const GRID: [usize; 3] = [300, 212, 136];
 const PAPER_INITIAL_S: f64 = 4.0 * 60.0;
