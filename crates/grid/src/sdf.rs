@@ -150,79 +150,113 @@ fn inside_nodes(field: &Field3, tree: &WindingTree) -> Vec<bool> {
     inside
 }
 
-/// Coarse lattice step (in nodes) for [`winding_sides`].
-const COARSE_STEP: usize = 2;
+/// Coarse lattice steps (in nodes) tried by [`winding_sides`], coarsest
+/// first.
+const COARSE_STEPS: [usize; 4] = [16, 8, 4, 2];
 /// Winding numbers within this of 1/2 at a coarse corner are not trusted
 /// to decide the nodes of its cells.
 const WINDING_MARGIN: f64 = 0.2;
 
-/// Inside (winding number above 1/2) for each node of `nodes`. Evaluated
-/// exactly at nodes near the surface; elsewhere the winding number is
-/// harmonic, with no surface in the node's coarse cell (its distance
-/// exceeds the cell's diagonal), so when the winding numbers at the 8
-/// corners of that cell of a lattice `COARSE_STEP` nodes apart all lie on
-/// one side of 1/2 by [`WINDING_MARGIN`], the node takes that side. Leaky
-/// regions of scans with holes then cost one evaluation per coarse corner
+/// Inside (winding number above 1/2) for each node of `nodes`.
+///
+/// The winding number is harmonic away from the surface. A node farther
+/// from the surface than the diagonal of its cell in a lattice of step S
+/// has no surface in that cell; when the winding numbers at the cell's 8
+/// corners all lie on one side of 1/2 by [`WINDING_MARGIN`], the node takes
+/// that side. Lattices from coarse to fine ([`COARSE_STEPS`]) decide the
+/// nodes far, then less far, from the surface; the rest get their own
+/// winding number. Leaky regions of scans with holes (all of the grid but
+/// the surface's pockets) then cost a few evaluations per coarse cell
 /// instead of one per node.
 fn winding_sides(field: &Field3, tree: &WindingTree, nodes: &[u32]) -> Vec<bool> {
     let spec = field.spec;
-    let position = |idx: [usize; 3]| DVec3::from_array(spec.position(idx));
-    let lattice = spec.dims.map(|n| (n - 1).div_ceil(COARSE_STEP) + 1);
-    let cell_of = |idx: [usize; 3]| idx.map(|i| i / COARSE_STEP);
-    let clamp = |c: [usize; 3]| std::array::from_fn(|a| (c[a] * COARSE_STEP).min(spec.dims[a] - 1));
-    let diagonal = COARSE_STEP as f64 * spec.spacing * 3f64.sqrt();
-    let far = |l: u32| field.values[l as usize] > diagonal;
-    // Winding numbers at the coarse corners of the far nodes' cells.
-    // Lattice indices of the 8 corners of the cell holding node `idx`.
-    let corners = |idx: [usize; 3]| {
-        let cell = cell_of(idx);
-        (0..8).map(move |k| {
-            let c: [usize; 3] =
-                std::array::from_fn(|a| (cell[a] + (k >> a & 1)).min(lattice[a] - 1));
-            c[0] + lattice[0] * (c[1] + lattice[1] * c[2])
-        })
-    };
-    let mut needed = vec![false; lattice.iter().product()];
-    for &l in nodes.iter().filter(|&&l| far(l)) {
-        for c in corners(spec.unlinear(l as usize)) {
-            needed[c] = true;
-        }
-    }
-    let mut coarse = vec![f64::NAN; needed.len()];
-    coarse
-        .par_iter_mut()
-        .zip(&needed)
-        .enumerate()
-        .for_each(|(i, (w, &need))| {
-            if need {
-                let c = [
-                    i % lattice[0],
-                    i / lattice[0] % lattice[1],
-                    i / (lattice[0] * lattice[1]),
-                ];
-                *w = tree.winding_number(position(clamp(c)));
+    let mut side: Vec<Option<bool>> = vec![None; nodes.len()];
+    for step in COARSE_STEPS {
+        let lattice = Lattice::new(&spec, step);
+        let diagonal = step as f64 * spec.spacing * 3f64.sqrt();
+        let open = |k: usize| side[k].is_none() && field.values[nodes[k] as usize] > diagonal;
+        let mut needed = vec![false; lattice.len()];
+        for k in (0..nodes.len()).filter(|&k| open(k)) {
+            for c in lattice.corners(spec.unlinear(nodes[k] as usize)) {
+                needed[c] = true;
             }
-        });
-    nodes
-        .par_iter()
-        .map(|&l| {
-            let idx = spec.unlinear(l as usize);
-            if far(l) {
-                let (lo, hi) = corners(idx)
-                    .map(|c| coarse[c])
+        }
+        let winding: Vec<f64> = (0..needed.len())
+            .into_par_iter()
+            .map(|c| match needed[c] {
+                true => tree.winding_number(lattice.position(&spec, c)),
+                false => f64::NAN,
+            })
+            .collect();
+        let decided: Vec<Option<bool>> = (0..nodes.len())
+            .into_par_iter()
+            .map(|k| {
+                if !open(k) {
+                    return side[k];
+                }
+                let corners = lattice.corners(spec.unlinear(nodes[k] as usize));
+                let (lo, hi) = corners
+                    .map(|c| winding[c])
                     .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), w| {
                         (lo.min(w), hi.max(w))
                     });
-                if lo > 0.5 + WINDING_MARGIN {
-                    return true;
-                }
-                if hi < 0.5 - WINDING_MARGIN {
-                    return false;
-                }
-            }
-            tree.winding_number(position(idx)) > 0.5
+                (lo > 0.5 + WINDING_MARGIN || hi < 0.5 - WINDING_MARGIN).then_some(lo > 0.5)
+            })
+            .collect();
+        side = decided;
+    }
+    nodes
+        .par_iter()
+        .zip(&side)
+        .map(|(&l, s)| {
+            s.unwrap_or_else(|| {
+                let p = spec.position(spec.unlinear(l as usize));
+                tree.winding_number(DVec3::from_array(p)) > 0.5
+            })
         })
         .collect()
+}
+
+/// The nodes of a grid whose indices are all multiples of `step` (the
+/// last index on each axis clamped to the grid), as a coarse lattice.
+struct Lattice {
+    step: usize,
+    /// Lattice points per axis.
+    dims: [usize; 3],
+}
+
+impl Lattice {
+    fn new(spec: &GridSpec<3>, step: usize) -> Self {
+        Lattice {
+            step,
+            dims: spec.dims.map(|n| (n - 1).div_ceil(step) + 1),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    /// Lattice indices of the 8 corners of the cell holding node `idx`.
+    fn corners(&self, idx: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
+        let cell = idx.map(|i| i / self.step);
+        (0..8).map(move |k| {
+            let c: [usize; 3] =
+                std::array::from_fn(|a| (cell[a] + (k >> a & 1)).min(self.dims[a] - 1));
+            c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
+        })
+    }
+
+    /// Position of lattice point `c`.
+    fn position(&self, spec: &GridSpec<3>, c: usize) -> DVec3 {
+        let lattice = [
+            c % self.dims[0],
+            c / self.dims[0] % self.dims[1],
+            c / (self.dims[0] * self.dims[1]),
+        ];
+        let idx = std::array::from_fn(|a| (lattice[a] * self.step).min(spec.dims[a] - 1));
+        DVec3::from_array(spec.position(idx))
+    }
 }
 
 /// Connected regions of nodes over free edges (`d(a) + d(b) > h`).
