@@ -49,8 +49,10 @@ pub fn signed_distance(
         return Err(GridError::InvalidInput("the mesh has no triangles".into()));
     }
     let data = DataSet::<3>::from_mesh(mesh)?;
-    // Distance, closest datum and foot point, region label, visit order.
-    spec.check_memory(8 + 4 + 24 + 4 + 4)?;
+    // The sign stage after the distance (which checks its own need):
+    // distances, region labels, union-find parents, region order, offsets
+    // and inside flags.
+    spec.check_memory(8 + 4 + 4 + 4 + 4 + 1)?;
     let options = match band {
         None => DistanceOptions::default(),
         Some(w) if w.is_finite() && w >= spec.spacing => DistanceOptions {

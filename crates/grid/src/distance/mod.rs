@@ -306,8 +306,10 @@ pub fn unsigned_distance_with<const D: usize>(
             options.band_cells
         )));
     }
-    // Distance, closest datum and its foot point per node.
-    spec.check_memory(std::mem::size_of::<Node<D>>())?;
+    // Per node at the peak: the working node (distance, foot, datum), the
+    // band's key beside it while they are built, then the output distance
+    // and datum.
+    spec.check_memory(std::mem::size_of::<Node<D>>() + 8 + 8 + 4)?;
     let radius = options.band_cells * spec.spacing;
     let sorted = SortedData::new(data, spec);
     // Dense point samples hide points between the nodes from propagation,
