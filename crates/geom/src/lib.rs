@@ -16,6 +16,7 @@ pub mod aabb;
 pub mod error;
 pub mod geometry;
 pub mod io;
+pub mod linalg;
 pub mod metrics;
 pub mod normals;
 pub mod render;

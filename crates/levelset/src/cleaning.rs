@@ -23,6 +23,7 @@
 //! depend on the thread count.
 
 use rayon::prelude::*;
+use surfrecon_geom::linalg;
 use surfrecon_geom::normals::symmetric_eigen3;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::DVec3;
@@ -305,7 +306,7 @@ fn project(p: DVec3, neighbours: impl Iterator<Item = DVec3> + Clone, dim: usize
     // A quadric extrapolates wildly: only a point among its neighbours
     // (inside their disc) is moved onto it, others onto the plane.
     let among = uv[0] * uv[0] + uv[1] * uv[1] <= 1.0;
-    let coef = solve(&mut ata, &mut atb, terms);
+    let coef = linalg::solve(ata, atb, terms, 1e-6);
     let fitted = |uv: [f64; 2]| -> f64 {
         coef.map_or(0.0, |c| basis(uv).iter().zip(&c).map(|(b, c)| b * c).sum())
     };
@@ -393,35 +394,6 @@ fn principal_frame(
             unit(frame[2])?
         },
     ])
-}
-
-/// Solves the symmetric `n`×`n` system `a x = b` by Gaussian elimination
-/// with partial pivoting; `None` when it is (nearly) singular.
-fn solve(a: &mut [[f64; 6]; 6], b: &mut [f64; 6], n: usize) -> Option<[f64; 6]> {
-    let scale = (0..n).map(|i| a[i][i].abs()).fold(0.0, f64::max);
-    for col in 0..n {
-        let pivot = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        let magnitude = a[pivot][col].abs();
-        if magnitude.is_nan() || magnitude <= 1e-6 * scale {
-            return None;
-        }
-        a.swap(col, pivot);
-        b.swap(col, pivot);
-        let pivot_row = a[col];
-        for r in col + 1..n {
-            let f = a[r][col] / pivot_row[col];
-            for (x, p) in a[r][col..n].iter_mut().zip(&pivot_row[col..n]) {
-                *x -= f * p;
-            }
-            b[r] -= f * b[col];
-        }
-    }
-    let mut x = [0.0; 6];
-    for r in (0..n).rev() {
-        let rest: f64 = (r + 1..n).map(|c| a[r][c] * x[c]).sum();
-        x[r] = (b[r] - rest) / a[r][r];
-    }
-    Some(x)
 }
 
 #[cfg(test)]

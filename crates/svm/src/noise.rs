@@ -10,6 +10,7 @@
 
 use glam::DVec3;
 use rayon::prelude::*;
+use surfrecon_geom::linalg;
 use surfrecon_geom::spatial::KdTree;
 
 /// Neighbours per local quadric fit: enough that the six coefficients
@@ -84,7 +85,8 @@ fn quadric_residual_rms(origin: DVec3, normal: DVec3, neighbours: &[DVec3]) -> O
             }
         }
     }
-    let coefficients = solve_symmetric(normal_matrix, rhs)?;
+    // None: the neighbours do not spread over a surface patch.
+    let coefficients = linalg::solve(normal_matrix, rhs, TERMS, 1e-9)?;
     let sum_sq: f64 = scaled
         .iter()
         .map(|(a, h)| {
@@ -93,35 +95,6 @@ fn quadric_residual_rms(origin: DVec3, normal: DVec3, neighbours: &[DVec3]) -> O
         })
         .sum();
     Some((sum_sq / (scaled.len() - TERMS) as f64).sqrt())
-}
-
-/// Solve a small symmetric positive (semi-)definite system by Gaussian
-/// elimination with partial pivoting; None when it is (nearly) singular,
-/// i.e. the neighbours do not spread over a surface patch.
-fn solve_symmetric<const N: usize>(mut m: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
-    let size = (0..N).map(|i| m[i][i].abs()).fold(0.0, f64::max);
-    for col in 0..N {
-        let pivot = (col..N).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs()))?;
-        if m[pivot][col].abs() <= 1e-9 * size {
-            return None;
-        }
-        m.swap(col, pivot);
-        b.swap(col, pivot);
-        let pivot_row = m[col];
-        for row in col + 1..N {
-            let factor = m[row][col] / pivot_row[col];
-            for (entry, p) in m[row][col..].iter_mut().zip(&pivot_row[col..]) {
-                *entry -= factor * p;
-            }
-            b[row] -= factor * b[col];
-        }
-    }
-    let mut x = [0.0; N];
-    for row in (0..N).rev() {
-        let tail: f64 = (row + 1..N).map(|c| m[row][c] * x[c]).sum();
-        x[row] = (b[row] - tail) / m[row][row];
-    }
-    Some(x)
 }
 
 #[cfg(test)]
