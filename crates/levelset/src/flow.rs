@@ -19,7 +19,7 @@
 //! step changes the surface's topology.
 
 use crate::band::{det_sum, inside, NarrowBand};
-use crate::convection::advection_term;
+use crate::convection::{advection_term, upwind_advection};
 use crate::reinit::reinitialize;
 use crate::topology::Neighbourhood;
 use rayon::prelude::*;
@@ -332,28 +332,6 @@ fn interface_step<const D: usize>(
         })
         .collect();
     apply(band, updates, topology);
-}
-
-/// ∇d·∇φ for a given ∇d (per cell), φ differenced on the upwind side of
-/// the velocity −∇d.
-#[inline]
-fn upwind_advection<const D: usize>(
-    phi: &[f64],
-    l: usize,
-    strides: &[usize; D],
-    grad: &[f64; D],
-    h: f64,
-) -> f64 {
-    let mut sum = 0.0;
-    for (&s, &g) in strides.iter().zip(grad) {
-        let dphi = if g < 0.0 {
-            phi[l] - phi[l - s]
-        } else {
-            phi[l + s] - phi[l]
-        };
-        sum += g * dphi;
-    }
-    sum / (h * h)
 }
 
 /// d and its gradient (per cell) at the point of the zero set closest to

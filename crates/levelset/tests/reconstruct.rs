@@ -151,6 +151,14 @@ fn circle_and_polygon_in_2d() {
     }
 }
 
+/// Largest distance of a mesh vertex from the unit sphere at the origin.
+fn max_unit_sphere_error(mesh: &TriMesh) -> f64 {
+    mesh.vertices
+        .iter()
+        .map(|v| (v.length() - 1.0).abs())
+        .fold(0.0, f64::max)
+}
+
 fn rng(seed: u64) -> rand_pcg::Pcg64 {
     use rand::SeedableRng;
     rand_pcg::Pcg64::seed_from_u64(seed)
@@ -242,12 +250,7 @@ fn sphere_from_longitudes_and_latitudes() {
     let r = reconstruct_3d(&input, &params(40)).unwrap();
     let (watertight, euler, comps) = topology(&r.mesh);
     let h = r.report.spacing;
-    let worst = r
-        .mesh
-        .vertices
-        .iter()
-        .map(|v| (v.length() - 1.0).abs())
-        .fold(0.0, f64::max);
+    let worst = max_unit_sphere_error(&r.mesh);
     eprintln!(
         "curves: {:?} worst {worst} h {h} report {:?}",
         (watertight, euler, comps),
@@ -262,11 +265,6 @@ fn sphere_from_longitudes_and_latitudes() {
 fn non_uniform_noisy_sphere_gives_one_closed_surface() {
     use rand::Rng;
     let mut g = rng(9);
-    // Box–Muller normal samples.
-    let gauss = |g: &mut rand_pcg::Pcg64| {
-        let (u, v): (f64, f64) = (g.random::<f64>().max(1e-300), g.random());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    };
     let dense = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 8000, 7).positions;
     // Density falls tenfold from the top half to the bottom half.
     let sigma = 0.005 * (2.0 * 3f64.sqrt());
@@ -279,12 +277,7 @@ fn non_uniform_noisy_sphere_gives_one_closed_surface() {
         .collect();
     let r = reconstruct_3d(&Input::from_points(points), &params(40)).unwrap();
     let (watertight, euler, comps) = topology(&r.mesh);
-    let worst = r
-        .mesh
-        .vertices
-        .iter()
-        .map(|v| (v.length() - 1.0).abs())
-        .fold(0.0, f64::max);
+    let worst = max_unit_sphere_error(&r.mesh);
     eprintln!(
         "nonuniform: {:?} worst {worst} report {:?}",
         (watertight, euler, comps),
@@ -528,12 +521,7 @@ fn scan_holes_are_closed_without_handles() {
     let r = reconstruct_3d(&Input::from_points(points), &params(48)).unwrap();
     let (watertight, euler, comps) = topology(&r.mesh);
     let h = r.report.spacing;
-    let worst = r
-        .mesh
-        .vertices
-        .iter()
-        .map(|v| (v.length() - 1.0).abs())
-        .fold(0.0, f64::max);
+    let worst = max_unit_sphere_error(&r.mesh);
     eprintln!(
         "scan holes: {:?} worst {worst} h {h}",
         (watertight, euler, comps)
