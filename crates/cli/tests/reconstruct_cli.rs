@@ -1,11 +1,10 @@
 //! `surfrecon reconstruct` end to end: files in, closed surfaces out.
 
-use std::path::Path;
-use std::process::Command;
+mod common;
+use common::{json_of, path_str, surfrecon};
 
-fn surfrecon() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_surfrecon"))
-}
+use std::path::Path;
+use surfrecon_geom::metrics::topology;
 
 /// Points on a sphere of radius 1 as an XYZ file (3 columns) or, with
 /// `flat`, points on a circle (2 columns: 2D data).
@@ -36,23 +35,19 @@ fn sphere_points_give_a_closed_mesh_and_json_summary() {
     let field = dir.path().join("phi.nrrd");
     let shell = dir.path().join("phi.shell");
     write_points(&input, false);
-    let out = surfrecon()
-        .args(["reconstruct", "--json", "--resolution", "32"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&output)
-        .arg("--field")
-        .arg(&field)
-        .arg("--shell")
-        .arg(&shell)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let summary = json_of(&surfrecon(&[
+        "reconstruct",
+        "--json",
+        "--resolution",
+        "32",
+        path_str(&input),
+        "-o",
+        path_str(&output),
+        "--field",
+        path_str(&field),
+        "--shell",
+        path_str(&shell),
+    ]));
     assert_eq!(summary["method"], "levelset");
     assert_eq!(summary["dimension"], 3);
     assert!(summary["output_counts"]["triangles"].as_u64().unwrap() > 1000);
@@ -93,14 +88,8 @@ fn sphere_points_give_a_closed_mesh_and_json_summary() {
         );
     }
     // Every edge in exactly two triangles: closed.
-    let mut edges = std::collections::HashMap::new();
-    for t in &mesh.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-        }
-    }
-    assert!(edges.values().all(|&c| c == 2));
+    let t = topology(&mesh.to_mesh());
+    assert!(t.watertight && t.nonmanifold_edges == 0, "{t:?}");
     assert!(std::fs::metadata(&field).unwrap().len() > 0);
     assert!(std::fs::metadata(&shell).unwrap().len() > 0);
 }
@@ -111,19 +100,15 @@ fn two_column_points_give_closed_curves() {
     let input = dir.path().join("circle.xyz");
     let output = dir.path().join("curve.obj");
     write_points(&input, true);
-    let out = surfrecon()
-        .args(["reconstruct", "--json", "--resolution", "64"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&output)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let summary = json_of(&surfrecon(&[
+        "reconstruct",
+        "--json",
+        "--resolution",
+        "64",
+        path_str(&input),
+        "-o",
+        path_str(&output),
+    ]));
     assert_eq!(summary["dimension"], 2);
     assert_eq!(summary["output_counts"]["curves"], 1);
     let curves = surfrecon_geom::io::read(&output).unwrap();
@@ -135,11 +120,7 @@ fn two_column_points_give_closed_curves() {
 fn bad_input_and_parameters_fail_with_one_clear_line() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("out.ply");
-    let missing = surfrecon()
-        .args(["reconstruct", "no/such/file.xyz", "-o"])
-        .arg(&output)
-        .output()
-        .unwrap();
+    let missing = surfrecon(&["reconstruct", "no/such/file.xyz", "-o", path_str(&output)]);
     assert!(!missing.status.success());
     let err = String::from_utf8_lossy(&missing.stderr);
     assert!(
@@ -149,13 +130,14 @@ fn bad_input_and_parameters_fail_with_one_clear_line() {
 
     let input = dir.path().join("sphere.xyz");
     write_points(&input, false);
-    let bad_p = surfrecon()
-        .args(["reconstruct", "--p", "0.5"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&output)
-        .output()
-        .unwrap();
+    let bad_p = surfrecon(&[
+        "reconstruct",
+        "--p",
+        "0.5",
+        path_str(&input),
+        "-o",
+        path_str(&output),
+    ]);
     assert!(!bad_p.status.success());
     let err = String::from_utf8_lossy(&bad_p.stderr);
     assert!(err.contains("p") && err.contains("≥ 1"), "{err}");

@@ -1,23 +1,25 @@
 //! End-to-end: `surfrecon reconstruct --method svm` and `surfrecon morph`.
 
 mod common;
-use common::{json_of, surfrecon};
+use common::{json_of, path_str as s, surfrecon};
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use surfrecon_geom::metrics::topology;
 use surfrecon_geom::shapes::{icosphere, sample_surface};
 use surfrecon_geom::{io, DVec3, Geometry};
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+/// 3,000 points sampled (with `seed`) on the unit sphere, as `dir/sphere.ply`.
+fn write_sphere_points(dir: &Path, seed: u64) -> PathBuf {
+    let input = dir.join("sphere.ply");
+    let pc = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 3000, seed);
+    io::write(&input, &Geometry::from_points(pc)).unwrap();
+    input
 }
 
 #[test]
 fn reconstruct_svm_saves_reloads_and_meshes_a_closed_surface() {
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("sphere.ply");
-    let pc = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 3000, 5);
-    io::write(&input, &Geometry::from_points(pc)).unwrap();
+    let input = write_sphere_points(dir.path(), 5);
     let out = dir.path().join("out.ply");
     let model = dir.path().join("m.svm");
     let run = surfrecon(&[
@@ -87,9 +89,7 @@ fn reconstruct_svm_saves_reloads_and_meshes_a_closed_surface() {
 #[test]
 fn svm_c_auto_reports_the_chosen_parameters_and_meshes_well() {
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("sphere.ply");
-    let pc = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 3000, 9);
-    io::write(&input, &Geometry::from_points(pc)).unwrap();
+    let input = write_sphere_points(dir.path(), 9);
     let out = dir.path().join("out.ply");
     let run = surfrecon(&[
         "--json",
