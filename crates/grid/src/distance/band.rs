@@ -58,18 +58,19 @@ impl<const D: usize> SortedData<D> {
             keyed.extend(kind);
         }
         let original: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
+        let [points, segments, triangles] = data.kind_ranges();
         let data = DataSet {
-            points: original[data.kind_ranges()[0].clone()]
+            points: original[points]
                 .iter()
                 .map(|&i| data.points[i as usize])
                 .collect(),
-            segments: original[data.kind_ranges()[1].clone()]
+            segments: original[segments.clone()]
                 .iter()
-                .map(|&i| data.segments[i as usize - data.points.len()])
+                .map(|&i| data.segments[i as usize - segments.start])
                 .collect(),
-            triangles: original[data.kind_ranges()[2].clone()]
+            triangles: original[triangles.clone()]
                 .iter()
-                .map(|&i| data.triangles[i as usize - data.points.len() - data.segments.len()])
+                .map(|&i| data.triangles[i as usize - triangles.start])
                 .collect(),
         };
         SortedData { data, original }
