@@ -11,9 +11,16 @@ use surfrecon_grid::sdf::signed_distance;
 use surfrecon_grid::{GridSize, GridSpec};
 
 fn main() {
+    // `cargo bench ... -- points` or `-- sdf` runs one of the two.
+    let only: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let wanted = |name: &str| only.is_empty() || only.iter().any(|o| o == name);
     println!("threads: {}", rayon::current_num_threads());
-    unsigned_from_points();
-    mesh_to_sdf();
+    if wanted("points") {
+        unsigned_from_points();
+    }
+    if wanted("sdf") {
+        mesh_to_sdf();
+    }
 }
 
 /// Best of `runs` (wall seconds, process CPU seconds) of `f`, and its last
