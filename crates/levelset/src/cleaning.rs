@@ -44,6 +44,17 @@ const SURFACE_LIKE: f64 = 0.05;
 /// Data count as noisy when the typical quadric fit residual is at least
 /// this share of the neighbourhood radius.
 const NOISE_SHARE: f64 = 0.02;
+
+/// A point farther from its neighbours' quadric than this many times the
+/// fit's RMS residual is an outlier (Gaussian noise: beyond 4σ)...
+const OFF_SURFACE_RATIO: f64 = 6.0;
+
+/// ...unless it is within this share of the neighbourhood radius.
+const OFF_SURFACE_SHARE: f64 = 0.25;
+/// A surface vertex is projected onto its data's fit only when the two
+/// normals are within about 30°: data along a curved curve (a contour
+/// slice) fit a plane across the surface, not along it.
+const SAME_SURFACE: f64 = 0.85;
 /// Projections of noisy data: the second, on the already smoothed points,
 /// averages what the first left (on the bunny with 1% noise: Chamfer −5%).
 const PROJECTION_PASSES: usize = 2;
@@ -73,12 +84,19 @@ pub fn clean_points(points: &[DVec3], dim: usize) -> (Vec<DVec3>, CleaningStats)
     }
     let density = NeighbourTable::build(points, &KdTree::new(points), DENSITY_NEIGHBOURS);
     let keep = inliers(&density);
-    let kept: Vec<DVec3> = points
-        .iter()
-        .zip(&keep)
-        .filter(|(_, &k)| k)
-        .map(|(p, _)| *p)
-        .collect();
+    let kept = kept_points(points, &keep);
+    if kept.len() < MIN_POINTS {
+        let outliers = points.len() - kept.len();
+        return (
+            kept,
+            CleaningStats {
+                outliers,
+                ..Default::default()
+            },
+        );
+    }
+    let table = NeighbourTable::build(&kept, &KdTree::new(&kept), NEIGHBOURS);
+    let kept = kept_points(&kept, &near_surface(&table, dim));
     let mut stats = CleaningStats {
         outliers: points.len() - kept.len(),
         ..Default::default()
@@ -209,6 +227,36 @@ fn inliers(table: &NeighbourTable) -> Vec<bool> {
         .collect()
 }
 
+fn kept_points(points: &[DVec3], keep: &[bool]) -> Vec<DVec3> {
+    points
+        .iter()
+        .zip(keep)
+        .filter(|(_, &k)| k)
+        .map(|(p, _)| *p)
+        .collect()
+}
+
+/// Whether each point lies on the surface its neighbours span: outliers
+/// within a few sample spacings of the surface pass the density test (their
+/// neighbours are surface samples), but they sit off the quadric those
+/// neighbours fit. A point is kept when it is within [`OFF_SURFACE_RATIO`]
+/// times the fit's residual of it, or within [`OFF_SURFACE_SHARE`] of the
+/// neighbourhood radius (clean data fit to rounding, and bumps that small
+/// do no harm). Neighbourhoods that are not surface-like keep their point.
+fn near_surface(table: &NeighbourTable, dim: usize) -> Vec<bool> {
+    (0..table.points.len())
+        .into_par_iter()
+        .map(|i| {
+            let p = table.points[i];
+            let neighbours = table.row(i).iter().map(|&j| table.points[j as usize]);
+            project(p, neighbours, dim).is_none_or(|fit| {
+                let off = fit.point.distance(p);
+                off <= OFF_SURFACE_RATIO * fit.residual || off <= OFF_SURFACE_SHARE * fit.radius
+            })
+        })
+        .collect()
+}
+
 fn median(mut values: Vec<f64>) -> f64 {
     values.sort_by(|a, b| a.total_cmp(b));
     values[values.len() / 2]
@@ -237,6 +285,47 @@ fn is_noisy(points: &[DVec3], tree: &KdTree, dim: usize) -> bool {
     let residuals: Vec<f64> = sample.iter().map(|f| f.residual).collect();
     let radii: Vec<f64> = sample.iter().map(|f| f.radius).collect();
     !residuals.is_empty() && median(residuals) >= NOISE_SHARE * median(radii)
+}
+
+/// Move each vertex of a reconstructed surface (curve in 2D) onto the
+/// quadric fitted to its nearest data points, where they are surface-like
+/// and the nearest is within `reach`. The evolved zero set lies on the data
+/// only to a fraction of a cell; the fit places it between the samples.
+/// Vertices spanning gaps (nearest datum beyond `reach`) stay, and none
+/// moves farther than `reach`, so the mesh keeps its connectivity and,
+/// for `reach` under a cell, does not fold. Returns how many moved.
+pub fn project_onto_points(
+    vertices: &mut [DVec3],
+    normals: &[DVec3],
+    points: &[DVec3],
+    dim: usize,
+    reach: f64,
+) -> usize {
+    if points.len() < NEIGHBOURS {
+        return 0;
+    }
+    let tree = KdTree::new(points);
+    vertices
+        .par_iter_mut()
+        .zip(normals)
+        .map(|(v, normal)| {
+            let near = tree.knn(*v, NEIGHBOURS);
+            if near.first().is_none_or(|n| n.distance > reach) {
+                return 0;
+            }
+            let fit = project(*v, near.iter().map(|n| points[n.index]), dim);
+            match fit {
+                Some(fit)
+                    if fit.point.distance(*v) <= reach
+                        && fit.normal.dot(*normal).abs() >= SAME_SURFACE =>
+                {
+                    *v = fit.point;
+                    1
+                }
+                _ => 0,
+            }
+        })
+        .sum()
 }
 
 /// Every point projected onto its neighbours' quadric (where surface-like).
@@ -332,6 +421,7 @@ fn project(p: DVec3, neighbours: impl Iterator<Item = DVec3> + Clone, dim: usize
     };
     Some(Fit {
         point,
+        normal,
         residual,
         radius: size,
     })
@@ -341,6 +431,8 @@ fn project(p: DVec3, neighbours: impl Iterator<Item = DVec3> + Clone, dim: usize
 struct Fit {
     /// The projected point.
     point: DVec3,
+    /// Unit normal of the fitted plane (2D: of the line).
+    normal: DVec3,
     /// RMS distance of the neighbours from the fitted height field.
     residual: f64,
     /// Radius of the neighbourhood.
@@ -410,6 +502,82 @@ mod tests {
             }
         }
         pts
+    }
+
+    /// Vertices of a sphere pushed radially by up to ±`amplitude`
+    /// (deterministic), as a level set placed to a fraction of a cell.
+    fn rippled_sphere(radius: f64, amplitude: f64) -> Vec<DVec3> {
+        let mesh = surfrecon_geom::shapes::icosphere(DVec3::ZERO, radius, 4);
+        mesh.vertices
+            .iter()
+            .enumerate()
+            .map(|(i, v)| *v * (1.0 + amplitude / radius * ((i * 37 % 11) as f64 / 5.0 - 1.0)))
+            .collect()
+    }
+
+    fn radial(vertices: &[DVec3]) -> Vec<DVec3> {
+        vertices.iter().map(|v| v.normalize()).collect()
+    }
+
+    #[test]
+    fn projection_puts_vertices_on_the_sampled_surface() {
+        let sphere = surfrecon_geom::shapes::icosphere(DVec3::ZERO, 1.0, 5);
+        let samples = surfrecon_geom::shapes::sample_surface(&sphere, 20_000, 5).positions;
+        let mut vertices = rippled_sphere(1.0, 0.01);
+        let error = |vs: &[DVec3]| {
+            vs.iter()
+                .map(|v| (v.length() - 1.0).abs())
+                .fold(0.0, f64::max)
+        };
+        let before = error(&vertices);
+        let normals = radial(&vertices);
+        let moved = project_onto_points(&mut vertices, &normals, &samples, 3, 0.05);
+        assert!(
+            moved * 100 >= vertices.len() * 95,
+            "{moved} of {}",
+            vertices.len()
+        );
+        // Left: the facets of the sampled icosphere (sag 1.5e-4) and the fit.
+        assert!(
+            error(&vertices) < before / 10.0,
+            "{} -> {}",
+            before,
+            error(&vertices)
+        );
+    }
+
+    #[test]
+    fn projection_leaves_gaps_and_curves_alone() {
+        // Only the upper half is sampled: the lower half spans a gap.
+        let sphere = surfrecon_geom::shapes::icosphere(DVec3::ZERO, 1.0, 5);
+        let upper: Vec<DVec3> = surfrecon_geom::shapes::sample_surface(&sphere, 20_000, 6)
+            .positions
+            .into_iter()
+            .filter(|p| p.z > 0.0)
+            .collect();
+        let original = rippled_sphere(1.0, 0.01);
+        let mut vertices = original.clone();
+        project_onto_points(&mut vertices, &radial(&original), &upper, 3, 0.05);
+        for (v, o) in vertices.iter().zip(&original) {
+            if o.z < -0.1 {
+                assert_eq!(v, o);
+            }
+        }
+        // Few points around a circle in 3D: 16 neighbours bend enough to
+        // fit a plane, but across the sphere (normal z at the equator).
+        let circle: Vec<DVec3> = (0..40)
+            .map(|i| {
+                let t = i as f64 / 40.0 * std::f64::consts::TAU;
+                DVec3::new(t.cos(), t.sin(), 0.0)
+            })
+            .collect();
+        let mut vertices = original.clone();
+        let normals = radial(&original);
+        assert_eq!(
+            project_onto_points(&mut vertices, &normals, &circle, 3, 0.3),
+            0
+        );
+        assert_eq!(vertices, original);
     }
 
     #[test]
