@@ -35,6 +35,9 @@ const DENSITY_NEIGHBOURS: usize = 6;
 /// A point is an outlier when its neighbours are this many times farther
 /// than is typical among its neighbours...
 const OUTLIER_RATIO: f64 = 3.0;
+/// Points spaced this many times wider than their neighbours are tested
+/// against their neighbours' surface.
+const SPARSE_RATIO: f64 = 1.5;
 /// ... or this many times farther than is typical over all points (wider:
 /// non-uniform sampling varies the density legitimately).
 const GLOBAL_RATIO: f64 = 5.0;
@@ -83,20 +86,18 @@ pub fn clean_points(points: &[DVec3], dim: usize) -> (Vec<DVec3>, CleaningStats)
         return (points.to_vec(), CleaningStats::default());
     }
     let density = NeighbourTable::build(points, &KdTree::new(points), DENSITY_NEIGHBOURS);
-    let keep = inliers(&density);
-    let kept = kept_points(points, &keep);
-    if kept.len() < MIN_POINTS {
-        let outliers = points.len() - kept.len();
-        return (
-            kept,
-            CleaningStats {
-                outliers,
-                ..Default::default()
-            },
-        );
-    }
-    let table = NeighbourTable::build(&kept, &KdTree::new(&kept), NEIGHBOURS);
-    let kept = kept_points(&kept, &near_surface(&table, dim));
+    let verdicts = density_verdicts(&density);
+    let kept: Vec<(DVec3, bool)> = points
+        .iter()
+        .zip(&verdicts)
+        .filter(|(_, v)| **v != Density::Isolated)
+        .map(|(p, v)| (*p, *v == Density::Sparse))
+        .collect();
+    let kept = if kept.len() < MIN_POINTS {
+        kept.into_iter().map(|(p, _)| p).collect()
+    } else {
+        drop_off_surface(&kept, dim)
+    };
     let mut stats = CleaningStats {
         outliers: points.len() - kept.len(),
         ..Default::default()
@@ -199,12 +200,23 @@ fn spatial_order(points: &[DVec3]) -> Vec<u32> {
     keyed.into_iter().map(|(_, i)| i).collect()
 }
 
-/// Whether each point passes the density tests: its mean distance to its
-/// nearest few neighbours must be within [`OUTLIER_RATIO`] times the median
-/// of the same over those neighbours (a point hovering off the surface), and
-/// within [`GLOBAL_RATIO`] times the median over all points (a cloud of
-/// outliers whose neighbours are other outliers).
-fn inliers(table: &NeighbourTable) -> Vec<bool> {
+/// How a point's spacing compares with its neighbours'.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Density {
+    /// Like its neighbours'.
+    Typical,
+    /// Somewhat wider: a candidate for the off-surface test.
+    Sparse,
+    /// Isolated from the sampled surface: an outlier.
+    Isolated,
+}
+
+/// The density tests: a point whose mean distance to its nearest few
+/// neighbours exceeds [`OUTLIER_RATIO`] times the median of the same over
+/// those neighbours (a point hovering off the surface), or [`GLOBAL_RATIO`]
+/// times the median over all points (a cloud of outliers whose neighbours
+/// are other outliers), is isolated; above [`SPARSE_RATIO`] it is sparse.
+fn density_verdicts(table: &NeighbourTable) -> Vec<Density> {
     let spread: Vec<f64> = (0..table.points.len())
         .into_par_iter()
         .map(|i| {
@@ -222,38 +234,48 @@ fn inliers(table: &NeighbourTable) -> Vec<bool> {
         .map(|i| {
             let near = table.row(i);
             let local = median(near.iter().map(|&j| spread[j as usize]).collect());
-            spread[i] <= OUTLIER_RATIO * local && spread[i] <= GLOBAL_RATIO * global
+            if spread[i] > OUTLIER_RATIO * local || spread[i] > GLOBAL_RATIO * global {
+                Density::Isolated
+            } else if spread[i] > SPARSE_RATIO * local {
+                Density::Sparse
+            } else {
+                Density::Typical
+            }
         })
         .collect()
 }
 
-fn kept_points(points: &[DVec3], keep: &[bool]) -> Vec<DVec3> {
+/// The points without the sparse ones that lie off the surface their
+/// neighbours span: outliers within a few sample spacings of the surface
+/// pass the density test (their neighbours are surface samples), but sit
+/// off the quadric those neighbours fit. A point goes when it is farther
+/// from that quadric than [`OFF_SURFACE_RATIO`] times the fit's residual
+/// and [`OFF_SURFACE_SHARE`] of the neighbourhood radius (clean data fit to
+/// rounding, and smaller bumps do no harm). Only sparse points are tested:
+/// an outlier off the surface is farther from its neighbours than they are
+/// from theirs, and a dense scan has few of them.
+fn drop_off_surface(points: &[(DVec3, bool)], dim: usize) -> Vec<DVec3> {
+    let all: Vec<DVec3> = points.iter().map(|(p, _)| *p).collect();
+    let tree = KdTree::new(&all);
     points
-        .iter()
-        .zip(keep)
-        .filter(|(_, &k)| k)
-        .map(|(p, _)| *p)
-        .collect()
-}
-
-/// Whether each point lies on the surface its neighbours span: outliers
-/// within a few sample spacings of the surface pass the density test (their
-/// neighbours are surface samples), but they sit off the quadric those
-/// neighbours fit. A point is kept when it is within [`OFF_SURFACE_RATIO`]
-/// times the fit's residual of it, or within [`OFF_SURFACE_SHARE`] of the
-/// neighbourhood radius (clean data fit to rounding, and bumps that small
-/// do no harm). Neighbourhoods that are not surface-like keep their point.
-fn near_surface(table: &NeighbourTable, dim: usize) -> Vec<bool> {
-    (0..table.points.len())
-        .into_par_iter()
-        .map(|i| {
-            let p = table.points[i];
-            let neighbours = table.row(i).iter().map(|&j| table.points[j as usize]);
+        .par_iter()
+        .enumerate()
+        .filter(|&(i, &(p, sparse))| {
+            if !sparse {
+                return true;
+            }
+            let found = tree.knn(p, NEIGHBOURS + 1);
+            let neighbours = found
+                .iter()
+                .filter(|n| n.index != i)
+                .take(NEIGHBOURS)
+                .map(|n| all[n.index]);
             project(p, neighbours, dim).is_none_or(|fit| {
                 let off = fit.point.distance(p);
                 off <= OFF_SURFACE_RATIO * fit.residual || off <= OFF_SURFACE_SHARE * fit.radius
             })
         })
+        .map(|(_, &(p, _))| p)
         .collect()
 }
 
@@ -585,6 +607,21 @@ mod tests {
         let mut pts = plane_points(30);
         pts.push(DVec3::new(15.0, 15.0, 8.0));
         pts.push(DVec3::new(-20.0, 3.0, 1.0));
+        let (cleaned, stats) = clean_points(&pts, 3);
+        assert_eq!(stats.outliers, 2);
+        assert_eq!(cleaned.len(), 900);
+        assert!(cleaned.iter().all(|p| p.z.abs() < 1e-9));
+    }
+
+    #[test]
+    fn outliers_hovering_near_the_surface_are_removed() {
+        let mut pts = plane_points(30);
+        // Two spacings off the plane: too close for the density test alone.
+        pts.push(DVec3::new(10.5, 10.5, 2.0));
+        pts.push(DVec3::new(20.3, 5.7, -2.0));
+        let density = NeighbourTable::build(&pts, &KdTree::new(&pts), DENSITY_NEIGHBOURS);
+        let verdicts = density_verdicts(&density);
+        assert_eq!(verdicts[900..], [Density::Sparse, Density::Sparse]);
         let (cleaned, stats) = clean_points(&pts, 3);
         assert_eq!(stats.outliers, 2);
         assert_eq!(cleaned.len(), 900);
