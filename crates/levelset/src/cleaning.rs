@@ -309,6 +309,18 @@ fn is_noisy(points: &[DVec3], tree: &KdTree, dim: usize) -> bool {
     !residuals.is_empty() && median(residuals) >= NOISE_SHARE * median(radii)
 }
 
+/// How [`project_onto_points`] fits the data around a vertex.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceFit {
+    /// 2 (curves; z is kept) or 3 (surfaces).
+    pub dim: usize,
+    /// Vertices farther than this from the data stay; none moves farther.
+    pub reach: f64,
+    /// Data points per fit: more average more noise, fewer follow more
+    /// detail.
+    pub neighbours: usize,
+}
+
 /// Move each vertex of a reconstructed surface (curve in 2D) onto the
 /// quadric fitted to its nearest data points, where they are surface-like
 /// and the nearest is within `reach`. The evolved zero set lies on the data
@@ -320,10 +332,14 @@ pub fn project_onto_points(
     vertices: &mut [DVec3],
     normals: &[DVec3],
     points: &[DVec3],
-    dim: usize,
-    reach: f64,
+    fit: &SurfaceFit,
 ) -> usize {
-    if points.len() < NEIGHBOURS {
+    let SurfaceFit {
+        dim,
+        reach,
+        neighbours,
+    } = *fit;
+    if points.len() < neighbours {
         return 0;
     }
     let tree = KdTree::new(points);
@@ -331,7 +347,7 @@ pub fn project_onto_points(
         .par_iter_mut()
         .zip(normals)
         .map(|(v, normal)| {
-            let near = tree.knn(*v, NEIGHBOURS);
+            let near = tree.knn(*v, neighbours);
             if near.first().is_none_or(|n| n.distance > reach) {
                 return 0;
             }
@@ -526,6 +542,14 @@ mod tests {
         pts
     }
 
+    fn fit(reach: f64) -> SurfaceFit {
+        SurfaceFit {
+            dim: 3,
+            reach,
+            neighbours: 16,
+        }
+    }
+
     /// Vertices of a sphere pushed radially by up to ±`amplitude`
     /// (deterministic), as a level set placed to a fraction of a cell.
     fn rippled_sphere(radius: f64, amplitude: f64) -> Vec<DVec3> {
@@ -553,7 +577,7 @@ mod tests {
         };
         let before = error(&vertices);
         let normals = radial(&vertices);
-        let moved = project_onto_points(&mut vertices, &normals, &samples, 3, 0.05);
+        let moved = project_onto_points(&mut vertices, &normals, &samples, &fit(0.05));
         assert!(
             moved * 100 >= vertices.len() * 95,
             "{moved} of {}",
@@ -579,7 +603,7 @@ mod tests {
             .collect();
         let original = rippled_sphere(1.0, 0.01);
         let mut vertices = original.clone();
-        project_onto_points(&mut vertices, &radial(&original), &upper, 3, 0.05);
+        project_onto_points(&mut vertices, &radial(&original), &upper, &fit(0.05));
         for (v, o) in vertices.iter().zip(&original) {
             if o.z < -0.1 {
                 assert_eq!(v, o);
@@ -596,7 +620,7 @@ mod tests {
         let mut vertices = original.clone();
         let normals = radial(&original);
         assert_eq!(
-            project_onto_points(&mut vertices, &normals, &circle, 3, 0.3),
+            project_onto_points(&mut vertices, &normals, &circle, &fit(0.3)),
             0
         );
         assert_eq!(vertices, original);
