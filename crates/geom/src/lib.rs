@@ -8,12 +8,14 @@
 //!   chosen by extension; outputs are written atomically ([`io::write_atomic`]).
 //! - [`spatial::KdTree`]: k-nearest and radius queries shared by all methods.
 //! - [`normals`]: plane-fit estimation and globally consistent orientation.
+//! - [`fairing`]: smooth (bi-Laplacian) fills for unsupported mesh parts.
 //! - [`metrics`]: Chamfer, Hausdorff, F-score, normal consistency, topology.
 //! - [`render`]: PNG previews of meshes and point clouds.
 //! - [`shapes`]: analytic test shapes and uniform surface sampling.
 
 pub mod aabb;
 pub mod error;
+pub mod fairing;
 pub mod geometry;
 pub mod io;
 pub mod linalg;

@@ -9,8 +9,9 @@
 //! the contour's topology and drops inside components without data →
 //! [`convection`] φ_t = ∇d·∇φ → weighted minimal surface [`flow`] → a last
 //! convection that settles the zero set on the data → marching cubes
-//! (squares in 2D). Every evolution stops by its convergence test; none
-//! changes the topology (simple point test). Evolution runs on a narrow
+//! (squares in 2D) → in 3D, [`refine`]: vertices snapped onto the data's
+//! local fit, gap patches of scans faired. Every evolution stops by its
+//! convergence test; none changes the topology (simple point test). Evolution runs on a narrow
 //! band ([`band`]) kept a signed distance by [`reinit`]; large grids are
 //! solved coarse-to-fine ([`multires`]).
 
@@ -21,6 +22,7 @@ pub mod error;
 pub mod flow;
 pub mod multires;
 pub mod reconstruct;
+pub mod refine;
 pub mod reinit;
 pub mod tagging;
 mod topology;
