@@ -12,7 +12,10 @@ use surfrecon_grid::{GridSize, GridSpec};
 
 fn main() {
     // `cargo bench ... -- points` or `-- sdf` runs one of the two.
-    let only: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let only: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
     let wanted = |name: &str| only.is_empty() || only.iter().any(|o| o == name);
     println!("threads: {}", rayon::current_num_threads());
     if wanted("points") {
