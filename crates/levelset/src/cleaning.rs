@@ -23,7 +23,7 @@
 //! depend on the thread count.
 
 use rayon::prelude::*;
-use surfrecon_geom::linalg;
+use surfrecon_geom::linalg::HeightField;
 use surfrecon_geom::normals::symmetric_eigen3;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::DVec3;
@@ -402,46 +402,16 @@ fn project(p: DVec3, neighbours: impl Iterator<Item = DVec3> + Clone, dim: usize
         let d = (q - centre) / size;
         (tangents.map(|t| t.dot(d)), normal.dot(d))
     };
-    let terms = dim * (dim + 1) / 2;
-    let basis = |uv: [f64; 2]| -> [f64; 6] {
-        if dim == 2 {
-            [1.0, uv[0], uv[0] * uv[0], 0.0, 0.0, 0.0]
-        } else {
-            [
-                1.0,
-                uv[0],
-                uv[1],
-                uv[0] * uv[0],
-                uv[0] * uv[1],
-                uv[1] * uv[1],
-            ]
-        }
-    };
-    let mut ata = [[0.0; 6]; 6];
-    let mut atb = [0.0; 6];
-    for q in neighbours.clone() {
-        let (uv, w) = local(q);
-        let row = basis(uv);
-        for r in 0..terms {
-            atb[r] += row[r] * w;
-            for c in 0..terms {
-                ata[r][c] += row[r] * row[c];
-            }
-        }
-    }
+    let samples: Vec<([f64; 2], f64)> = neighbours.map(local).collect();
     let (uv, _) = local(p);
     // A quadric extrapolates wildly: only a point among its neighbours
     // (inside their disc) is moved onto it, others onto the plane.
     let among = uv[0] * uv[0] + uv[1] * uv[1] <= 1.0;
-    let coef = linalg::solve(ata, atb, terms, 1e-6);
-    let fitted = |uv: [f64; 2]| -> f64 {
-        coef.map_or(0.0, |c| basis(uv).iter().zip(&c).map(|(b, c)| b * c).sum())
-    };
-    let residual = (neighbours
-        .map(|q| {
-            let (uv, w) = local(q);
-            (w - fitted(uv)).powi(2)
-        })
+    let quadric = HeightField::fit(&samples, dim == 3, 1e-6);
+    let fitted = |uv: [f64; 2]| quadric.map_or(0.0, |q| q.at(uv));
+    let residual = (samples
+        .iter()
+        .map(|&(uv, w)| (w - fitted(uv)).powi(2))
         .sum::<f64>()
         / count)
         .sqrt()

@@ -10,7 +10,7 @@
 
 use glam::DVec3;
 use rayon::prelude::*;
-use surfrecon_geom::linalg;
+use surfrecon_geom::linalg::HeightField;
 use surfrecon_geom::spatial::KdTree;
 
 /// Neighbours per local quadric fit: enough that the six coefficients
@@ -54,47 +54,28 @@ fn quadric_residual_rms(origin: DVec3, normal: DVec3, neighbours: &[DVec3]) -> O
         return None;
     }
     let (u_axis, v_axis) = normal.any_orthonormal_pair();
-    let rows: Vec<([f64; TERMS], f64)> = neighbours
-        .iter()
-        .map(|p| {
-            let d = *p - origin;
-            let (u, v) = (d.dot(u_axis), d.dot(v_axis));
-            ([1.0, u, v, u * u, u * v, v * v], d.dot(normal))
-        })
-        .collect();
+    let local = |p: &DVec3| {
+        let d = *p - origin;
+        ([d.dot(u_axis), d.dot(v_axis)], d.dot(normal))
+    };
     // Scale u, v to unit size so the normal equations are well conditioned.
-    let scale = rows
+    let scale = neighbours
         .iter()
-        .map(|(a, _)| a[1].abs().max(a[2].abs()))
+        .map(|p| local(p).0.map(f64::abs).into_iter().fold(0.0, f64::max))
         .fold(0.0, f64::max);
     if scale <= 0.0 || !scale.is_finite() {
         return None;
     }
-    let powers = [0, 1, 1, 2, 2, 2];
-    let scaled: Vec<([f64; TERMS], f64)> = rows
+    let samples: Vec<([f64; 2], f64)> = neighbours
         .iter()
-        .map(|(a, h)| (std::array::from_fn(|t| a[t] / scale.powi(powers[t])), *h))
-        .collect();
-    let mut normal_matrix = [[0.0; TERMS]; TERMS];
-    let mut rhs = [0.0; TERMS];
-    for (a, h) in &scaled {
-        for r in 0..TERMS {
-            rhs[r] += a[r] * h;
-            for c in 0..TERMS {
-                normal_matrix[r][c] += a[r] * a[c];
-            }
-        }
-    }
-    // None: the neighbours do not spread over a surface patch.
-    let coefficients = linalg::solve(normal_matrix, rhs, TERMS, 1e-9)?;
-    let sum_sq: f64 = scaled
-        .iter()
-        .map(|(a, h)| {
-            let fit: f64 = a.iter().zip(&coefficients).map(|(x, c)| x * c).sum();
-            (h - fit) * (h - fit)
+        .map(|p| {
+            let (uv, h) = local(p);
+            (uv.map(|c| c / scale), h)
         })
-        .sum();
-    Some((sum_sq / (scaled.len() - TERMS) as f64).sqrt())
+        .collect();
+    // None: the neighbours do not spread over a surface patch.
+    let fit = HeightField::fit(&samples, true, 1e-9)?;
+    Some((fit.squared_residual(&samples) / (samples.len() - TERMS) as f64).sqrt())
 }
 
 #[cfg(test)]
