@@ -456,6 +456,170 @@ impl<const D: usize> BlockGrid<D> {
     }
 }
 
+/// Nodes per axis of a block's window: the block and one node beyond it
+/// on each side (see [`BlockGrid::gather_window`]).
+pub const WINDOW: usize = BLOCK + 2;
+
+/// Narrow-band support: whole-block allocation, release and windows.
+impl<const D: usize> BlockGrid<D> {
+    /// Number of nodes in a window ([`WINDOW`]^D).
+    pub const WINDOW_LEN: usize = WINDOW.pow(D as u32);
+
+    /// Strides of a window (axis 0 fastest).
+    pub fn window_strides() -> [usize; D] {
+        std::array::from_fn(|a| WINDOW.pow(a as u32))
+    }
+
+    /// Window index of local linear index `local` of the centre block.
+    #[inline]
+    pub fn window_index(local: usize) -> usize {
+        (0..D).fold(0, |w, a| {
+            let c = (local >> (BLOCK_SHIFT as usize * a)) & (BLOCK - 1);
+            w + (c + 1) * WINDOW.pow(a as u32)
+        })
+    }
+
+    /// Index into [`Self::blocks`] of the block at block coordinates
+    /// `coord`, if allocated (`coord` must lie in [`Self::block_dims`]).
+    #[inline]
+    pub fn slot(&self, coord: [usize; D]) -> Option<usize> {
+        let slot = self.table[self.block_linear(coord)];
+        (slot < TILE_INSIDE).then_some(slot as usize)
+    }
+
+    /// Turn the blocks for which `tile` says `Some(inside)` back into tiles
+    /// (inside or outside); the others keep their order. Returns, per old
+    /// index into [`Self::blocks`], the new index (`u32::MAX` if released).
+    pub fn release_blocks(&mut self, mut tile: impl FnMut(&Block<D>) -> Option<bool>) -> Vec<u32> {
+        let mut map = Vec::with_capacity(self.blocks.len());
+        let mut kept = 0u32;
+        let old = std::mem::take(&mut self.blocks);
+        for blk in old {
+            let b = self.block_linear(blk.coord);
+            match tile(&blk) {
+                Some(inside) => {
+                    self.table[b] = if inside { TILE_INSIDE } else { TILE_OUTSIDE };
+                    map.push(u32::MAX);
+                }
+                None => {
+                    self.table[b] = kept;
+                    map.push(kept);
+                    kept += 1;
+                    self.blocks.push(blk);
+                }
+            }
+        }
+        map
+    }
+
+    /// Order the blocks by their linear index in the block table (axis 0
+    /// fastest), so that a pass over them visits neighbours close in time
+    /// and finds their values still in cache. Returns, per old index into
+    /// [`Self::blocks`], the new index.
+    pub fn sort_blocks(&mut self) -> Vec<u32> {
+        let mut order: Vec<(usize, usize)> = self
+            .blocks
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (self.block_linear(b.coord), i))
+            .collect();
+        order.sort_unstable();
+        let mut map = vec![0u32; order.len()];
+        let mut old: Vec<Option<Block<D>>> = std::mem::take(&mut self.blocks)
+            .into_iter()
+            .map(Some)
+            .collect();
+        for (new, &(linear, i)) in order.iter().enumerate() {
+            map[i] = new as u32;
+            self.table[linear] = new as u32;
+            self.blocks.push(old[i].take().expect("each block once"));
+        }
+        map
+    }
+
+    /// Copy the values of block `coord` and of the node layer around it
+    /// (from the neighbouring blocks or tiles) into `out`, a window of
+    /// [`WINDOW`]^D nodes, axis 0 fastest, so that stencils of the block's
+    /// nodes run on a dense array with [`Self::window_strides`]. Nodes past
+    /// the grid's block range hold the background.
+    pub fn gather_window(&self, coord: [usize; D], out: &mut [f64]) {
+        self.gather_window_part(coord, D, out);
+    }
+
+    /// [`Self::gather_window`] for the parts of the layer around the block
+    /// that lie beyond at most `axes` of its faces at once: 1 gives the
+    /// faces (what first-derivative stencils read), 2 adds the edges (mixed
+    /// second derivatives), D everything. Other parts of `out` are left as
+    /// they were. Each part comes from another block, so leaving out those
+    /// that are not read saves most of the look-ups and cache misses.
+    pub fn gather_window_part(&self, coord: [usize; D], axes: usize, out: &mut [f64]) {
+        assert_eq!(out.len(), Self::WINDOW_LEN, "window buffer size");
+        let strides = Self::window_strides();
+        // One neighbour block (or the centre) per offset in {-1, 0, 1}^D.
+        for k in 0..3usize.pow(D as u32) {
+            let off: [usize; D] = std::array::from_fn(|a| k / 3usize.pow(a as u32) % 3);
+            if off.iter().filter(|&&o| o != 1).count() > axes {
+                continue;
+            }
+            let mut source = Some(coord);
+            for a in 0..D {
+                match (coord[a] + off[a]).checked_sub(1) {
+                    Some(c) if c < self.block_dims[a] => {
+                        if let Some(s) = &mut source {
+                            s[a] = c;
+                        }
+                    }
+                    _ => source = None,
+                }
+            }
+            // Window range and the source's local start along each axis.
+            let (lo, len, src): ([usize; D], [usize; D], [usize; D]) = (
+                off.map(|o| [0, 1, BLOCK + 1][o]),
+                off.map(|o| [1, BLOCK, 1][o]),
+                off.map(|o| [BLOCK - 1, 0, 0][o]),
+            );
+            let values = source
+                .and_then(|c| self.slot(c))
+                .map(|s| &self.blocks[s].values);
+            let fill = source
+                .and_then(|c| self.tile_value(c))
+                .unwrap_or(self.background);
+            // Rows along axis 0, the other axes counted by an odometer.
+            let mut i = [0usize; D];
+            'rows: loop {
+                let (mut w, mut s) = (lo[0], src[0]);
+                for a in 1..D {
+                    w += (lo[a] + i[a]) * strides[a];
+                    s += (src[a] + i[a]) << (BLOCK_SHIFT as usize * a);
+                }
+                // Runs are a whole block row or one node: fixed-size
+                // copies, which compile to moves rather than library calls.
+                match (values, len[0]) {
+                    (Some(v), BLOCK) => {
+                        let row: &[f64; BLOCK] = v[s..s + BLOCK].try_into().expect("block row");
+                        out[w..w + BLOCK].copy_from_slice(row);
+                    }
+                    (Some(v), _) => out[w] = v[s],
+                    (None, BLOCK) => out[w..w + BLOCK].copy_from_slice(&[fill; BLOCK]),
+                    (None, _) => out[w] = fill,
+                }
+                let mut a = 1;
+                loop {
+                    if a >= D {
+                        break 'rows;
+                    }
+                    i[a] += 1;
+                    if i[a] < len[a] {
+                        break;
+                    }
+                    i[a] = 0;
+                    a += 1;
+                }
+            }
+        }
+    }
+}
+
 impl Samples3 for BlockGrid<3> {
     fn spec(&self) -> &GridSpec<3> {
         &self.spec
@@ -870,6 +1034,70 @@ mod tests {
         assert!(grid.get([0, 0, 0]) > 0.0);
         let topo = closed_manifold(&marching_cubes_sparse(&grid, 0.0));
         assert_eq!((topo.euler, topo.components), (2, 1));
+    }
+
+    #[test]
+    fn windows_and_released_blocks_match_node_access() {
+        let spec = cube_spec(29, -1.0, 1.0);
+        let mut grid = BlockGrid::from_dense_band(&sample3(spec, torus), 0.2).unwrap();
+        let before = grid.to_dense();
+        let check = |grid: &BlockGrid<3>| {
+            let strides = BlockGrid::<3>::window_strides();
+            let mut window = vec![0.0; BlockGrid::<3>::WINDOW_LEN];
+            for blk in grid.blocks() {
+                grid.gather_window(blk.coord, &mut window);
+                for (w, &value) in window.iter().enumerate() {
+                    let wc: [usize; 3] = std::array::from_fn(|a| w / strides[a] % WINDOW);
+                    let node: [usize; 3] = std::array::from_fn(|a| blk.coord[a] * BLOCK + wc[a]);
+                    // Window coordinate c is node coord*BLOCK + c - 1.
+                    if node.contains(&0) {
+                        continue;
+                    }
+                    let node = node.map(|n| n - 1);
+                    if grid.in_grid(node) {
+                        assert_eq!(value, grid.get(node), "{node:?}");
+                    }
+                }
+                for local in [0, 7, 63, 511] {
+                    let w = BlockGrid::<3>::window_index(local);
+                    assert_eq!(window[w], blk.values[local]);
+                }
+                // Faces only: the same values there, edges left alone.
+                let mut faces = vec![f64::NAN; window.len()];
+                grid.gather_window_part(blk.coord, 1, &mut faces);
+                for (w, (&f, &full)) in faces.iter().zip(&window).enumerate() {
+                    let layers = (0..3)
+                        .filter(|&a| [0, WINDOW - 1].contains(&(w / strides[a] % WINDOW)))
+                        .count();
+                    if layers <= 1 {
+                        assert_eq!(f, full);
+                    } else {
+                        assert!(f.is_nan());
+                    }
+                }
+            }
+        };
+        check(&grid);
+        let count = grid.blocks().len();
+        // Release every other block as an inside tile.
+        let mut n = 0;
+        let map = grid.release_blocks(|_| {
+            n += 1;
+            (n % 2 == 0).then_some(true)
+        });
+        assert_eq!(grid.blocks().len(), count.div_ceil(2));
+        assert_eq!(map.iter().filter(|&&m| m == u32::MAX).count(), count / 2);
+        check(&grid);
+        for blk in grid.blocks() {
+            let slot = grid.slot(blk.coord).unwrap();
+            assert_eq!(grid.blocks()[slot].coord, blk.coord);
+            for l in 0..Block::<3>::LEN {
+                let node = blk.node(l);
+                if grid.in_grid(node) {
+                    assert_eq!(blk.values[l], before.get(node));
+                }
+            }
+        }
     }
 
     #[test]

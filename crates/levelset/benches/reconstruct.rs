@@ -58,8 +58,13 @@ fn main() {
     // distance is on the coarse level, so report the fine-level figure too.
     println!("cleaning: {:?}", rep.cleaning);
     println!(
-        "band (final): {} nodes in {} blocks of 8³",
-        rep.band_nodes, rep.band_blocks
+        "band (final): {} nodes in {} blocks of 8³; φ {:.1} MB, distance {:.1} MB on {} blocks (a dense f64 grid: {:.1} MB)",
+        rep.band_nodes,
+        rep.band_blocks,
+        rep.band_bytes as f64 / 1e6,
+        rep.distance_bytes as f64 / 1e6,
+        rep.distance_blocks,
+        rep.dims.iter().product::<usize>() as f64 * 8.0 / 1e6
     );
     for (i, (c, f)) in rep.convection.iter().zip(&rep.flow).enumerate() {
         println!(

@@ -4,9 +4,8 @@
 //! numerical viscosity resolves ties at points equidistant from two data.
 //! Its equilibrium is close to a polyhedron with vertices on the data.
 
-use crate::band::NarrowBand;
+use crate::band::{BandDistance, NarrowBand};
 use crate::flow::{evolve, EvolveParams, EvolveStats, Motion};
-use surfrecon_grid::Field;
 
 /// Upwind ∇d·∇φ at node `l`: per axis, the one-sided difference of φ on the
 /// side the velocity −∇d comes from, times the central difference of d.
@@ -48,7 +47,7 @@ pub fn upwind_advection<const D: usize>(
 /// Run convection until the zero set stops moving (or `params.max_steps`).
 pub fn convect<const D: usize>(
     band: &mut NarrowBand<D>,
-    d: &Field<D>,
+    d: &mut BandDistance<D>,
     params: &EvolveParams,
 ) -> EvolveStats {
     evolve(band, d, Motion::Convection, params)
@@ -58,7 +57,7 @@ pub fn convect<const D: usize>(
 mod tests {
     use super::*;
     use crate::reinit::reinitialize;
-    use surfrecon_grid::GridSpec;
+    use surfrecon_grid::{Field, GridSpec};
 
     #[test]
     fn circle_shrinks_onto_smaller_circle_of_data() {
@@ -96,14 +95,15 @@ mod tests {
                 })
                 .collect(),
         };
-        let mut band = NarrowBand::from_field(start, 3.0 * spec.spacing);
+        let mut band = NarrowBand::from_field(start, 3.0 * spec.spacing).unwrap();
         reinitialize(&mut band);
-        let stats = convect(&mut band, &d, &EvolveParams::default());
+        let mut d = BandDistance::dense(std::sync::Arc::new(d)).unwrap();
+        let stats = convect(&mut band, &mut d, &EvolveParams::default());
         assert!(stats.steps > 10);
-        for &l in &band.active {
-            let v = band.phi.values[l as usize];
+        for &k in &band.active {
+            let v = band.value(k);
             if v.abs() < 0.5 * spec.spacing {
-                let [x, y] = pos(l as usize);
+                let [x, y] = spec.position(band.node(k));
                 let r = (x * x + y * y).sqrt();
                 assert!((r - 0.5).abs() < 1.5 * spec.spacing, "zero set at r = {r}");
             }

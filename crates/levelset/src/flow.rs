@@ -18,12 +18,11 @@
 //! tolerance) or after a maximum number of steps. With `keep_topology`, no
 //! step changes the surface's topology.
 
-use crate::band::{det_sum, inside, NarrowBand};
+use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
 use crate::convection::{advection_term, upwind_advection};
 use crate::reinit::reinitialize;
 use crate::topology::Neighbourhood;
-use rayon::prelude::*;
-use surfrecon_grid::Field;
+use surfrecon_grid::sparse::WINDOW;
 
 /// Which law moves the surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -81,7 +80,7 @@ pub struct EvolveStats {
 /// with a reinitialized band.
 pub fn evolve<const D: usize>(
     band: &mut NarrowBand<D>,
-    d: &Field<D>,
+    d: &mut BandDistance<D>,
     motion: Motion,
     params: &EvolveParams,
 ) -> EvolveStats {
@@ -89,7 +88,8 @@ pub fn evolve<const D: usize>(
     if band.is_empty() {
         return stats;
     }
-    let h = band.phi.spec.spacing;
+    d.cover(band);
+    let h = band.spec().spacing;
     let p = match motion {
         Motion::Convection => 1.0,
         Motion::MinimalSurface { p } => p,
@@ -109,14 +109,20 @@ pub fn evolve<const D: usize>(
     };
     let mut snapshot = zero_set_snapshot(band, d);
     // The flow's zero set from one interval earlier, with its step count.
-    let mut earlier: Option<(Vec<(u32, f64)>, usize)> = None;
+    let mut earlier: Option<(Snapshot<D>, usize)> = None;
     stats.max_band = band.len();
     let topology = params
         .keep_topology
-        .then(|| Neighbourhood::new(&band.phi.spec.strides()));
+        .then(|| Neighbourhood::new(&cube_strides::<D>()));
     while stats.steps < params.max_steps {
-        stats.energy = weighted_area(band, d, p);
-        let factor = global_factor(stats.energy, p);
+        // Only p ≠ 1 needs the energy while stepping (the factor F); the
+        // report's energy is taken at the end.
+        let factor = if p == 1.0 {
+            1.0
+        } else {
+            stats.energy = weighted_area(band, d, p);
+            global_factor(stats.energy, p)
+        };
         let coef = Coefficients { motion, p, factor };
         let n = interval.min(params.max_steps - stats.steps);
         let change = match motion {
@@ -127,18 +133,20 @@ pub fn evolve<const D: usize>(
                     step(band, d, &coef, dt, topology.as_ref());
                 }
                 reinitialize(band);
+                d.cover(band);
                 // Mean zero-set speed relative to the motion's own speed
                 // scale: small time steps do not fake convergence.
                 zero_set_change(band, &snapshot) * h / (n as f64 * dt * speed_scale)
             }
             Motion::MinimalSurface { .. } => {
                 for _ in 0..n {
-                    // Recomputed every step: speeds frozen over several
-                    // steps overshoot where the zero set crosses the data.
-                    let speeds = interface_speeds(band, d, &coef);
-                    interface_step(band, &speeds, params.cfl, topology.as_ref());
+                    // Speeds are recomputed every step: speeds frozen over
+                    // several steps overshoot where the zero set crosses
+                    // the data.
+                    interface_step(band, d, &coef, params.cfl, topology.as_ref());
                 }
                 reinitialize(band);
+                d.cover(band);
                 // Every node moves at most `cfl` cells per step: the mean
                 // displacement per step as a share of that, measured over
                 // the last two intervals. Near the data the explicit
@@ -201,58 +209,64 @@ fn global_factor(energy: f64, p: f64) -> f64 {
 /// One explicit Euler step of the motion on the band nodes.
 fn step<const D: usize>(
     band: &mut NarrowBand<D>,
-    d: &Field<D>,
+    d: &BandDistance<D>,
     coef: &Coefficients,
     dt: f64,
     topology: Option<&Neighbourhood>,
 ) {
-    let spec = band.phi.spec;
-    let strides = spec.strides();
-    let h = spec.spacing;
-    let phi = &band.phi.values;
-    let rates: Vec<f64> = band
-        .active
-        .par_iter()
-        .map(|&l| {
-            let l = l as usize;
-            let (a, c) = coef.at(d.values[l]);
-            let mut r = a * advection_term(phi, &d.values, l, &strides, h);
-            if c != 0.0 {
-                r += c * curvature_term(phi, l, &strides, h);
-            }
-            dt * r
-        })
-        .collect();
+    let h = band.spec().spacing;
+    let rates = band.map_active(coef.motion != Motion::Convection, Some(d.grid()), |s| {
+        let (a, c) = coef.at(s.d[s.at]);
+        let mut r = a * advection_term(s.phi, s.d, s.at, s.strides, h);
+        if c != 0.0 {
+            r += c * curvature_term(s.phi, s.at, s.strides, h);
+        }
+        dt * r
+    });
     apply(band, rates, topology);
 }
 
 /// Adds `updates` (one per band node) to φ. With `topology`, a node that
 /// would change side does so only if it is a simple point at that moment;
-/// such nodes are visited in index order so the result is deterministic.
+/// such nodes are visited in band order so the result is deterministic.
 fn apply<const D: usize>(
     band: &mut NarrowBand<D>,
     updates: Vec<f64>,
     topology: Option<&Neighbourhood>,
 ) {
-    let phi = &mut band.phi.values;
     let mut flips = Vec::new();
-    for (&l, u) in band.active.iter().zip(updates) {
-        let l = l as usize;
-        let new = phi[l] + u;
-        if topology.is_some() && inside(new) != inside(phi[l]) {
-            flips.push((l, new));
+    for (i, u) in updates.into_iter().enumerate() {
+        let k = band.active[i];
+        let old = band.value(k);
+        let new = old + u;
+        if topology.is_some() && inside(new) != inside(old) {
+            flips.push((k, new));
         } else {
-            phi[l] = new;
+            band.set(k, new);
         }
     }
     let Some(cube) = topology else {
         return;
     };
-    for (l, new) in flips {
-        if cube.is_simple(l, |n| inside(phi[n])) {
-            phi[l] = new;
+    // The neighbourhood is numbered in the node's own 3^D cube (see
+    // `cube_strides`): no divisions by the grid's dimensions per neighbour.
+    let centre = (3usize.pow(D as u32) - 1) / 2;
+    for (k, new) in flips {
+        let node = band.node(k);
+        let simple = cube.is_simple(centre, |n| {
+            let idx = std::array::from_fn(|a| node[a] + n / 3usize.pow(a as u32) % 3 - 1);
+            inside(band.phi.get(idx))
+        });
+        if simple {
+            band.set(k, new);
         }
     }
+}
+
+/// Strides of a 3^D cube, axis 0 fastest: the simple point test's
+/// neighbourhood numbered around its centre, (3^D − 1) / 2.
+fn cube_strides<const D: usize>() -> [usize; D] {
+    std::array::from_fn(|a| 3usize.pow(a as u32))
 }
 
 /// Speed of one band node for the minimal surface flow, taken at the zero
@@ -274,117 +288,127 @@ struct NodeSpeed<const D: usize> {
     dt: f64,
 }
 
-fn interface_speeds<const D: usize>(
-    band: &NarrowBand<D>,
-    d: &Field<D>,
+fn node_speed<const D: usize>(
+    s: &Stencil<D>,
+    d: &BandDistance<D>,
     coef: &Coefficients,
-) -> Vec<NodeSpeed<D>> {
-    let spec = band.phi.spec;
-    let strides = spec.strides();
-    let h = spec.spacing;
-    let phi = &band.phi.values;
-    band.active
-        .par_iter()
-        .map(|&l| {
-            let (dist, grad) = at_interface(phi, d, l as usize, &strides, h);
-            let (advection, curvature) = coef.at(dist);
-            let rate: f64 = grad.iter().map(|g| g.abs()).sum::<f64>() * advection / h;
-            let mut dt = h;
-            if rate > 0.0 {
-                dt = dt.min(h / rate);
-            }
-            if curvature > 0.0 {
-                dt = dt.min(h * h / (2.0 * D as f64 * curvature));
-            }
-            NodeSpeed {
-                advection,
-                curvature,
-                grad,
-                dt,
-            }
-        })
-        .collect()
+    h: f64,
+) -> NodeSpeed<D> {
+    let (dist, grad) = at_interface(s, d, h);
+    let (advection, curvature) = coef.at(dist);
+    let rate: f64 = grad.iter().map(|g| g.abs()).sum::<f64>() * advection / h;
+    let mut dt = h;
+    if rate > 0.0 {
+        dt = dt.min(h / rate);
+    }
+    if curvature > 0.0 {
+        dt = dt.min(h * h / (2.0 * D as f64 * curvature));
+    }
+    NodeSpeed {
+        advection,
+        curvature,
+        grad,
+        dt,
+    }
 }
 
-/// One explicit step of the minimal surface flow with the band nodes'
-/// extended speeds (same order as the band).
+/// One explicit step of the minimal surface flow, each band node with its
+/// extended speed (computed from the same φ, in the same pass).
 fn interface_step<const D: usize>(
     band: &mut NarrowBand<D>,
-    speeds: &[NodeSpeed<D>],
+    d: &BandDistance<D>,
+    coef: &Coefficients,
     cfl: f64,
     topology: Option<&Neighbourhood>,
 ) {
-    let spec = band.phi.spec;
-    let strides = spec.strides();
-    let h = spec.spacing;
-    let phi = &band.phi.values;
-    let updates: Vec<f64> = band
-        .active
-        .par_iter()
-        .zip(speeds)
-        .map(|(&l, s)| {
-            let l = l as usize;
-            let mut rate = s.advection * upwind_advection(phi, l, &strides, &s.grad, h);
-            if s.curvature != 0.0 {
-                rate += s.curvature * curvature_term(phi, l, &strides, h);
-            }
-            cfl * s.dt * rate
-        })
-        .collect();
+    let h = band.spec().spacing;
+    let updates = band.map_active(true, Some(d.grid()), |s| {
+        let sp = node_speed(s, d, coef, h);
+        let mut rate = sp.advection * upwind_advection(s.phi, s.at, s.strides, &sp.grad, h);
+        if sp.curvature != 0.0 {
+            rate += sp.curvature * curvature_term(s.phi, s.at, s.strides, h);
+        }
+        cfl * sp.dt * rate
+    });
     apply(band, updates, topology);
 }
 
 /// d and its gradient (per cell) at the point of the zero set closest to
-/// node `l`, x − φ ∇φ/|∇φ|, by multilinear interpolation; the node's own
-/// values where φ has no usable gradient.
-fn at_interface<const D: usize>(
-    phi: &[f64],
-    d: &Field<D>,
-    l: usize,
-    strides: &[usize; D],
-    h: f64,
-) -> (f64, [f64; D]) {
-    let g: [f64; D] = std::array::from_fn(|a| (phi[l + strides[a]] - phi[l - strides[a]]) * 0.5);
+/// the node, x − φ ∇φ/|∇φ|, by multilinear interpolation; the node's own
+/// values where φ has no usable gradient (or, which the distance's
+/// coverage of the band's neighbour blocks rules out for sane bands, where
+/// that point's cell lies outside the computed distance).
+fn at_interface<const D: usize>(s: &Stencil<D>, d: &BandDistance<D>, h: f64) -> (f64, [f64; D]) {
+    let (at, st) = (s.at, s.strides);
+    let own = || {
+        let grad = std::array::from_fn(|a| (s.d[at + st[a]] - s.d[at - st[a]]) * 0.5);
+        (s.d[at], grad)
+    };
+    let g: [f64; D] = std::array::from_fn(|a| (s.phi[at + st[a]] - s.phi[at - st[a]]) * 0.5);
     let norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();
     if norm.is_nan() || norm <= 1e-6 * h {
-        let grad =
-            std::array::from_fn(|a| (d.values[l + strides[a]] - d.values[l - strides[a]]) * 0.5);
-        return (d.values[l], grad);
+        return own();
     }
-    let spec = &d.spec;
-    let idx = spec.unlinear(l);
-    let shift = phi[l] / norm;
-    let x: [f64; D] = std::array::from_fn(|a| {
-        (idx[a] as f64 - shift * g[a]).clamp(0.0, (spec.dims[a] - 1) as f64)
-    });
-    multilinear_with_gradient(d, x)
-}
-
-/// Value and gradient (per cell) of the multilinear interpolant of `field`
-/// at grid coordinates `x` (inside the grid).
-fn multilinear_with_gradient<const D: usize>(field: &Field<D>, x: [f64; D]) -> (f64, [f64; D]) {
-    let spec = &field.spec;
-    let strides = spec.strides();
-    let mut base = 0;
+    let dims = d.grid().spec().dims;
+    let shift = s.phi[at] / norm;
+    let mut base = [0usize; D];
     let mut t = [0.0; D];
     for a in 0..D {
-        let i = (x[a].floor() as usize).min(spec.dims[a] - 2);
-        base += i * strides[a];
-        t[a] = x[a] - i as f64;
+        let x = (s.node[a] as f64 - shift * g[a]).clamp(0.0, (dims[a] - 1) as f64);
+        let i = (x.floor() as usize).min(dims[a] - 2);
+        base[a] = i;
+        t[a] = x - i as f64;
     }
+    match cell_corners(s, d, base) {
+        Some(values) => multilinear_with_gradient(&values, t),
+        None => own(),
+    }
+}
+
+/// d at the 2^D corners of the cell whose lowest corner is node `base`
+/// (corner c is high along axis a when bit a of c is set): from the
+/// block's window when the cell lies in the block or across one face of
+/// it, else (the closest point may lie a few cells away) from the
+/// distance's blocks; `None` if a corner's block has no distance.
+fn cell_corners<const D: usize>(
+    s: &Stencil<D>,
+    d: &BandDistance<D>,
+    base: [usize; D],
+) -> Option<[f64; 8]> {
+    debug_assert!(D <= 3, "cells of at most 8 corners");
+    let mut values = [0.0; 8];
+    let (mut w0, mut layers, mut in_window) = (0, 0, true);
+    for ((&b, &corner), &stride) in base.iter().zip(&s.corner).zip(s.strides) {
+        match (b + 1).checked_sub(corner) {
+            Some(c) if c + 1 < WINDOW => {
+                w0 += c * stride;
+                layers += usize::from(c == 0) + usize::from(c + 2 == WINDOW);
+            }
+            _ => in_window = false,
+        }
+    }
+    for (c, v) in values.iter_mut().enumerate().take(1 << D) {
+        *v = if in_window && layers <= 1 {
+            let w = (0..D).fold(w0, |w, a| w + (c >> a & 1) * s.strides[a]);
+            s.d[w]
+        } else {
+            d.get(std::array::from_fn(|a| base[a] + (c >> a & 1)))?
+        };
+    }
+    Some(values)
+}
+
+/// Value and gradient (per cell) of the multilinear interpolant of a
+/// cell's corner values (ordered as in [`cell_corners`]) at offsets `t`.
+fn multilinear_with_gradient<const D: usize>(values: &[f64; 8], t: [f64; D]) -> (f64, [f64; D]) {
     let mut value = 0.0;
     let mut grad = [0.0; D];
-    for corner in 0..1usize << D {
-        let mut l = base;
+    for (corner, &v) in values.iter().enumerate().take(1 << D) {
         let mut w = 1.0;
         // Weight of this corner without axis a's factor, per axis.
         let mut partial = [1.0; D];
-        for a in 0..D {
-            let high = corner >> a & 1 == 1;
-            if high {
-                l += strides[a];
-            }
-            let wa = if high { t[a] } else { 1.0 - t[a] };
+        for (a, &ta) in t.iter().enumerate() {
+            let wa = if corner >> a & 1 == 1 { ta } else { 1.0 - ta };
             w *= wa;
             for (b, p) in partial.iter_mut().enumerate() {
                 if b != a {
@@ -392,7 +416,6 @@ fn multilinear_with_gradient<const D: usize>(field: &Field<D>, x: [f64; D]) -> (
                 }
             }
         }
-        let v = field.values[l];
         value += w * v;
         for a in 0..D {
             let sign = if corner >> a & 1 == 1 { 1.0 } else { -1.0 };
@@ -441,26 +464,26 @@ pub fn curvature_term<const D: usize>(phi: &[f64], l: usize, strides: &[usize; D
 /// (the motion's speed scale).
 fn stable_step<const D: usize>(
     band: &NarrowBand<D>,
-    d: &Field<D>,
+    d: &BandDistance<D>,
     coef: &Coefficients,
 ) -> (f64, f64) {
-    let spec = band.phi.spec;
-    let h = spec.spacing;
-    let strides = spec.strides();
+    let h = band.spec().spacing;
     let near = 2.5 * h;
     let per_node: Vec<(f64, f64, f64)> = band
-        .active
-        .par_iter()
-        .filter(|&&l| band.phi.values[l as usize].abs() < near)
-        .map(|&l| {
-            let l = l as usize;
-            let (a, c) = coef.at(d.values[l]);
-            let grad_l1: f64 = strides
+        .map_active(false, Some(d.grid()), |s| {
+            if s.phi[s.at].abs() >= near {
+                return None;
+            }
+            let (a, c) = coef.at(s.d[s.at]);
+            let grad_l1: f64 = s
+                .strides
                 .iter()
-                .map(|&s| (d.values[l + s] - d.values[l - s]).abs() * 0.5 / h)
+                .map(|&st| (s.d[s.at + st] - s.d[s.at - st]).abs() * 0.5 / h)
                 .sum();
-            (a * grad_l1, c, a)
+            Some((a * grad_l1, c, a))
         })
+        .into_iter()
+        .flatten()
         .collect();
     let max_adv = per_node.iter().map(|x| x.0).fold(0.0, f64::max);
     let max_diff = per_node.iter().map(|x| x.1).fold(0.0, f64::max);
@@ -476,68 +499,67 @@ fn stable_step<const D: usize>(
     (dt, scale)
 }
 
-/// ∫ d^p δ(φ)|∇φ| dx with a cosine-smoothed δ of half-width 1.5h.
-pub fn weighted_area<const D: usize>(band: &NarrowBand<D>, d: &Field<D>, p: f64) -> f64 {
-    let spec = band.phi.spec;
-    let h = spec.spacing;
-    let strides = spec.strides();
+/// ∫ d^p δ(φ)|∇φ| dx with a cosine-smoothed δ of half-width 1.5h. `d`
+/// must cover the band ([`BandDistance::cover`]).
+pub fn weighted_area<const D: usize>(band: &NarrowBand<D>, d: &BandDistance<D>, p: f64) -> f64 {
+    let h = band.spec().spacing;
     let eps = 1.5 * h;
-    let phi = &band.phi.values;
     let cell = h.powi(D as i32);
-    det_sum(&band.active, |&l| {
-        let l = l as usize;
-        let v = phi[l];
+    let terms = band.map_active(false, Some(d.grid()), |s| {
+        let v = s.phi[s.at];
         if v.abs() >= eps {
             return 0.0;
         }
         let delta = (1.0 + (std::f64::consts::PI * v / eps).cos()) / (2.0 * eps);
-        let g2: f64 = strides
+        let g2: f64 = s
+            .strides
             .iter()
-            .map(|&s| ((phi[l + s] - phi[l - s]) * 0.5 / h).powi(2))
+            .map(|&st| ((s.phi[s.at + st] - s.phi[s.at - st]) * 0.5 / h).powi(2))
             .sum();
-        d.values[l].max(0.0).powf(p) * delta * g2.sqrt() * cell
-    })
+        s.d[s.at].max(0.0).powf(p) * delta * g2.sqrt() * cell
+    });
+    det_sum(&terms, |&x| x)
 }
+
+/// Nodes next to the zero set and their φ at one moment.
+type Snapshot<const D: usize> = Vec<([usize; D], f64)>;
 
 /// Nodes farther than this many cells from the data do not count for
 /// convergence.
 const SUPPORTED_CELLS: f64 = 2.0;
 
-/// φ at the nodes next to the zero set (|φ| ≤ h) that are near the data.
+/// φ at the nodes next to the zero set (|φ| ≤ h) that are near the data,
+/// by node index (keys change when reinitialization releases blocks).
 /// Convergence is judged there: where the surface spans a hole in the
 /// data, nothing holds it, and the flow keeps reshaping it long after the
 /// surface on the data has settled.
-fn zero_set_snapshot<const D: usize>(band: &NarrowBand<D>, d: &Field<D>) -> Vec<(u32, f64)> {
-    let h = band.phi.spec.spacing;
-    let supported = |l: u32| d.values[l as usize] <= SUPPORTED_CELLS * h;
-    let near: Vec<(u32, f64)> = band
-        .active
-        .iter()
-        .map(|&l| (l, band.phi.values[l as usize]))
-        .filter(|&(l, v)| v.abs() <= h && supported(l))
-        .collect();
+fn zero_set_snapshot<const D: usize>(band: &NarrowBand<D>, d: &BandDistance<D>) -> Snapshot<D> {
+    let h = band.spec().spacing;
+    let supported = |n: [usize; D]| d.get(n).is_some_and(|v| v <= SUPPORTED_CELLS * h);
+    let next_to_zero = || {
+        band.active
+            .iter()
+            .map(|&k| (band.node(k), band.value(k)))
+            .filter(|&(_, v)| v.abs() <= h)
+    };
+    let near: Snapshot<D> = next_to_zero().filter(|&(n, _)| supported(n)).collect();
     if near.is_empty() {
         // No data near the surface at all (e.g. a single point): judge
         // the whole zero set.
-        return band
-            .active
-            .iter()
-            .map(|&l| (l, band.phi.values[l as usize]))
-            .filter(|&(_, v)| v.abs() <= h)
-            .collect();
+        return next_to_zero().collect();
     }
     near
 }
 
 /// Mean displacement of the zero set since `snapshot`, in cells: the mean
 /// change of φ at the nodes that were next to it, each capped at one cell.
-fn zero_set_change<const D: usize>(band: &NarrowBand<D>, snapshot: &[(u32, f64)]) -> f64 {
+fn zero_set_change<const D: usize>(band: &NarrowBand<D>, snapshot: &[([usize; D], f64)]) -> f64 {
     if snapshot.is_empty() {
         return 0.0;
     }
-    let h = band.phi.spec.spacing;
-    let total = det_sum(snapshot, |&(l, old)| {
-        ((band.phi.values[l as usize] - old).abs() / h).min(1.0)
+    let h = band.spec().spacing;
+    let total = det_sum(snapshot, |&(n, old)| {
+        ((band.phi.get(n) - old).abs() / h).min(1.0)
     });
     total / snapshot.len() as f64
 }
@@ -545,7 +567,7 @@ fn zero_set_change<const D: usize>(band: &NarrowBand<D>, snapshot: &[(u32, f64)]
 #[cfg(test)]
 mod tests {
     use super::*;
-    use surfrecon_grid::GridSpec;
+    use surfrecon_grid::{Field, GridSpec};
 
     fn sphere_field(spec: GridSpec<3>, r: f64) -> Field<3> {
         let values = (0..spec.node_count())
@@ -579,9 +601,10 @@ mod tests {
             spacing: 0.04,
             dims: [51; 3],
         };
-        let mut band = NarrowBand::from_field(sphere_field(spec, 0.6), 0.16);
+        let mut band = NarrowBand::from_field(sphere_field(spec, 0.6), 0.16).unwrap();
         crate::reinit::reinitialize(&mut band);
-        let ones = Field::filled(spec, 1.0);
+        let mut ones = BandDistance::dense(std::sync::Arc::new(Field::filled(spec, 1.0))).unwrap();
+        ones.cover(&band);
         let area = weighted_area(&band, &ones, 1.0);
         let exact = 4.0 * std::f64::consts::PI * 0.36;
         assert!((area - exact).abs() / exact < 0.03, "{area} vs {exact}");

@@ -24,6 +24,7 @@ pub mod multires;
 pub mod reconstruct;
 pub mod refine;
 pub mod reinit;
+pub mod slices;
 pub mod tagging;
 mod topology;
 

@@ -2,7 +2,10 @@
 //! finer grid and continue there with few steps. The coarse grids cost a
 //! fraction of the fine one (1/2^dim per level) yet do most of the motion.
 
+use crate::band::{inside, is_inner, NarrowBand};
+use crate::error::Result;
 use rayon::prelude::*;
+use surfrecon_grid::sparse::{BlockGrid, BLOCK};
 use surfrecon_grid::{Field, GridSpec};
 
 /// Grids larger than this (nodes along the longest axis) get a coarse level.
@@ -42,7 +45,17 @@ pub fn upsample<const D: usize>(coarse: &Field<D>, fine: GridSpec<D>) -> Field<D
 
 /// Multilinear interpolation of `field` at world position `p`.
 pub fn interpolate<const D: usize>(field: &Field<D>, p: [f64; D]) -> f64 {
-    let spec = &field.spec;
+    interpolate_with(&field.spec, |idx| field.get(idx), p)
+}
+
+/// Multilinear interpolation at world position `p` of the values `get`
+/// returns for the nodes of `spec` (positions outside the grid take the
+/// nearest boundary value).
+pub fn interpolate_with<const D: usize>(
+    spec: &GridSpec<D>,
+    get: impl Fn([usize; D]) -> f64,
+    p: [f64; D],
+) -> f64 {
     let g = spec.to_grid(p);
     let mut base = [0usize; D];
     let mut t = [0.0; D];
@@ -52,23 +65,82 @@ pub fn interpolate<const D: usize>(field: &Field<D>, p: [f64; D]) -> f64 {
         base[a] = i;
         t[a] = x - i as f64;
     }
-    let strides = spec.strides();
-    let l0 = spec.linear(base);
     let mut sum = 0.0;
     for corner in 0..1usize << D {
         let mut w = 1.0;
-        let mut l = l0;
+        let mut idx = base;
         for a in 0..D {
             if corner >> a & 1 == 1 {
                 w *= t[a];
-                l += strides[a];
+                idx[a] += 1;
             } else {
                 w *= 1.0 - t[a];
             }
         }
-        sum += w * field.values[l];
+        sum += w * get(idx);
     }
     sum
+}
+
+/// The band of the next finer grid `fine`: φ of `coarse` interpolated on
+/// the fine blocks under the coarse blocks (and one coarse node around
+/// them), clamped to ±`half_width` and set outside at the border, as a
+/// dense upsampling would give there; every other fine block is a tile on
+/// the side the coarse φ gives it. Reinitialize before evolving.
+pub fn upsample_band<const D: usize>(
+    coarse: &NarrowBand<D>,
+    fine: GridSpec<D>,
+    half_width: f64,
+) -> Result<NarrowBand<D>> {
+    let mut grid = BlockGrid::new(fine, half_width)?;
+    let cspec = *coarse.spec();
+    let at = |idx: [usize; D]| interpolate_with(&cspec, |c| coarse.phi.get(c), fine.position(idx));
+    let dims = grid.block_dims();
+    let coords: Vec<[usize; D]> = (0..dims.iter().product::<usize>())
+        .map(|mut b| {
+            std::array::from_fn(|a| {
+                let c = b % dims[a];
+                b /= dims[a];
+                c
+            })
+        })
+        .collect();
+    let sides: Vec<bool> = coords
+        .par_iter()
+        .map(|c| inside(at(c.map(|x| x * BLOCK))))
+        .collect();
+    for (c, &s) in coords.iter().zip(&sides) {
+        grid.set_tile_inside(*c, s);
+    }
+    // A coarse block spans coarse nodes 8c..8c+7, fine nodes 16c..16c+14;
+    // with one coarse node around it, fine blocks 2c − 1 ..= 2c + 2.
+    for blk in coarse.phi.blocks() {
+        let lo = blk.coord.map(|c| (2 * c).saturating_sub(1));
+        let hi: [usize; D] = std::array::from_fn(|a| (2 * blk.coord[a] + 2).min(dims[a] - 1));
+        let count: usize = (0..D).map(|a| hi[a] - lo[a] + 1).product();
+        for mut k in 0..count {
+            let c: [usize; D] = std::array::from_fn(|a| {
+                let n = hi[a] - lo[a] + 1;
+                let x = lo[a] + k % n;
+                k /= n;
+                x
+            });
+            grid.allocate(c.map(|x| x * BLOCK));
+        }
+    }
+    grid.blocks_mut().par_iter_mut().for_each(|blk| {
+        for local in 0..blk.values.len() {
+            let idx = blk.node(local);
+            if (0..D).all(|a| idx[a] < fine.dims[a]) {
+                blk.values[local] = if is_inner(&fine, idx) {
+                    at(idx).clamp(-half_width, half_width)
+                } else {
+                    half_width
+                };
+            }
+        }
+    });
+    Ok(NarrowBand::from_grid(grid, half_width))
 }
 
 #[cfg(test)]
@@ -100,6 +172,40 @@ mod tests {
             let want = f(fine.position(fine.unlinear(l)));
             assert!((up.values[l] - want).abs() < 1e-9);
         }
+    }
+
+    #[test]
+    fn sparse_upsampling_equals_dense_upsampling() {
+        let coarse_spec = GridSpec::<3> {
+            origin: [-1.0; 3],
+            spacing: 0.1,
+            dims: [21, 19, 23],
+        };
+        let fine = GridSpec::<3> {
+            origin: [-1.0; 3],
+            spacing: 0.05,
+            dims: [41, 37, 45],
+        };
+        let sphere = |spec: GridSpec<3>| Field {
+            spec,
+            values: (0..spec.node_count())
+                .map(|l| {
+                    let p = spec.position(spec.unlinear(l));
+                    (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 0.55
+                })
+                .collect(),
+        };
+        let coarse = NarrowBand::from_field(sphere(coarse_spec), 0.3).unwrap();
+        let sparse = upsample_band(&coarse, fine, 0.15).unwrap();
+        let dense = NarrowBand::from_field(upsample(&coarse.phi.to_dense(), fine), 0.15).unwrap();
+        assert!(sparse.block_count() < dense.phi.block_dims().iter().product::<usize>());
+        assert_eq!(sparse.phi.to_dense(), dense.phi.to_dense());
+        let nodes = |b: &NarrowBand<3>| -> Vec<[usize; 3]> {
+            let mut v: Vec<_> = b.active.iter().map(|&k| b.node(k)).collect();
+            v.sort_unstable();
+            v
+        };
+        assert_eq!(nodes(&sparse), nodes(&dense));
     }
 
     #[test]

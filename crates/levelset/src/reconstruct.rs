@@ -2,17 +2,19 @@
 //! convection → minimal surface flow → settling convection (coarse to
 //! fine) → mesh or curves.
 
-use crate::band::NarrowBand;
+use crate::band::{BandDistance, NarrowBand};
 use crate::cleaning::{clean_points, CleaningStats};
 use crate::error::{LevelsetError, Result};
 use crate::flow::{evolve, EvolveParams, EvolveStats, Motion};
-use crate::multires::{auto_levels, coarsen, upsample};
+use crate::multires::{auto_levels, coarsen, interpolate, upsample_band};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
 use crate::tagging::{remove_unsupported, tag, BoundingBox};
+use std::sync::Arc;
 use std::time::Instant;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, Polylines, TriMesh};
 use surfrecon_grid::distance::{self, DataSet};
+use surfrecon_grid::sparse::{marching_cubes_sparse, Block, BlockGrid, BLOCK};
 use surfrecon_grid::{Field, Field2, Field3, GridSize, GridSpec};
 
 /// The data to reconstruct from: any mix of points, segments (curves) and
@@ -152,8 +154,15 @@ pub struct Report {
     pub removed_components: usize,
     /// Band nodes at the end.
     pub band_nodes: usize,
-    /// Blocks of 8^D nodes (the sparse grid's blocks) that hold them.
+    /// Blocks of 8^D nodes (the sparse grid's blocks) allocated for φ.
     pub band_blocks: usize,
+    /// Blocks on which the finest level computed the distance d (the
+    /// band's blocks and their neighbours).
+    pub distance_blocks: usize,
+    /// Bytes of φ (blocks, block table, marks, band list) and of d on the
+    /// finest level at the end.
+    pub band_bytes: usize,
+    pub distance_bytes: usize,
     /// Convection and flow statistics, per level (coarsest first).
     pub convection: Vec<EvolveStats>,
     pub flow: Vec<EvolveStats>,
@@ -187,9 +196,11 @@ impl Report {
 pub struct Reconstruction3 {
     /// Watertight triangle mesh of φ = 0.
     pub mesh: TriMesh,
-    /// φ: signed distance in the band (everywhere with `full_field`),
-    /// negative inside.
-    pub field: Field3,
+    /// φ on the sparse block grid: signed distance in the band, ±band
+    /// half-width elsewhere; negative inside.
+    pub phi: BlockGrid<3>,
+    /// φ as a signed distance on the whole grid (`full_field` only).
+    pub field: Option<Field3>,
     pub report: Report,
 }
 
@@ -198,18 +209,34 @@ pub struct Reconstruction3 {
 pub struct Reconstruction2 {
     /// Closed curves of φ = 0 (z = 0).
     pub curves: Polylines,
-    pub field: Field2,
+    pub phi: BlockGrid<2>,
+    pub field: Option<Field2>,
     pub report: Report,
+}
+
+impl Reconstruction3 {
+    /// φ on the dense grid: the full signed distance with `full_field`,
+    /// else the band's values with ±half-width elsewhere. O(grid) memory.
+    pub fn dense_field(&self) -> Field3 {
+        self.field.clone().unwrap_or_else(|| self.phi.to_dense())
+    }
+}
+
+impl Reconstruction2 {
+    /// See [`Reconstruction3::dense_field`].
+    pub fn dense_field(&self) -> Field2 {
+        self.field.clone().unwrap_or_else(|| self.phi.to_dense())
+    }
 }
 
 /// Reconstruct a closed surface from 3D data.
 pub fn reconstruct_3d(input: &Input, params: &ReconstructParams) -> Result<Reconstruction3> {
-    let (field, mut report) = reconstruct_field::<3>(input, params)?;
-    let mesh = report.time("extract", || {
-        surfrecon_grid::marching::marching_cubes(&field, 0.0)
-    });
+    let (phi, field, mut report) = reconstruct_field::<3>(input, params)?;
+    // Straight from the blocks: same triangles as on the dense φ.
+    let mesh = report.time("extract", || marching_cubes_sparse(&phi, 0.0));
     Ok(Reconstruction3 {
         mesh,
+        phi,
         field,
         report,
     })
@@ -217,23 +244,26 @@ pub fn reconstruct_3d(input: &Input, params: &ReconstructParams) -> Result<Recon
 
 /// Reconstruct closed curves from 2D data (z ignored).
 pub fn reconstruct_2d(input: &Input, params: &ReconstructParams) -> Result<Reconstruction2> {
-    let (field, mut report) = reconstruct_field::<2>(input, params)?;
+    let (phi, field, mut report) = reconstruct_field::<2>(input, params)?;
+    // 2D grids are small: extract from the dense φ.
     let curves = report.time("extract", || {
-        surfrecon_grid::marching::marching_squares(&field, 0.0)
+        surfrecon_grid::marching::marching_squares(&phi.to_dense(), 0.0)
     });
     Ok(Reconstruction2 {
         curves,
+        phi,
         field,
         report,
     })
 }
 
 /// The level set function φ (negative inside) of the reconstruction in
-/// `D` = 2 or 3 dimensions, with the run's report.
+/// `D` = 2 or 3 dimensions on the sparse block grid, with the dense signed
+/// distance everywhere when `full_field` asks for it, and the run's report.
 pub fn reconstruct_field<const D: usize>(
     input: &Input,
     params: &ReconstructParams,
-) -> Result<(Field<D>, Report)> {
+) -> Result<(BlockGrid<D>, Option<Field<D>>, Report)> {
     validate::<D>(input, params)?;
     let mut report = Report::default();
     let cleaned;
@@ -258,43 +288,75 @@ pub fn reconstruct_field<const D: usize>(
     report.dims = fine.dims.to_vec();
     report.spacing = fine.spacing;
     report.levels = levels;
-    let mut band: Option<NarrowBand<D>> = None;
-    let mut coarse_d: Option<Field<D>> = None;
-    for level in (0..levels).rev() {
+    // The coarsest level: dense distance (the tagging floods it), then the
+    // initial band.
+    let coarsest_spec = coarsen(&fine, 1 << (levels - 1));
+    let coarsest_d = report.time("distance", || {
+        coarsest_distance(input, coarsest_spec, levels > 1)
+    })?;
+    let mut band = initial_band(input, params, sampling, &coarsest_d, &mut report)?;
+    let mut d = BandDistance::dense(coarsest_d.clone())?;
+    let stage = Stage {
+        coarsest: true,
+        finest: levels == 1,
+    };
+    solve_level(&mut band, &mut d, params, stage, &mut report);
+    // Finer levels: the distance only on the band's blocks.
+    for level in (0..levels - 1).rev() {
         let spec = coarsen(&fine, 1 << level);
-        let d = report.time("distance", || match &coarse_d {
-            // Coarse levels only give the next level its start: one point per
-            // half cell (distances off by at most 0.43 h) is plenty.
-            None if level > 0 => unsigned_distance(&thinned(input, spec.spacing / 2.0), spec),
-            None => unsigned_distance(input, spec),
-            Some(c) => refined_distance(input, spec, c, FINE_EXACT_CELLS),
+        let mut d = report.time("distance", || {
+            refined_distance(input, spec, coarsest_d.clone(), FINE_EXACT_CELLS)
         })?;
-        let mut current = match band.take() {
-            None => initial_band(input, params, sampling, &d, &mut report),
-            Some(coarse) => report.time("upsample", || {
-                let mut b =
-                    NarrowBand::from_field(upsample(&coarse.phi, spec), params.band * spec.spacing);
-                reinitialize(&mut b);
-                b
-            }),
-        };
+        band = report.time("upsample", || -> Result<NarrowBand<D>> {
+            let mut b = upsample_band(&band, spec, params.band * spec.spacing)?;
+            reinitialize(&mut b);
+            Ok(b)
+        })?;
         let stage = Stage {
-            coarsest: level + 1 == levels,
+            coarsest: false,
             finest: level == 0,
         };
-        evolve_level(&mut current, &d, params, stage, &mut report);
-        band = Some(current);
-        coarse_d = Some(d);
+        solve_level(&mut band, &mut d, params, stage, &mut report);
     }
-    let band = band.expect("at least one level");
     report.band_nodes = band.len();
     report.band_blocks = band.block_count();
-    let field = if params.full_field {
-        report.time("full field", || signed_distance_everywhere(&band))
+    report.band_bytes = band.memory_bytes();
+    let field = params
+        .full_field
+        .then(|| report.time("full field", || signed_distance_everywhere(&band)));
+    Ok((band.phi, field, report))
+}
+
+/// The coarsest level's unsigned distance on the whole grid. Below finer
+/// levels it only gives them their start: one point per half cell
+/// (distances off by at most 0.43 h) is plenty.
+fn coarsest_distance<const D: usize>(
+    input: &Input,
+    spec: GridSpec<D>,
+    has_finer: bool,
+) -> Result<Arc<Field<D>>> {
+    let d = if has_finer {
+        unsigned_distance(&thinned(input, spec.spacing / 2.0), spec)?
     } else {
-        band.phi
+        unsigned_distance(input, spec)?
     };
-    Ok((field, report))
+    Ok(Arc::new(d))
+}
+
+/// One level's evolution, with the distance computed on the band's blocks
+/// first (the evolution adds blocks as the band moves), so its cost shows
+/// as such; records the distance's size.
+fn solve_level<const D: usize>(
+    band: &mut NarrowBand<D>,
+    d: &mut BandDistance<D>,
+    params: &ReconstructParams,
+    stage: Stage,
+    report: &mut Report,
+) {
+    report.time("distance", || d.cover(band));
+    evolve_level(band, d, params, stage, report);
+    report.distance_blocks = d.grid().blocks().len();
+    report.distance_bytes = d.memory_bytes();
 }
 
 fn validate<const D: usize>(input: &Input, params: &ReconstructParams) -> Result<()> {
@@ -428,9 +490,17 @@ fn fine_grid<const D: usize>(
     let per_level = params.band.ceil() as usize + crate::band::BORDER + 3;
     let padding = per_level << (levels - 1);
     let spec = GridSpec::from_bounds(lo, hi, size, padding)?;
-    // φ, d (f64 each), marks (u32), tags and labels (u8 each), headroom.
-    spec.check_memory(32)?;
-    if spec.node_count() > u32::MAX as usize {
+    // Dense arrays live on the coarsest level only: d (f64), tags and
+    // labels (u8 each), the band's first dense φ (f64), headroom. Finer
+    // levels hold blocks near the surface plus 3 block tables (u32 per
+    // block); the dense output field needs φ, d and flags per fine node.
+    coarsen(&spec, 1 << (levels - 1)).check_memory(32)?;
+    if params.full_field {
+        spec.check_memory(24)?;
+    }
+    // Band keys are u32: block index and node index inside the block.
+    let blocks: usize = spec.dims.iter().map(|n| n.div_ceil(BLOCK)).product();
+    if blocks.saturating_mul(BLOCK.pow(D as u32)) > u32::MAX as usize {
         return Err(LevelsetError::InvalidParameter {
             name: "resolution",
             message: format!("grid {} has more than 2^32 nodes", spec.dims_string()),
@@ -446,7 +516,7 @@ fn initial_band<const D: usize>(
     sampling: f64,
     d: &Field<D>,
     report: &mut Report,
-) -> NarrowBand<D> {
+) -> Result<NarrowBand<D>> {
     let h = d.spec.spacing;
     let auto = 3.0 * h.max(sampling);
     let epsilon = params.epsilon.unwrap_or(auto);
@@ -476,9 +546,9 @@ fn initial_band<const D: usize>(
         remove_unsupported(&d.spec, &mut inside, &data_nodes)
     });
     report.time("reinit", || {
-        let mut band = NarrowBand::from_inside(d.spec, &inside, params.band * h);
+        let mut band = NarrowBand::from_inside(d.spec, &inside, params.band * h)?;
         reinitialize(&mut band);
-        band
+        Ok(band)
     })
 }
 
@@ -511,7 +581,7 @@ const COARSE_TOLERANCE: f64 = 2.0;
 /// convection that settles the zero set onto the data.
 fn evolve_level<const D: usize>(
     band: &mut NarrowBand<D>,
-    d: &Field<D>,
+    d: &mut BandDistance<D>,
     params: &ReconstructParams,
     stage: Stage,
     report: &mut Report,
@@ -570,31 +640,181 @@ fn thinned(input: &Input, cell: f64) -> Input {
 /// Cells around the data where finer levels compute the exact distance.
 const FINE_EXACT_CELLS: f64 = 2.0;
 
-/// Distance on a finer level: exact within a few cells of the data (where
-/// the surface settles and accuracy matters), the coarser level's distance
+/// Distance on a finer level, computed block by block as the band needs
+/// it: exact within `band_cells` cells of the data (where the surface
+/// settles and accuracy matters), the coarsest level's distance
 /// interpolated elsewhere (its error there, O(coarse h), only affects how
-/// fast far-away parts move). Saves the full-grid sweeps on the fine grid.
+/// fast far-away parts move). No work or memory off the band.
 fn refined_distance<const D: usize>(
     input: &Input,
     spec: GridSpec<D>,
-    coarse: &Field<D>,
+    coarse: Arc<Field<D>>,
     band_cells: f64,
-) -> Result<Field<D>> {
-    // Defaults for any other option, present or future.
-    #[allow(clippy::needless_update)]
-    let options = distance::DistanceOptions {
-        band_cells,
-        propagate: false,
-        ..Default::default()
-    };
-    let mut exact = distance::unsigned_distance_with(&data_set::<D>(input), &spec, &options)?.field;
-    let far = upsample(coarse, spec);
-    for (e, f) in exact.values.iter_mut().zip(far.values) {
-        if !e.is_finite() {
-            *e = f;
+) -> Result<BandDistance<D>> {
+    let data = data_set::<D>(input);
+    data.validate()?;
+    let radius = band_cells * spec.spacing;
+    let bins = DataBins::new(&data, &spec, radius);
+    BandDistance::new(
+        spec,
+        Box::new(move |coord, values| {
+            exact_block(&data, &bins, &spec, radius, coord, values);
+            for (local, v) in values.iter_mut().enumerate() {
+                if !v.is_finite() {
+                    *v = interpolate(&coarse, spec.position(block_node::<D>(coord, local)));
+                }
+            }
+        }),
+    )
+}
+
+/// Global index of node `local` of block `coord`.
+fn block_node<const D: usize>(coord: [usize; D], local: usize) -> [usize; D] {
+    let bits = BLOCK.trailing_zeros() as usize;
+    std::array::from_fn(|a| coord[a] * BLOCK + ((local >> (bits * a)) & (BLOCK - 1)))
+}
+
+/// Per block of the grid, the data whose reach (box grown by the radius)
+/// touches it: compressed rows, block linear index axis 0 fastest.
+struct DataBins {
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl DataBins {
+    fn new<const D: usize>(data: &DataSet<D>, spec: &GridSpec<D>, radius: f64) -> Self {
+        let dims = spec.dims.map(|n| n.div_ceil(BLOCK));
+        let blocks: usize = dims.iter().product();
+        let linear = |c: [usize; D]| (0..D).rev().fold(0, |l, a| l * dims[a] + c[a]);
+        let ranges: Vec<Option<([usize; D], [usize; D])>> = (0..data.len())
+            .map(|i| {
+                node_range(spec, data.datum_bounds(i), radius)
+                    .map(|(lo, hi)| (lo.map(|x| x / BLOCK), hi.map(|x| x / BLOCK)))
+            })
+            .collect();
+        let mut count = vec![0u32; blocks + 1];
+        for &(lo, hi) in ranges.iter().flatten() {
+            for_each_in_box(lo, hi, |c| count[linear(c) + 1] += 1);
+        }
+        for b in 0..blocks {
+            count[b + 1] += count[b];
+        }
+        let mut next = count.clone();
+        let mut items = vec![0u32; count[blocks] as usize];
+        for (i, r) in ranges.iter().enumerate() {
+            if let Some((lo, hi)) = *r {
+                for_each_in_box(lo, hi, |c| {
+                    let b = linear(c);
+                    items[next[b] as usize] = i as u32;
+                    next[b] += 1;
+                });
+            }
+        }
+        DataBins {
+            start: count,
+            items,
         }
     }
-    Ok(exact)
+}
+
+/// Nodes within `radius` of the box `lo..hi` (per axis, clamped to the
+/// grid), if any.
+fn node_range<const D: usize>(
+    spec: &GridSpec<D>,
+    (lo, hi): ([f64; D], [f64; D]),
+    radius: f64,
+) -> Option<([usize; D], [usize; D])> {
+    let mut first = [0usize; D];
+    let mut last = [0usize; D];
+    for a in 0..D {
+        let top = (spec.dims[a] - 1) as f64;
+        let f = ((lo[a] - radius - spec.origin[a]) / spec.spacing).ceil();
+        let l = ((hi[a] + radius - spec.origin[a]) / spec.spacing).floor();
+        if f > top || l < 0.0 || f > l {
+            return None;
+        }
+        first[a] = f.max(0.0) as usize;
+        last[a] = l.min(top) as usize;
+    }
+    Some((first, last))
+}
+
+/// Visit every index of the box `first..=last`, axis 0 fastest.
+fn for_each_in_box<const D: usize>(
+    first: [usize; D],
+    last: [usize; D],
+    mut visit: impl FnMut([usize; D]),
+) {
+    let mut idx = first;
+    loop {
+        visit(idx);
+        let mut a = 0;
+        loop {
+            if a == D {
+                return;
+            }
+            if idx[a] < last[a] {
+                idx[a] += 1;
+                break;
+            }
+            idx[a] = first[a];
+            a += 1;
+        }
+    }
+}
+
+/// Exact distances on block `coord` at the nodes in reach of a datum (as
+/// the grid crate's exact band: a point reaches the nodes within `radius`,
+/// a segment or triangle those of its box grown by `radius`); other nodes
+/// get infinity. Ties go to the smaller datum index.
+fn exact_block<const D: usize>(
+    data: &DataSet<D>,
+    bins: &DataBins,
+    spec: &GridSpec<D>,
+    radius: f64,
+    coord: [usize; D],
+    values: &mut [f64],
+) {
+    let dims = spec.dims.map(|n| n.div_ceil(BLOCK));
+    let b = (0..D).rev().fold(0, |l, a| l * dims[a] + coord[a]);
+    let mut best = vec![(f64::INFINITY, u32::MAX); Block::<D>::LEN];
+    let (block_lo, block_hi): ([usize; D], [usize; D]) = (
+        coord.map(|c| c * BLOCK),
+        std::array::from_fn(|a| coord[a] * BLOCK + BLOCK - 1),
+    );
+    let r2 = radius * radius;
+    let bits = BLOCK.trailing_zeros() as usize;
+    for &i in &bins.items[bins.start[b] as usize..bins.start[b + 1] as usize] {
+        let Some((lo, hi)) = node_range(spec, data.datum_bounds(i as usize), radius) else {
+            continue;
+        };
+        let lo: [usize; D] = std::array::from_fn(|a| lo[a].max(block_lo[a]));
+        let hi: [usize; D] = std::array::from_fn(|a| hi[a].min(block_hi[a]));
+        if (0..D).any(|a| lo[a] > hi[a]) {
+            continue;
+        }
+        let point = data.points.get(i as usize);
+        for_each_in_box(lo, hi, |idx| {
+            let p = spec.position(idx);
+            let d2 = data.distance_squared(i as usize, &p);
+            // Points reach a ball (with slack for rounding, as the grid's band).
+            if point.is_some() && d2 > r2 * (1.0 + 1e-12) {
+                return;
+            }
+            let local = (0..D).fold(0, |l, a| l | ((idx[a] - block_lo[a]) << (bits * a)));
+            let cur = &mut best[local];
+            if d2 < cur.0 || (d2 == cur.0 && i < cur.1) {
+                *cur = (d2, i);
+            }
+        });
+    }
+    for (local, (v, &(_, i))) in values.iter_mut().zip(&best).enumerate() {
+        *v = if i == u32::MAX {
+            f64::INFINITY
+        } else {
+            data.distance(i as usize, &spec.position(block_node::<D>(coord, local)))
+        };
+    }
 }
 
 fn data_set<const D: usize>(input: &Input) -> DataSet<D> {

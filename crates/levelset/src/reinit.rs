@@ -12,74 +12,67 @@
 //! grid volume; each layer is computed in parallel from earlier layers only,
 //! so the result is independent of the thread count.
 
-use crate::band::{has_sign_change, inside, is_inner, NarrowBand};
+use crate::band::{inside, join, NarrowBand, BORDER};
 use rayon::prelude::*;
 use surfrecon_grid::sweep::fast_sweep;
 use surfrecon_grid::Field;
 
-/// Recompute φ as signed distance in the band and rebuild the band list.
+/// Recompute φ as signed distance in the band and rebuild the band list;
+/// blocks left without band nodes become tiles again.
 pub fn reinitialize<const D: usize>(band: &mut NarrowBand<D>) {
-    let spec = band.phi.spec;
-    let h = spec.spacing;
-    let strides = spec.strides();
+    let h = band.spec().spacing;
     let w = band.half_width;
     // Mark the old band so interface nodes just outside it can be found.
     let old_mark = next_epoch(band, 1);
-    for &l in &band.active {
-        band.marks[l as usize] = old_mark;
+    for &k in &band.active {
+        band.marks[k as usize] = old_mark;
     }
-    let interface = interface_nodes(band, old_mark, &strides);
+    let interface = interface_nodes(band, old_mark);
 
     let max_layers = (w / h).ceil() as u32 + 2;
     let base = next_epoch(band, max_layers + 1);
-    let phi = &band.phi.values;
+    let b = &*band;
     let first: Vec<f64> = interface
         .par_iter()
-        .map(|&l| interface_distance(phi, l as usize, &strides, h))
+        .map(|&k| interface_distance(b, k, h))
         .collect();
     let mut accepted = Vec::with_capacity(band.active.len() + interface.len());
     let mut frontier = Vec::with_capacity(interface.len());
-    for (&l, &v) in interface.iter().zip(&first) {
-        band.phi.values[l as usize] = v;
-        band.marks[l as usize] = base;
-        accepted.push(l);
-        frontier.push(l);
+    for (&k, &v) in interface.iter().zip(&first) {
+        band.set(k, v);
+        band.marks[k as usize] = base;
+        accepted.push(k);
+        frontier.push(k);
     }
     for layer in 1..max_layers {
-        let candidates = next_layer(band, &frontier, base, base + layer, &strides);
-        let phi = &band.phi.values;
-        let marks = &band.marks;
+        let candidates = next_layer(band, &frontier, base, base + layer);
+        let b = &*band;
         let first: Vec<f64> = candidates
             .par_iter()
-            .map(|&l| godunov_from_layers(phi, marks, l as usize, &strides, h, base, base + layer))
+            .map(|&k| godunov_from_layers(b, k, h, base, base + layer))
             .collect();
         // A second (Jacobi) pass lets nodes of this layer lean on each other,
         // which the first pass could not: values only decrease towards the
         // true distance, and the order of nodes does not matter.
         let mut values = first.clone();
-        for (&l, &v) in candidates.iter().zip(&first) {
-            let old = &mut band.phi.values[l as usize];
-            *old = if inside(*old) { -v } else { v };
+        for (&k, &v) in candidates.iter().zip(&first) {
+            let old = band.value(k);
+            band.set(k, if inside(old) { -v } else { v });
         }
-        let phi = &band.phi.values;
-        values.par_iter_mut().zip(&candidates).for_each(|(v, &l)| {
-            let again =
-                godunov_from_layers(phi, marks, l as usize, &strides, h, base, base + layer + 1);
+        let b = &*band;
+        values.par_iter_mut().zip(&candidates).for_each(|(v, &k)| {
+            let again = godunov_from_layers(b, k, h, base, base + layer + 1);
             *v = v.min(again);
         });
         frontier.clear();
-        for (&l, &v) in candidates.iter().zip(&values) {
-            let s = if inside(band.phi.values[l as usize]) {
-                -1.0
-            } else {
-                1.0
-            };
+        for (&k, &v) in candidates.iter().zip(&values) {
+            let s = if inside(band.value(k)) { -1.0 } else { 1.0 };
             if v < w {
-                band.phi.values[l as usize] = s * v;
-                accepted.push(l);
-                frontier.push(l);
+                band.set(k, s * v);
+                accepted.push(k);
+                frontier.push(k);
             } else {
-                band.phi.values[l as usize] = s * w;
+                band.set(k, s * w);
             }
         }
         if frontier.is_empty() {
@@ -88,33 +81,34 @@ pub fn reinitialize<const D: usize>(band: &mut NarrowBand<D>) {
     }
     // Old band nodes no longer reached keep their side, clamped.
     let top = base + max_layers;
-    for &l in &band.active {
-        let m = band.marks[l as usize];
-        if !(base..top).contains(&m) {
-            let v = &mut band.phi.values[l as usize];
-            *v = if inside(*v) { -w } else { w };
+    for i in 0..band.active.len() {
+        let k = band.active[i];
+        if !(base..top).contains(&band.marks[k as usize]) {
+            let v = band.value(k);
+            band.set(k, if inside(v) { -w } else { w });
         }
     }
-    accepted.par_sort_unstable();
-    band.active = accepted;
+    band.set_band(accepted);
 }
 
-/// φ as a signed distance on the whole grid: the band values are kept and
-/// the rest is filled by fast sweeping from them (sign from the side each
-/// node is on). Costs O(grid); only for writing the field out.
+/// φ as a signed distance on the whole (dense) grid: the band values are
+/// kept and the rest is filled by fast sweeping from them (sign from the
+/// side each node is on). Costs O(grid); only for writing the field out.
 pub fn signed_distance_everywhere<const D: usize>(band: &NarrowBand<D>) -> Field<D> {
-    let spec = band.phi.spec;
+    let phi = band.phi.to_dense();
+    if band.active.is_empty() {
+        return phi;
+    }
+    let spec = phi.spec;
     let mut frozen = vec![false; spec.node_count()];
     let mut unsigned = Field::filled(spec, f64::INFINITY);
-    for &l in &band.active {
-        frozen[l as usize] = true;
-        unsigned.values[l as usize] = band.phi.values[l as usize].abs();
-    }
-    if band.active.is_empty() {
-        return band.phi.clone();
+    for &k in &band.active {
+        let l = spec.linear(band.node(k));
+        frozen[l] = true;
+        unsigned.values[l] = band.value(k).abs();
     }
     fast_sweep(&mut unsigned, &frozen);
-    for (u, &v) in unsigned.values.iter_mut().zip(&band.phi.values) {
+    for (u, &v) in unsigned.values.iter_mut().zip(&phi.values) {
         if inside(v) {
             *u = -*u;
         }
@@ -134,30 +128,55 @@ fn next_epoch<const D: usize>(band: &mut NarrowBand<D>, span: u32) -> u32 {
     first
 }
 
+/// The neighbour of inner node `key` along `axis` as a key, allocating its
+/// block if it is a tile; `None` within the border.
+fn neighbour_key<const D: usize>(
+    band: &mut NarrowBand<D>,
+    key: u32,
+    axis: usize,
+    forward: bool,
+) -> Option<u32> {
+    let mut idx = band.node(key);
+    idx[axis] = if forward {
+        idx[axis] + 1
+    } else {
+        idx[axis].checked_sub(1)?
+    };
+    // `key` is inner, so only this axis can reach the border.
+    if idx[axis] < BORDER || idx[axis] + BORDER >= band.spec().dims[axis] {
+        return None;
+    }
+    if let (Some(n), _) = band.neighbour(key, band.block_values(key), axis, forward) {
+        return Some(n);
+    }
+    band.allocate(idx);
+    let (b, l) = band.phi.locate(idx)?;
+    Some(join::<D>(b, l))
+}
+
 /// Band nodes with a sign change to a neighbour, plus such neighbours that
 /// lie outside the band (the zero set may have reached the band's edge).
-fn interface_nodes<const D: usize>(
-    band: &mut NarrowBand<D>,
-    old_mark: u32,
-    strides: &[usize; D],
-) -> Vec<u32> {
-    let spec = band.phi.spec;
-    let phi = &band.phi.values;
+fn interface_nodes<const D: usize>(band: &mut NarrowBand<D>, old_mark: u32) -> Vec<u32> {
+    let b = &*band;
     let mut nodes: Vec<u32> = band
         .active
         .par_iter()
         .copied()
-        .filter(|&l| has_sign_change(phi, l as usize, strides))
+        .filter(|&k| b.has_sign_change(k))
         .collect();
     let mut extra = Vec::new();
-    for &l in &nodes {
-        let l = l as usize;
-        let s = inside(phi[l]);
-        for &st in strides {
-            for n in [l - st, l + st] {
-                if band.marks[n] != old_mark && inside(phi[n]) != s && is_inner(&spec, n) {
-                    band.marks[n] = old_mark;
-                    extra.push(n as u32);
+    for &k in &nodes {
+        let s = inside(band.value(k));
+        for a in 0..D {
+            for f in [false, true] {
+                if inside(band.value_at(k, a, f)) == s {
+                    continue;
+                }
+                if let Some(n) = neighbour_key(band, k, a, f) {
+                    if band.marks[n as usize] != old_mark {
+                        band.marks[n as usize] = old_mark;
+                        extra.push(n);
+                    }
                 }
             }
         }
@@ -166,16 +185,17 @@ fn interface_nodes<const D: usize>(
     nodes
 }
 
-/// Signed distance from node `l` to the interpolated zero set through the
-/// grid edges at `l` that cross it.
-fn interface_distance<const D: usize>(phi: &[f64], l: usize, strides: &[usize; D], h: f64) -> f64 {
-    let v = phi[l];
+/// Signed distance from node `key` to the interpolated zero set through
+/// the grid edges at the node that cross it.
+fn interface_distance<const D: usize>(band: &NarrowBand<D>, key: u32, h: f64) -> f64 {
+    let values = band.block_values(key);
+    let v = band.value(key);
     let s = inside(v);
     let mut inv_sq = 0.0;
-    for &st in strides {
+    for a in 0..D {
         let mut da = f64::INFINITY;
-        for n in [l - st, l + st] {
-            let vn = phi[n];
+        for forward in [false, true] {
+            let vn = band.neighbour(key, values, a, forward).1;
             if inside(vn) != s {
                 let theta = v / (v - vn);
                 da = da.min(theta.clamp(0.0, 1.0) * h);
@@ -197,47 +217,86 @@ fn interface_distance<const D: usize>(phi: &[f64], l: usize, strides: &[usize; D
 
 /// Unvisited inner neighbours of `frontier`, stamped `stamp`; nodes with a
 /// stamp in `base..=stamp` were already visited by this reinitialization.
+/// The neighbours are found in parallel; stamping (and allocating the
+/// blocks of tiles reached) follows in frontier order, so the result does
+/// not depend on the thread count.
 fn next_layer<const D: usize>(
     band: &mut NarrowBand<D>,
     frontier: &[u32],
     base: u32,
     stamp: u32,
-    strides: &[usize; D],
 ) -> Vec<u32> {
-    let spec = band.phi.spec;
-    let mut out = Vec::new();
-    for &l in frontier {
-        let l = l as usize;
-        for &st in strides {
-            for n in [l - st, l + st] {
-                if (base..=stamp).contains(&band.marks[n]) || !is_inner(&spec, n) {
-                    continue;
+    let b = &*band;
+    let visited = |n: u32| (base..=stamp).contains(&b.marks[n as usize]);
+    let found: Vec<Found> = frontier
+        .par_iter()
+        .flat_map_iter(|&k| {
+            let values = b.block_values(k);
+            let mut out = Vec::with_capacity(2 * D);
+            for a in 0..D {
+                for forward in [false, true] {
+                    match b.neighbour(k, values, a, forward).0 {
+                        Some(n) if !visited(n) && inner_step(b, k, a, forward) => {
+                            out.push(Found::Node(n))
+                        }
+                        Some(_) => {}
+                        None => out.push(Found::Tile(k, a, forward)),
+                    }
                 }
-                band.marks[n] = stamp;
-                out.push(n as u32);
             }
+            out
+        })
+        .collect();
+    let mut out = Vec::with_capacity(found.len());
+    for f in found {
+        let n = match f {
+            Found::Node(n) => n,
+            Found::Tile(k, a, forward) => match neighbour_key(band, k, a, forward) {
+                Some(n) => n,
+                None => continue,
+            },
+        };
+        if (base..=stamp).contains(&band.marks[n as usize]) {
+            continue;
         }
+        band.marks[n as usize] = stamp;
+        out.push(n);
     }
     out
 }
 
-/// Upwind Godunov solution of |∇u| = 1 at `l` from the neighbours stamped
-/// in `base..current` (earlier layers), using their absolute values.
+/// A neighbour found by [`next_layer`]: an allocated node, or the step from
+/// a node into a tile (whose block is allocated when stamped).
+enum Found {
+    Node(u32),
+    Tile(u32, usize, bool),
+}
+
+/// Whether the neighbour of inner node `key` along `axis` is inner too
+/// (only that axis can reach the border).
+fn inner_step<const D: usize>(band: &NarrowBand<D>, key: u32, axis: usize, forward: bool) -> bool {
+    let i = band.node(key)[axis];
+    let n = if forward { i + 1 } else { i - 1 };
+    n >= BORDER && n + BORDER < band.spec().dims[axis]
+}
+
+/// Upwind Godunov solution of |∇u| = 1 at `key` from the neighbours
+/// stamped in `base..current` (earlier layers), using their absolute values.
 fn godunov_from_layers<const D: usize>(
-    phi: &[f64],
-    marks: &[u32],
-    l: usize,
-    strides: &[usize; D],
+    band: &NarrowBand<D>,
+    key: u32,
     h: f64,
     base: u32,
     current: u32,
 ) -> f64 {
-    let known = |n: usize| (base..current).contains(&marks[n]);
+    let values = band.block_values(key);
     let mut u = [f64::INFINITY; D];
-    for (a, &st) in strides.iter().enumerate() {
-        for n in [l - st, l + st] {
-            if known(n) {
-                u[a] = u[a].min(phi[n].abs());
+    for (a, ua) in u.iter_mut().enumerate() {
+        for forward in [false, true] {
+            if let (Some(n), v) = band.neighbour(key, values, a, forward) {
+                if (base..current).contains(&band.marks[n as usize]) {
+                    *ua = ua.min(v.abs());
+                }
             }
         }
     }
@@ -262,7 +321,7 @@ mod tests {
                 scale * ((x * x + y * y).sqrt() - r)
             })
             .collect();
-        let band = NarrowBand::from_field(Field { spec, values }, 4.0 * spec.spacing);
+        let band = NarrowBand::from_field(Field { spec, values }, 4.0 * spec.spacing).unwrap();
         (band, spec)
     }
 
@@ -272,10 +331,10 @@ mod tests {
         let (mut band, spec) = circle_band(3.0);
         reinitialize(&mut band);
         assert!(band.len() > 100);
-        for &l in &band.active {
-            let [x, y] = spec.position(spec.unlinear(l as usize));
+        for &k in &band.active {
+            let [x, y] = spec.position(band.node(k));
             let exact = (x * x + y * y).sqrt() - 0.6;
-            let got = band.phi.values[l as usize];
+            let got = band.value(k);
             assert!((got - exact).abs() < 0.3 * spec.spacing, "{got} vs {exact}");
             assert!(got.abs() < band.half_width);
         }

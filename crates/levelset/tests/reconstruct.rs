@@ -369,11 +369,12 @@ fn two_levels_match_the_single_level_accuracy() {
     assert!(c < 0.5 * h, "chamfer {c} vs h {h}");
     // The full field is a signed distance everywhere: compare with the
     // exact sphere distance at every node (first-order sweeping: ≤ 2h).
-    let spec = r.field.spec;
+    let field = r.field.as_ref().expect("full field asked for");
+    let spec = field.spec;
     let worst = (0..spec.node_count())
         .map(|l| {
             let [x, y, z] = spec.position(spec.unlinear(l));
-            (r.field.values[l] - (DVec3::new(x, y, z).length() - 1.0)).abs()
+            (field.values[l] - (DVec3::new(x, y, z).length() - 1.0)).abs()
         })
         .fold(0.0, f64::max);
     assert!(worst < 2.0 * h, "signed distance off by {worst} (h {h})");
@@ -531,4 +532,48 @@ fn scan_holes_are_closed_without_handles() {
     // The patches over the holes stay near the sphere (their sagitta).
     assert!(worst < 2.0 * h, "worst {worst} vs h {h}");
     assert!(ended_by_convergence(&r.report), "{:?}", r.report);
+}
+
+#[test]
+fn band_memory_follows_the_surface_area() {
+    // The same sphere at two resolutions, one level each: the band's
+    // blocks (and the distance's) grow like the area (×4 per doubling of
+    // the resolution), far below the volume's ×8.
+    let points = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 20_000, 21).positions;
+    let exact = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 5000, 22).positions;
+    let run = |resolution: usize| {
+        let p = ReconstructParams {
+            levels: Some(1),
+            ..params(resolution)
+        };
+        let r = reconstruct_3d(&Input::from_points(points.clone()), &p).unwrap();
+        let (watertight, euler, comps) = topology(&r.mesh);
+        assert!(watertight && euler == 2 && comps == 1);
+        let h = r.report.spacing;
+        let c = chamfer(&r.mesh, |v| v.length() - 1.0, &exact);
+        assert!(c < 0.5 * h, "chamfer {c} vs h {h} at {resolution}");
+        // Extraction from the blocks equals extraction from the dense φ.
+        let dense = surfrecon_grid::marching::marching_cubes(&r.dense_field(), 0.0);
+        assert_eq!(dense.triangles.len(), r.mesh.triangles.len());
+        let nodes: usize = r.report.dims.iter().product();
+        (r.report, nodes)
+    };
+    let (coarse, coarse_nodes) = run(48);
+    let (fine, fine_nodes) = run(96);
+    let ratio = |a: usize, b: usize| b as f64 / a as f64;
+    let blocks = ratio(coarse.band_blocks, fine.band_blocks);
+    let distance = ratio(coarse.distance_blocks, fine.distance_blocks);
+    let bytes = ratio(coarse.band_bytes, fine.band_bytes);
+    assert!((3.0..5.0).contains(&blocks), "band blocks ×{blocks}");
+    assert!(
+        (3.0..5.5).contains(&distance),
+        "distance blocks ×{distance}"
+    );
+    assert!(bytes < 5.5, "band bytes ×{bytes}");
+    eprintln!("band blocks ×{blocks}, distance blocks ×{distance}, band bytes ×{bytes}");
+    // The grid itself grew like the volume (less its fixed padding).
+    assert!(ratio(coarse_nodes, fine_nodes) > 5.0);
+    // And the band's blocks hold a minor share of the fine grid already.
+    let share = (fine.band_blocks * 512) as f64 / fine_nodes as f64;
+    assert!(share < 0.5, "band blocks hold {share} of the grid");
 }

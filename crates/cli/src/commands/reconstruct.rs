@@ -147,12 +147,12 @@ fn run_levelset(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Resu
     let spinner = ctx.spinner("reconstructing");
     let (output, report, counts) = if two_d {
         let r = reconstruct_2d(&input, &params(args)).context("level-set reconstruction failed")?;
-        write_field_outputs(args, &r.field)?;
+        write_field_outputs(args, || r.dense_field())?;
         let counts = json!({"vertices": r.curves.vertices.len(), "curves": r.curves.lines.len()});
         (Geometry::from_polylines(r.curves), r.report, counts)
     } else {
         let r = reconstruct_3d(&input, &params(args)).context("level-set reconstruction failed")?;
-        write_field_outputs(args, &r.field)?;
+        write_field_outputs(args, || r.dense_field())?;
         let counts =
             json!({"vertices": r.mesh.vertices.len(), "triangles": r.mesh.triangles.len()});
         (Geometry::from_mesh(r.mesh), r.report, counts)
@@ -178,10 +178,16 @@ fn is_planar(input: &Input) -> bool {
     }
 }
 
+/// `field` gives the dense φ (the reconstruction keeps it sparse): called
+/// only when a field or shell file is asked for.
 fn write_field_outputs<const D: usize>(
     args: &Args,
-    field: &surfrecon_grid::Field<D>,
+    field: impl FnOnce() -> surfrecon_grid::Field<D>,
 ) -> anyhow::Result<()> {
+    if args.field.is_none() && args.shell.is_none() {
+        return Ok(());
+    }
+    let field = &field();
     if let Some(path) = &args.field {
         surfrecon_grid::field_io::write_field(path, field)
             .with_context(|| format!("cannot write field {}", path.display()))?;

@@ -1,0 +1,427 @@
+//! Parallel contour slices (MRI, CT or serial sections): points and curves
+//! that lie on a few parallel planes.
+//!
+//! Between two slices the data say nothing, and the weighted minimal
+//! surface spans the gap with a membrane that sags towards the data and is
+//! piecewise flat. For such stacks the surface is instead interpolated
+//! between the slices' own shapes ("shape-based interpolation"): each
+//! slice's contours are reconstructed as closed curves by the 2D level-set
+//! method, each gives a signed distance in its plane, and the 3D field
+//! blends the two slices around every point linearly along the stacking
+//! axis. A cross-section thus morphs from one contour into the next. Past
+//! the end slices the field closes the surface within half a slice gap.
+
+use crate::reconstruct::{reconstruct_field, Input, ReconstructParams};
+use crate::Result;
+use rayon::prelude::*;
+use surfrecon_geom::spatial::KdTree;
+use surfrecon_geom::DVec3;
+use surfrecon_grid::{Field, GridSpec};
+
+/// Most slices a stack may have (more are a dense scan, not a stack).
+const MAX_SLICES: usize = 512;
+/// Fewest points on a slice.
+const MIN_SLICE_POINTS: usize = 8;
+/// Cells along the longest axis of the stack by default.
+const DEFAULT_RESOLUTION: usize = 128;
+/// The outer contour of a slice's 2D reconstruction lies this share of its
+/// widest contour gap out, so that it bridges the gap with room to spare.
+const GAP_BRIDGE: f64 = 0.6;
+/// Points sharing a plane agree to this share of the data's extent.
+const PLANE_TOLERANCE: f64 = 1e-9;
+
+/// Points grouped by the plane (perpendicular to `axis`) they lie on.
+#[derive(Clone, Debug)]
+pub struct SliceStack {
+    /// Coordinate axis the planes are perpendicular to.
+    pub axis: usize,
+    /// Plane positions along `axis`, ascending.
+    pub levels: Vec<f64>,
+    /// The data of each plane (points and segments), in the plane's
+    /// coordinates: the two other axes in order, z = 0.
+    pub slices: Vec<Input>,
+}
+
+impl SliceStack {
+    /// The in-plane axes, in order.
+    pub fn plane_axes(&self) -> [usize; 2] {
+        plane_axes(self.axis)
+    }
+
+    /// Median distance between consecutive planes.
+    pub fn gap(&self) -> f64 {
+        let mut gaps: Vec<f64> = self.levels.windows(2).map(|w| w[1] - w[0]).collect();
+        gaps.sort_by(f64::total_cmp);
+        gaps[gaps.len() / 2]
+    }
+}
+
+/// The stack `input` forms, if its points and curves lie on at least two
+/// planes perpendicular to one coordinate axis (and the other two axes do
+/// not look the same, as voxel centres would). Triangles make no stack.
+pub fn detect_slices(input: &Input) -> Option<SliceStack> {
+    if !input.triangles.is_empty() {
+        return None;
+    }
+    let vertices: Vec<DVec3> = input
+        .points
+        .iter()
+        .chain(input.segments.iter().flatten())
+        .copied()
+        .collect();
+    if vertices.len() < 2 * MIN_SLICE_POINTS {
+        return None;
+    }
+    let groups: Vec<Option<Vec<f64>>> = (0..3).map(|a| planes(&vertices, a)).collect();
+    let sliced: Vec<usize> = (0..3).filter(|&a| groups[a].is_some()).collect();
+    let &[axis] = sliced.as_slice() else {
+        return None;
+    };
+    let levels = groups[axis].clone()?;
+    let tolerance = plane_tolerance(&vertices, axis);
+    let plane_of = |p: &DVec3| levels.partition_point(|&l| l < p[axis] - tolerance);
+    let [u, v] = plane_axes(axis);
+    let flat = |p: &DVec3| DVec3::new(p[u], p[v], 0.0);
+    let mut slices: Vec<Input> = vec![Input::default(); levels.len()];
+    for p in &input.points {
+        slices[plane_of(p)].points.push(flat(p));
+    }
+    for [a, b] in &input.segments {
+        let k = plane_of(a);
+        if plane_of(b) != k {
+            return None;
+        }
+        slices[k].segments.push([flat(a), flat(b)]);
+    }
+    Some(SliceStack {
+        axis,
+        levels,
+        slices,
+    })
+}
+
+/// The two axes other than `axis`, in order.
+fn plane_axes(axis: usize) -> [usize; 2] {
+    match axis {
+        0 => [1, 2],
+        1 => [0, 2],
+        _ => [0, 1],
+    }
+}
+
+fn plane_tolerance(points: &[DVec3], axis: usize) -> f64 {
+    let (lo, hi) = points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p[axis]), hi.max(p[axis]))
+        });
+    PLANE_TOLERANCE * (hi - lo).max(f64::MIN_POSITIVE)
+}
+
+/// Positions of the planes perpendicular to `axis` that hold all
+/// `points`, if they are a plausible stack.
+fn planes(points: &[DVec3], axis: usize) -> Option<Vec<f64>> {
+    let mut values: Vec<f64> = points.iter().map(|p| p[axis]).collect();
+    values.sort_by(f64::total_cmp);
+    let tolerance = plane_tolerance(points, axis);
+    let mut planes: Vec<(f64, usize)> = Vec::new();
+    for &x in &values {
+        if let Some((level, count)) = planes.last_mut() {
+            if x - *level <= tolerance {
+                *count += 1;
+                continue;
+            }
+        }
+        if planes.len() == MAX_SLICES {
+            return None;
+        }
+        planes.push((x, 1));
+    }
+    let plausible = planes.len() >= 2
+        && planes.len() * 4 * MIN_SLICE_POINTS <= points.len()
+        && planes.iter().all(|(_, count)| *count >= MIN_SLICE_POINTS);
+    plausible.then(|| planes.into_iter().map(|(level, _)| level).collect())
+}
+
+/// The field φ (negative inside) interpolated between the slices' 2D
+/// reconstructions on a 3D grid; `params` are used for each slice's 2D
+/// level-set run. The spacing comes from `params.resolution` (cells along
+/// the longest axis), else [`DEFAULT_RESOLUTION`].
+pub fn interpolate_slices(stack: &SliceStack, params: &ReconstructParams) -> Result<Field<3>> {
+    let cells = params.resolution.unwrap_or(DEFAULT_RESOLUTION).max(1);
+    let spacing = stack_extent(stack) / cells as f64;
+    let gap = stack.gap();
+    let spec = stack_grid(stack, spacing, gap)?;
+    // The field, and each slice's section over the plane.
+    spec.check_memory(8 + 8 * stack.levels.len() / spec.dims[stack.axis].max(1))?;
+    let [u, v] = stack.plane_axes();
+    let plane = GridSpec::<2> {
+        origin: [spec.origin[u], spec.origin[v]],
+        spacing,
+        dims: [spec.dims[u], spec.dims[v]],
+    };
+    let sections: Vec<Vec<f64>> = stack
+        .slices
+        .iter()
+        .map(|points| section(points, &plane, params))
+        .collect::<Result<_>>()?;
+    let depth: Vec<f64> = sections
+        .iter()
+        .map(|s| s.iter().fold(0.0f64, |m, &x| m.max(-x)))
+        .collect();
+    let values = (0..spec.node_count())
+        .into_par_iter()
+        .map(|l| {
+            let idx = spec.unlinear(l);
+            let at = plane.linear([idx[u], idx[v]]);
+            let s = spec.origin[stack.axis] + idx[stack.axis] as f64 * spacing;
+            blend(stack, &sections, &depth, gap, at, s)
+        })
+        .collect();
+    Ok(Field { spec, values })
+}
+
+/// φ at plane node `at` and stacking coordinate `s`: linear between the
+/// two slices around `s`; past an end slice, its section shrunk so that
+/// its deepest point closes half a gap beyond.
+fn blend(
+    stack: &SliceStack,
+    sections: &[Vec<f64>],
+    depth: &[f64],
+    gap: f64,
+    at: usize,
+    s: f64,
+) -> f64 {
+    let levels = &stack.levels;
+    let last = levels.len() - 1;
+    let cap = |k: usize, beyond: f64| sections[k][at] + beyond * depth[k].max(gap) / (0.5 * gap);
+    if s <= levels[0] {
+        return cap(0, levels[0] - s);
+    }
+    if s >= levels[last] {
+        return cap(last, s - levels[last]);
+    }
+    let k = levels.partition_point(|&l| l <= s) - 1;
+    let t = (s - levels[k]) / (levels[k + 1] - levels[k]);
+    (1.0 - t) * sections[k][at] + t * sections[k + 1][at]
+}
+
+/// The grid over the stack: the slices' extent in the plane, half a gap
+/// beyond the end slices along the axis, and a margin of cells around.
+fn stack_grid(stack: &SliceStack, spacing: f64, gap: f64) -> Result<GridSpec<3>> {
+    let [u, v] = stack.plane_axes();
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in stack.slices.iter().flat_map(vertices) {
+        lo[u] = lo[u].min(p.x);
+        hi[u] = hi[u].max(p.x);
+        lo[v] = lo[v].min(p.y);
+        hi[v] = hi[v].max(p.y);
+    }
+    lo[stack.axis] = stack.levels[0] - 0.5 * gap;
+    hi[stack.axis] = stack.levels[stack.levels.len() - 1] + 0.5 * gap;
+    Ok(GridSpec::<3>::from_bounds(
+        lo,
+        hi,
+        surfrecon_grid::GridSize::Spacing(spacing),
+        3,
+    )?)
+}
+
+/// The widest gap along the contours formed by `points` (in a plane): a
+/// gap shows as a point whose nearest neighbour on the far side (away from
+/// its nearest neighbour) is far. A slice through an open scan has open
+/// contours, and the outer distance contour of the 2D reconstruction must
+/// bridge their gaps, or the inside leaks out.
+pub fn widest_gap(points: &[DVec3]) -> f64 {
+    let tree = KdTree::new(points);
+    points
+        .par_iter()
+        .filter_map(|&p| far_side_gap(&tree, points, p))
+        .reduce(|| 0.0, f64::max)
+}
+
+/// Distance from `p` to the nearest point on the far side of it from its
+/// nearest neighbour; at the edge of a gap that point lies across the gap,
+/// beyond many neighbours on the near side, so the search widens until it
+/// finds one. `None` at the end of an open curve.
+fn far_side_gap(tree: &KdTree, points: &[DVec3], p: DVec3) -> Option<f64> {
+    let mut k = 12;
+    loop {
+        let near = tree.knn(p, k);
+        let first = points[near.get(1)?.index] - p;
+        if let Some(n) = near[2..]
+            .iter()
+            .find(|n| (points[n.index] - p).dot(first) < 0.0)
+        {
+            return Some(n.distance);
+        }
+        if near.len() < k {
+            return None;
+        }
+        k *= 4;
+    }
+}
+
+/// Longest extent of the stack (in the planes, and between the end slices).
+fn stack_extent(stack: &SliceStack) -> f64 {
+    let (lo, hi) = stack
+        .slices
+        .iter()
+        .flat_map(vertices)
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        });
+    let across = stack.levels[stack.levels.len() - 1] - stack.levels[0];
+    (hi - lo).max_element().max(across)
+}
+
+/// The points and segment ends of a slice.
+fn vertices(input: &Input) -> impl Iterator<Item = DVec3> + '_ {
+    input
+        .points
+        .iter()
+        .chain(input.segments.iter().flatten())
+        .copied()
+}
+
+/// The points of a slice and points along its segments, at most `step`
+/// apart: what the gaps are measured on.
+fn samples(input: &Input, step: f64) -> Vec<DVec3> {
+    let mut samples = input.points.clone();
+    for [a, b] in &input.segments {
+        let n = (a.distance(*b) / step).ceil().max(1.0) as usize;
+        samples.extend((0..=n).map(|i| a.lerp(*b, i as f64 / n as f64)));
+    }
+    samples
+}
+
+/// One slice's signed distance at the nodes of `plane`: its data
+/// reconstructed as closed curves by the 2D level-set method, whose field
+/// is resampled (beyond its own grid, growing with the distance to it).
+fn section(slice: &Input, plane: &GridSpec<2>, params: &ReconstructParams) -> Result<Vec<f64>> {
+    let (lo, hi) = vertices(slice).fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+        (lo.min(p), hi.max(p))
+    });
+    let extent = (hi - lo).max_element();
+    let bridge = GAP_BRIDGE * widest_gap(&samples(slice, 0.5 * plane.spacing));
+    let slice_params = ReconstructParams {
+        resolution: Some(((extent / plane.spacing).ceil() as usize).max(8)),
+        epsilon: (bridge > 3.0 * plane.spacing).then_some(bridge),
+        full_field: true,
+        levels: None,
+        clean: false,
+        ..params.clone()
+    };
+    let (band, field, _) = reconstruct_field::<2>(slice, &slice_params)?;
+    // `full_field` asks for the dense signed distance.
+    let field = field.unwrap_or_else(|| band.to_dense());
+    Ok((0..plane.node_count())
+        .into_par_iter()
+        .map(|l| {
+            let p = plane.position(plane.unlinear(l));
+            let inside: [f64; 2] = std::array::from_fn(|a| {
+                let last =
+                    field.spec.origin[a] + (field.spec.dims[a] - 1) as f64 * field.spec.spacing;
+                p[a].clamp(field.spec.origin[a], last)
+            });
+            let outside = ((p[0] - inside[0]).powi(2) + (p[1] - inside[1]).powi(2)).sqrt();
+            crate::multires::interpolate(&field, inside) + outside
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sphere_slices(count: usize, per_slice: usize) -> Vec<DVec3> {
+        let mut points = Vec::new();
+        for k in 0..count {
+            let z = -1.0 + (k as f64 + 0.5) * 2.0 / count as f64;
+            let r = (1.0 - z * z).sqrt();
+            for i in 0..per_slice {
+                let t = i as f64 / per_slice as f64 * std::f64::consts::TAU;
+                points.push(DVec3::new(r * t.cos(), r * t.sin(), z));
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn stacks_are_detected_and_other_data_are_not() {
+        let stack = detect_slices(&Input::from_points(sphere_slices(10, 100))).expect("a stack");
+        assert_eq!((stack.axis, stack.levels.len()), (2, 10));
+        assert!(stack.slices.iter().all(|s| s.points.len() == 100));
+        assert!((stack.gap() - 0.2).abs() < 1e-12);
+        // A scan (points everywhere on the sphere) is no stack.
+        let scan = surfrecon_geom::shapes::sample_surface(
+            &surfrecon_geom::shapes::icosphere(DVec3::ZERO, 1.0, 4),
+            4000,
+            3,
+        );
+        assert!(detect_slices(&Input::from_points(scan.positions)).is_none());
+        // Voxel centres lie on few planes along every axis: no stack either.
+        let voxels: Vec<DVec3> = (0..1000)
+            .map(|i| DVec3::new((i % 10) as f64, (i / 10 % 10) as f64, (i / 100) as f64))
+            .collect();
+        assert!(detect_slices(&Input::from_points(voxels)).is_none());
+    }
+
+    /// The contours of `sphere_slices` as closed polylines.
+    fn contour_curves(count: usize, per_slice: usize) -> Input {
+        let points = sphere_slices(count, per_slice);
+        let segments = points
+            .chunks(per_slice)
+            .flat_map(|ring| (0..ring.len()).map(move |i| [ring[i], ring[(i + 1) % ring.len()]]))
+            .collect();
+        Input {
+            segments,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn curves_on_planes_form_a_stack_and_curves_across_them_do_not() {
+        let mut curves = contour_curves(8, 40);
+        let stack = detect_slices(&curves).expect("a stack");
+        assert_eq!(stack.levels.len(), 8);
+        assert!(stack.slices.iter().all(|s| s.segments.len() == 40));
+        curves
+            .segments
+            .push([DVec3::new(0.0, 0.0, -0.875), DVec3::new(0.0, 0.0, -0.625)]);
+        assert!(detect_slices(&curves).is_none());
+    }
+
+    #[test]
+    fn sliced_spheres_are_interpolated_between_their_contours() {
+        check_sliced_sphere(&Input::from_points(sphere_slices(12, 300)));
+        check_sliced_sphere(&contour_curves(12, 60));
+    }
+
+    fn check_sliced_sphere(input: &Input) {
+        let stack = detect_slices(input).expect("a stack");
+        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
+        let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
+        let topology = surfrecon_geom::metrics::topology(&mesh);
+        assert!(topology.watertight && topology.edge_manifold);
+        assert_eq!((topology.components, topology.euler), (1, 2));
+        // Between the slices the radius is interpolated linearly: within
+        // the chord sag of the sphere's profile, away from the poles.
+        let h = field.spec.spacing;
+        let worst = mesh
+            .vertices
+            .iter()
+            .filter(|v| v.z.abs() <= 0.75)
+            .map(|v| (v.length() - 1.0).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.03 && worst < 2.0 * h, "worst {worst}, h {h}");
+        // The caps close within half a gap beyond the end slices.
+        let top = mesh.vertices.iter().map(|v| v.z).fold(f64::MIN, f64::max);
+        let last = stack.levels[stack.levels.len() - 1];
+        assert!(
+            top > last && top <= last + 0.5 * stack.gap() + h,
+            "top {top}"
+        );
+    }
+}
