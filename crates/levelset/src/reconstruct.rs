@@ -1,19 +1,23 @@
 //! The reconstruction pipeline: data → cleaning → distance → tagging →
 //! convection → minimal surface flow → settling convection (coarse to
-//! fine) → mesh or curves.
+//! fine) → mesh or curves → in 3D, refinement. Stacks of contour slices
+//! take the [`crate::slices`] path instead.
 
 use crate::band::{BandDistance, NarrowBand};
 use crate::cleaning::{clean_points, CleaningStats};
 use crate::error::{LevelsetError, Result};
 use crate::flow::{evolve, EvolveParams, EvolveStats, Motion};
 use crate::multires::{auto_levels, coarsen, interpolate, upsample_band};
+use crate::refine::{refine_surface, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
+use crate::slices::{detect_slices, interpolate_slices, SliceStack};
 use crate::tagging::{remove_unsupported, tag, BoundingBox};
 use std::sync::Arc;
 use std::time::Instant;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, Polylines, TriMesh};
 use surfrecon_grid::distance::{self, DataSet};
+use surfrecon_grid::marching::marching_cubes;
 use surfrecon_grid::sparse::{marching_cubes_sparse, Block, BlockGrid, BLOCK};
 use surfrecon_grid::{Field, Field2, Field3, GridSize, GridSpec};
 
@@ -112,6 +116,13 @@ pub struct ReconstructParams {
     /// Remove outliers and project noisy points onto their neighbours'
     /// plane before anything else ([`crate::cleaning`]).
     pub clean: bool,
+    /// 3D: snap the surface onto the point data and fair the patches over
+    /// gaps in scans ([`crate::refine`]).
+    pub refine: bool,
+    /// 3D: data on a few parallel planes (contour slices) are interpolated
+    /// between the slices' 2D reconstructions ([`crate::slices`]) instead
+    /// of evolved in 3D.
+    pub slices: bool,
 }
 
 impl Default for ReconstructParams {
@@ -129,6 +140,8 @@ impl Default for ReconstructParams {
             full_field: false,
             clean: true,
             keep_topology: true,
+            refine: true,
+            slices: true,
         }
     }
 }
@@ -168,6 +181,11 @@ pub struct Report {
     pub flow: Vec<EvolveStats>,
     /// The final convection after the flow (finest level only).
     pub settle: Vec<EvolveStats>,
+    /// What the 3D refinement did (all zero when off or in 2D).
+    pub refine: RefineStats,
+    /// Axis and number of the contour slices when the data formed a stack
+    /// (then no level-set evolution in 3D ran).
+    pub slices: Option<(usize, usize)>,
     /// Seconds per stage, in execution order (stages repeat per level).
     pub timings: Vec<(String, f64)>,
 }
@@ -231,13 +249,51 @@ impl Reconstruction2 {
 
 /// Reconstruct a closed surface from 3D data.
 pub fn reconstruct_3d(input: &Input, params: &ReconstructParams) -> Result<Reconstruction3> {
-    let (phi, field, mut report) = reconstruct_field::<3>(input, params)?;
+    validate::<3>(input, params)?;
+    if params.slices {
+        if let Some(stack) = detect_slices(input) {
+            return reconstruct_stack(&stack, params);
+        }
+    }
+    let mut report = Report::default();
+    let input = cleaned(input, params, 3, &mut report);
+    let (phi, field) = evolve_field::<3>(&input, params, &mut report)?;
     // Straight from the blocks: same triangles as on the dense φ.
-    let mesh = report.time("extract", || marching_cubes_sparse(&phi, 0.0));
+    let mut mesh = report.time("extract", || marching_cubes_sparse(&phi, 0.0));
+    if params.refine && !input.points.is_empty() {
+        // Gaps are measured from the points: curves and patches bound them
+        // elsewhere, so with them present no patch is faired.
+        let fair_gaps = input.segments.is_empty() && input.triangles.is_empty();
+        report.refine = report.time("refine", || {
+            refine_surface(&mut mesh, &input.points, phi.spec().spacing, fair_gaps)
+        });
+    }
     Ok(Reconstruction3 {
         mesh,
         phi,
         field,
+        report,
+    })
+}
+
+/// A stack of contour slices: the field interpolated between the slices'
+/// 2D reconstructions, and its zero set.
+fn reconstruct_stack(stack: &SliceStack, params: &ReconstructParams) -> Result<Reconstruction3> {
+    let mut report = Report {
+        slices: Some((stack.axis, stack.levels.len())),
+        levels: 1,
+        ..Default::default()
+    };
+    let field = report.time("slices", || interpolate_slices(stack, params))?;
+    report.dims = field.spec.dims.to_vec();
+    report.spacing = field.spec.spacing;
+    let mesh = report.time("extract", || marching_cubes(&field, 0.0));
+    let phi = BlockGrid::from_dense_band(&field, params.band * field.spec.spacing)?;
+    report.band_blocks = phi.blocks().len();
+    Ok(Reconstruction3 {
+        mesh,
+        phi,
+        field: params.full_field.then_some(field),
         report,
     })
 }
@@ -266,19 +322,36 @@ pub fn reconstruct_field<const D: usize>(
 ) -> Result<(BlockGrid<D>, Option<Field<D>>, Report)> {
     validate::<D>(input, params)?;
     let mut report = Report::default();
-    let cleaned;
-    let input = if params.clean {
-        let (points, stats) = report.time("cleaning", || clean_points(&input.points, D));
-        report.cleaning = stats;
-        cleaned = Input {
-            points,
-            segments: input.segments.clone(),
-            triangles: input.triangles.clone(),
-        };
-        &cleaned
-    } else {
-        input
-    };
+    let input = cleaned(input, params, D, &mut report);
+    let (phi, field) = evolve_field::<D>(&input, params, &mut report)?;
+    Ok((phi, field, report))
+}
+
+/// The input with its points cleaned when `params.clean` asks for it.
+fn cleaned<'a>(
+    input: &'a Input,
+    params: &ReconstructParams,
+    dim: usize,
+    report: &mut Report,
+) -> std::borrow::Cow<'a, Input> {
+    if !params.clean {
+        return std::borrow::Cow::Borrowed(input);
+    }
+    let (points, stats) = report.time("cleaning", || clean_points(&input.points, dim));
+    report.cleaning = stats;
+    std::borrow::Cow::Owned(Input {
+        points,
+        segments: input.segments.clone(),
+        triangles: input.triangles.clone(),
+    })
+}
+
+/// [`reconstruct_field`] on validated, cleaned input.
+fn evolve_field<const D: usize>(
+    input: &Input,
+    params: &ReconstructParams,
+    report: &mut Report,
+) -> Result<(BlockGrid<D>, Option<Field<D>>)> {
     let sampling = sampling_spacing(input);
     let fine = fine_grid::<D>(input, params, sampling)?;
     let levels = params
@@ -294,13 +367,13 @@ pub fn reconstruct_field<const D: usize>(
     let coarsest_d = report.time("distance", || {
         coarsest_distance(input, coarsest_spec, levels > 1)
     })?;
-    let mut band = initial_band(input, params, sampling, &coarsest_d, &mut report)?;
+    let mut band = initial_band(input, params, sampling, &coarsest_d, report)?;
     let mut d = BandDistance::dense(coarsest_d.clone())?;
     let stage = Stage {
         coarsest: true,
         finest: levels == 1,
     };
-    solve_level(&mut band, &mut d, params, stage, &mut report);
+    solve_level(&mut band, &mut d, params, stage, report);
     // Finer levels: the distance only on the band's blocks.
     for level in (0..levels - 1).rev() {
         let spec = coarsen(&fine, 1 << level);
@@ -316,7 +389,7 @@ pub fn reconstruct_field<const D: usize>(
             coarsest: false,
             finest: level == 0,
         };
-        solve_level(&mut band, &mut d, params, stage, &mut report);
+        solve_level(&mut band, &mut d, params, stage, report);
     }
     report.band_nodes = band.len();
     report.band_blocks = band.block_count();
@@ -324,7 +397,7 @@ pub fn reconstruct_field<const D: usize>(
     let field = params
         .full_field
         .then(|| report.time("full field", || signed_distance_everywhere(&band)));
-    Ok((band.phi, field, report))
+    Ok((band.phi, field))
 }
 
 /// The coarsest level's unsigned distance on the whole grid. Below finer

@@ -58,6 +58,14 @@ pub struct Args {
     /// Use the points as given: no outlier removal, no noise smoothing.
     #[arg(long)]
     pub no_cleaning: bool,
+    /// Keep the surface as the level set left it: no snapping onto the
+    /// points, no fairing of the patches over gaps.
+    #[arg(long)]
+    pub no_refine: bool,
+    /// Evolve stacks of parallel contour slices in 3D like any data,
+    /// instead of interpolating between the slices' 2D reconstructions.
+    #[arg(long)]
+    pub no_slices: bool,
     /// Also write the signed distance field (.nrrd or .vtk).
     #[arg(long, value_name = "F.nrrd")]
     pub field: Option<PathBuf>,
@@ -121,6 +129,8 @@ fn params(args: &Args) -> ReconstructParams {
         bounding_box: args.bounding_box,
         clean: !args.no_cleaning,
         keep_topology: !args.free_topology,
+        refine: !args.no_refine,
+        slices: !args.no_slices,
         // The shell needs only the nodes next to the surface (in the band).
         full_field: args.field.is_some(),
         ..Default::default()
@@ -219,10 +229,13 @@ fn summarize(
     let total: f64 = report.timings.iter().map(|(_, t)| t).sum();
     ctx.say(format!(
         "reconstructed {} on a {} grid (h = {:.4}, {} level(s)) in {:.2} s -> {}",
-        if two_d {
-            "closed curves"
-        } else {
-            "a closed surface"
+        match (two_d, report.slices) {
+            (true, _) => "closed curves".to_string(),
+            (false, None) => "a closed surface".to_string(),
+            (false, Some((axis, count))) => format!(
+                "a closed surface between {count} contour slices across {}",
+                ["x", "y", "z"][axis]
+            ),
         },
         dims.join("x"),
         report.spacing,
@@ -268,6 +281,8 @@ fn summarize(
         "convection": steps(&report.convection),
         "flow": steps(&report.flow),
         "settle": steps(&report.settle),
+        "refine": {"snapped": report.refine.snapped, "faired": report.refine.faired, "max_fairing_shift": report.refine.max_fairing_shift},
+        "slices": report.slices.map(|(axis, count)| json!({"axis": axis, "count": count})),
         "timings": stages,
         "seconds_total": total,
         "output_counts": counts,
