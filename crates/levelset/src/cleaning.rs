@@ -58,6 +58,11 @@ const OFF_SURFACE_SHARE: f64 = 0.25;
 /// normals are within about 30°: data along a curved curve (a contour
 /// slice) fit a plane across the surface, not along it.
 const SAME_SURFACE: f64 = 0.85;
+/// A fit whose points scatter off it by more than this share of the
+/// neighbourhood radius (RMS) spans more than one sheet of surface (both
+/// sides of a thin part, such as an ear) or heavy noise: projecting onto it
+/// would pull both sides onto their middle.
+const ONE_SHEET: f64 = 0.03;
 /// Projections of noisy data: the second, on the already smoothed points,
 /// averages what the first left (on the bunny with 1% noise: Chamfer −5%).
 const PROJECTION_PASSES: usize = 2;
@@ -355,7 +360,8 @@ pub fn project_onto_points(
             match fit {
                 Some(fit)
                     if fit.point.distance(*v) <= reach
-                        && fit.normal.dot(*normal).abs() >= SAME_SURFACE =>
+                        && fit.normal.dot(*normal).abs() >= SAME_SURFACE
+                        && fit.residual <= ONE_SHEET * fit.radius =>
                 {
                     *v = fit.point;
                     1
