@@ -36,6 +36,28 @@ pub struct GridSpec<const D: usize> {
 }
 
 impl<const D: usize> GridSpec<D> {
+    /// The range of node indices within `radius` of the box `lo..hi`,
+    /// clamped to the grid; `None` when it misses the grid.
+    pub fn node_box(
+        &self,
+        (lo, hi): ([f64; D], [f64; D]),
+        radius: f64,
+    ) -> Option<([usize; D], [usize; D])> {
+        let mut first = [0usize; D];
+        let mut last = [0usize; D];
+        for a in 0..D {
+            let top = (self.dims[a] - 1) as f64;
+            let f = ((lo[a] - radius - self.origin[a]) / self.spacing).ceil();
+            let l = ((hi[a] + radius - self.origin[a]) / self.spacing).floor();
+            if f > top || l < 0.0 || f > l {
+                return None;
+            }
+            first[a] = f.max(0.0) as usize;
+            last[a] = l.min(top) as usize;
+        }
+        Some((first, last))
+    }
+
     pub fn node_count(&self) -> usize {
         self.dims.iter().product()
     }
@@ -255,6 +277,31 @@ impl<const D: usize> Field<D> {
     pub fn set(&mut self, idx: [usize; D], v: f64) {
         let l = self.spec.linear(idx);
         self.values[l] = v;
+    }
+}
+
+/// Visit every index of the box `first..=last` (axis 0 fastest).
+#[inline(always)]
+pub fn for_each_in_box<const D: usize>(
+    first: [usize; D],
+    last: [usize; D],
+    mut visit: impl FnMut(&[usize; D]),
+) {
+    let mut idx = first;
+    loop {
+        visit(&idx);
+        let mut a = 0;
+        loop {
+            if a == D {
+                return;
+            }
+            if idx[a] < last[a] {
+                idx[a] += 1;
+                break;
+            }
+            idx[a] = first[a];
+            a += 1;
+        }
     }
 }
 

@@ -19,6 +19,7 @@ use surfrecon_geom::{DVec3, Geometry, Polylines, TriMesh};
 use surfrecon_grid::distance::{self, DataSet};
 use surfrecon_grid::marching::marching_cubes;
 use surfrecon_grid::sparse::{marching_cubes_sparse, Block, BlockGrid, BLOCK};
+use surfrecon_grid::spec::for_each_in_box;
 use surfrecon_grid::{Field, Field2, Field3, GridSize, GridSpec};
 
 /// The data to reconstruct from: any mix of points, segments (curves) and
@@ -761,13 +762,13 @@ impl DataBins {
         let linear = |c: [usize; D]| (0..D).rev().fold(0, |l, a| l * dims[a] + c[a]);
         let ranges: Vec<Option<([usize; D], [usize; D])>> = (0..data.len())
             .map(|i| {
-                node_range(spec, data.datum_bounds(i), radius)
+                spec.node_box(data.datum_bounds(i), radius)
                     .map(|(lo, hi)| (lo.map(|x| x / BLOCK), hi.map(|x| x / BLOCK)))
             })
             .collect();
         let mut count = vec![0u32; blocks + 1];
         for &(lo, hi) in ranges.iter().flatten() {
-            for_each_in_box(lo, hi, |c| count[linear(c) + 1] += 1);
+            for_each_in_box(lo, hi, |&c| count[linear(c) + 1] += 1);
         }
         for b in 0..blocks {
             count[b + 1] += count[b];
@@ -776,7 +777,7 @@ impl DataBins {
         let mut items = vec![0u32; count[blocks] as usize];
         for (i, r) in ranges.iter().enumerate() {
             if let Some((lo, hi)) = *r {
-                for_each_in_box(lo, hi, |c| {
+                for_each_in_box(lo, hi, |&c| {
                     let b = linear(c);
                     items[next[b] as usize] = i as u32;
                     next[b] += 1;
@@ -786,52 +787,6 @@ impl DataBins {
         DataBins {
             start: count,
             items,
-        }
-    }
-}
-
-/// Nodes within `radius` of the box `lo..hi` (per axis, clamped to the
-/// grid), if any.
-fn node_range<const D: usize>(
-    spec: &GridSpec<D>,
-    (lo, hi): ([f64; D], [f64; D]),
-    radius: f64,
-) -> Option<([usize; D], [usize; D])> {
-    let mut first = [0usize; D];
-    let mut last = [0usize; D];
-    for a in 0..D {
-        let top = (spec.dims[a] - 1) as f64;
-        let f = ((lo[a] - radius - spec.origin[a]) / spec.spacing).ceil();
-        let l = ((hi[a] + radius - spec.origin[a]) / spec.spacing).floor();
-        if f > top || l < 0.0 || f > l {
-            return None;
-        }
-        first[a] = f.max(0.0) as usize;
-        last[a] = l.min(top) as usize;
-    }
-    Some((first, last))
-}
-
-/// Visit every index of the box `first..=last`, axis 0 fastest.
-fn for_each_in_box<const D: usize>(
-    first: [usize; D],
-    last: [usize; D],
-    mut visit: impl FnMut([usize; D]),
-) {
-    let mut idx = first;
-    loop {
-        visit(idx);
-        let mut a = 0;
-        loop {
-            if a == D {
-                return;
-            }
-            if idx[a] < last[a] {
-                idx[a] += 1;
-                break;
-            }
-            idx[a] = first[a];
-            a += 1;
         }
     }
 }
@@ -858,7 +813,7 @@ fn exact_block<const D: usize>(
     let r2 = radius * radius;
     let bits = BLOCK.trailing_zeros() as usize;
     for &i in &bins.items[bins.start[b] as usize..bins.start[b + 1] as usize] {
-        let Some((lo, hi)) = node_range(spec, data.datum_bounds(i as usize), radius) else {
+        let Some((lo, hi)) = spec.node_box(data.datum_bounds(i as usize), radius) else {
             continue;
         };
         let lo: [usize; D] = std::array::from_fn(|a| lo[a].max(block_lo[a]));
@@ -867,7 +822,7 @@ fn exact_block<const D: usize>(
             continue;
         }
         let point = data.points.get(i as usize);
-        for_each_in_box(lo, hi, |idx| {
+        for_each_in_box(lo, hi, |&idx| {
             let p = spec.position(idx);
             let d2 = data.distance_squared(i as usize, &p);
             // Points reach a ball (with slack for rounding, as the grid's band).

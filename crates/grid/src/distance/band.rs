@@ -3,6 +3,7 @@
 
 use super::primitives::dist2;
 use super::{DataSet, NO_DATUM};
+use crate::spec::for_each_in_box;
 use crate::GridSpec;
 use rayon::prelude::*;
 
@@ -77,53 +78,6 @@ impl<const D: usize> SortedData<D> {
     }
 }
 
-/// Range of node indices within `radius` of the box `lo..hi`, clamped to
-/// the grid; `None` when it misses the grid.
-pub(super) fn node_box<const D: usize>(
-    spec: &GridSpec<D>,
-    (lo, hi): ([f64; D], [f64; D]),
-    radius: f64,
-) -> Option<([usize; D], [usize; D])> {
-    let mut first = [0usize; D];
-    let mut last = [0usize; D];
-    for a in 0..D {
-        let top = (spec.dims[a] - 1) as f64;
-        let f = ((lo[a] - radius - spec.origin[a]) / spec.spacing).ceil();
-        let l = ((hi[a] + radius - spec.origin[a]) / spec.spacing).floor();
-        if f > top || l < 0.0 || f > l {
-            return None;
-        }
-        first[a] = f.max(0.0) as usize;
-        last[a] = l.min(top) as usize;
-    }
-    Some((first, last))
-}
-
-/// Visit every node index in the box `first..=last` (axis 0 fastest).
-#[inline(always)]
-pub(super) fn for_each_in_box<const D: usize>(
-    first: [usize; D],
-    last: [usize; D],
-    mut visit: impl FnMut(&[usize; D]),
-) {
-    let mut idx = first;
-    loop {
-        visit(&idx);
-        let mut a = 0;
-        loop {
-            if a == D {
-                return;
-            }
-            if idx[a] < last[a] {
-                idx[a] += 1;
-                break;
-            }
-            idx[a] = first[a];
-            a += 1;
-        }
-    }
-}
-
 /// Stage 1: exact squared distances and closest data at the nodes within
 /// `radii[kind]` of each datum (points, segments, triangles), with their
 /// feet; the other nodes stay empty. Parallel over fixed slabs; ties go to
@@ -141,7 +95,7 @@ pub(super) fn exact_band<const D: usize>(
     let radius_of = |i: usize| radii[kinds.iter().position(|k| k.end > i).unwrap_or(2)];
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); slabs];
     for i in 0..data.len() {
-        if let Some((first, last)) = node_box(spec, data.datum_bounds(i), radius_of(i)) {
+        if let Some((first, last)) = spec.node_box(data.datum_bounds(i), radius_of(i)) {
             for bin in &mut bins[first[last_axis] / SLAB_LAYERS..=last[last_axis] / SLAB_LAYERS] {
                 bin.push(i as u32);
             }
@@ -162,7 +116,7 @@ pub(super) fn exact_band<const D: usize>(
             for &i in bin {
                 let radius = radius_of(i as usize);
                 let Some((mut first, mut last)) =
-                    node_box(spec, data.datum_bounds(i as usize), radius)
+                    spec.node_box(data.datum_bounds(i as usize), radius)
                 else {
                     continue;
                 };

@@ -21,9 +21,10 @@
 //! already covers that region, because dense samples hide points between
 //! the nodes, where no propagation can find them.
 
-use super::band::{for_each_in_box, Node};
+use super::band::Node;
 use super::primitives::dist2;
 use super::{DataSet, NO_DATUM};
+use crate::spec::for_each_in_box;
 use crate::GridSpec;
 use rayon::prelude::*;
 
