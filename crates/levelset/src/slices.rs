@@ -242,19 +242,20 @@ pub fn widest_gap(points: &[DVec3]) -> f64 {
 }
 
 /// Distance from `p` to the nearest point on the far side of it from its
-/// nearest neighbour; at the edge of a gap that point lies across the gap,
-/// beyond many neighbours on the near side, so the search widens until it
-/// finds one. `None` at the end of an open curve.
+/// nearest neighbour (coincident points aside); at the edge of a gap that
+/// point lies across the gap, beyond many neighbours on the near side, so
+/// the search widens until it finds one. `None` at the end of an open
+/// curve.
 fn far_side_gap(tree: &KdTree, points: &[DVec3], p: DVec3) -> Option<f64> {
     let mut k = 12;
     loop {
         let near = tree.knn(p, k);
-        let first = points[near.get(1)?.index] - p;
-        if let Some(n) = near[2..]
-            .iter()
-            .find(|n| (points[n.index] - p).dot(first) < 0.0)
-        {
-            return Some(n.distance);
+        let mut others = near.iter().filter(|n| n.distance > 0.0);
+        if let Some(first) = others.next() {
+            let towards = points[first.index] - p;
+            if let Some(n) = others.find(|n| (points[n.index] - p).dot(towards) < 0.0) {
+                return Some(n.distance);
+            }
         }
         if near.len() < k {
             return None;
@@ -379,6 +380,23 @@ mod tests {
             segments,
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn the_widest_gap_along_a_contour_is_found() {
+        // 400 points on a unit circle with one arc of 0.5 rad left out,
+        // each point twice (as where polylines join).
+        let points: Vec<DVec3> = (0..400)
+            .map(|i| 0.5 + i as f64 / 400.0 * (std::f64::consts::TAU - 0.5))
+            .flat_map(|t| [DVec3::new(t.cos(), t.sin(), 0.0); 2])
+            .collect();
+        let chord = 2.0 * (0.25f64).sin();
+        let step = (std::f64::consts::TAU - 0.5) / 400.0;
+        assert!(
+            (widest_gap(&points) - chord).abs() < step,
+            "{}",
+            widest_gap(&points)
+        );
     }
 
     #[test]
