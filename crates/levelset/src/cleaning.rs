@@ -327,12 +327,13 @@ pub struct SurfaceFit {
 }
 
 /// Move each vertex of a reconstructed surface (curve in 2D) onto the
-/// quadric fitted to its nearest data points, where they are surface-like
-/// and the nearest is within `reach`. The evolved zero set lies on the data
-/// only to a fraction of a cell; the fit places it between the samples.
-/// Vertices spanning gaps (nearest datum beyond `reach`) stay, and none
-/// moves farther than `reach`, so the mesh keeps its connectivity and,
-/// for `reach` under a cell, does not fold. Returns how many moved.
+/// quadric fitted to its nearest data points, where they are surface-like,
+/// the nearest is within `reach`, the fit's normal agrees with the
+/// vertex's (`normals`, one per vertex) and the points form one sheet. The
+/// evolved zero set lies on the data only to a fraction of a cell; the fit
+/// places it between the samples. Vertices spanning gaps (nearest datum
+/// beyond `reach`) stay, and none moves farther than `reach`, so the mesh
+/// keeps its connectivity. Returns how many moved.
 pub fn project_onto_points(
     vertices: &mut [DVec3],
     normals: &[DVec3],
