@@ -64,9 +64,10 @@ pub fn fair(mesh: &mut TriMesh, free: &[bool], options: &FairingOptions) -> Fair
         return stats;
     }
     let before: Vec<DVec3> = unknowns.iter().map(|&v| mesh.vertices[v]).collect();
+    let ring = graph.with_neighbours(&unknowns);
     for axis in 0..3 {
         let mut x: Vec<f64> = mesh.vertices.iter().map(|p| p[axis]).collect();
-        let iterations = graph.solve_bilaplace(&mut x, &unknowns, options);
+        let iterations = graph.solve_bilaplace(&mut x, &unknowns, &ring, options);
         stats.iterations = stats.iterations.max(iterations);
         for &v in &unknowns {
             mesh.vertices[v][axis] = x[v];
@@ -195,27 +196,28 @@ impl Graph {
 
     /// Solve (K²)_ff x_f = −(K²)_fb x_b for the `unknowns` (f) of `x`, the
     /// other entries (b) staying fixed; conjugate gradients from the
-    /// current values. Returns the iterations used.
+    /// current values. `ring` is the unknowns with their neighbours
+    /// ([`Graph::with_neighbours`]). Returns the iterations used.
     fn solve_bilaplace(
         &self,
         x: &mut [f64],
         unknowns: &[usize],
+        ring: &[usize],
         options: &FairingOptions,
     ) -> usize {
-        let ring = self.with_neighbours(unknowns);
         let m = unknowns.len();
         let mut kx = vec![0.0; x.len()];
         // The residual at the current x, and the right-hand side's norm
         // (the same with the unknowns at zero).
         let mut r = vec![0.0; m];
-        self.bilaplace_on(x, &ring, unknowns, &mut kx, &mut r);
+        self.bilaplace_on(x, ring, unknowns, &mut kx, &mut r);
         r.iter_mut().for_each(|v| *v = -*v);
         let mut fixed_only = x.to_vec();
         for &u in unknowns {
             fixed_only[u] = 0.0;
         }
         let mut b = vec![0.0; m];
-        self.bilaplace_on(&fixed_only, &ring, unknowns, &mut kx, &mut b);
+        self.bilaplace_on(&fixed_only, ring, unknowns, &mut kx, &mut b);
         let goal = options.tolerance.powi(2) * b.iter().map(|v| v * v).sum::<f64>();
         // The search direction lives on the unknowns; `full` holds it at
         // their places and zero elsewhere.
@@ -230,7 +232,7 @@ impl Graph {
             for (&u, &pv) in unknowns.iter().zip(&p) {
                 full[u] = pv;
             }
-            self.bilaplace_on(&full, &ring, unknowns, &mut kx, &mut ap);
+            self.bilaplace_on(&full, ring, unknowns, &mut kx, &mut ap);
             let pap: f64 = p.iter().zip(&ap).map(|(a, b)| a * b).sum();
             // Converged to rounding (or a NaN): no further step helps.
             if pap.is_nan() || pap <= 0.0 {

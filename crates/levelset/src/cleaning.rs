@@ -333,29 +333,32 @@ pub struct SurfaceFit {
 /// evolved zero set lies on the data only to a fraction of a cell; the fit
 /// places it between the samples. Vertices spanning gaps (nearest datum
 /// beyond `reach`) stay, and none moves farther than `reach`, so the mesh
-/// keeps its connectivity. Returns how many moved.
+/// keeps its connectivity.
 pub fn project_onto_points(
     vertices: &mut [DVec3],
     normals: &[DVec3],
     points: &[DVec3],
     fit: &SurfaceFit,
-) -> usize {
+) -> Projection {
     let SurfaceFit {
         dim,
         reach,
         neighbours,
     } = *fit;
     if points.len() < neighbours {
-        return 0;
+        return Projection {
+            moved: 0,
+            supported: vec![false; vertices.len()],
+        };
     }
     let tree = KdTree::new(points);
-    vertices
+    let outcomes: Vec<(bool, bool)> = vertices
         .par_iter_mut()
         .zip(normals)
         .map(|(v, normal)| {
             let near = tree.knn(*v, neighbours);
             if near.first().is_none_or(|n| n.distance > reach) {
-                return 0;
+                return (false, false);
             }
             let fit = project(*v, near.iter().map(|n| points[n.index]), dim);
             match fit {
@@ -365,12 +368,28 @@ pub fn project_onto_points(
                         && fit.residual <= ONE_SHEET * fit.radius =>
                 {
                     *v = fit.point;
-                    1
+                    (true, true)
                 }
-                _ => 0,
+                _ => (true, false),
             }
         })
-        .sum()
+        .collect();
+    Projection {
+        moved: outcomes.iter().filter(|(_, moved)| *moved).count(),
+        supported: outcomes
+            .into_iter()
+            .map(|(supported, _)| supported)
+            .collect(),
+    }
+}
+
+/// What [`project_onto_points`] did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Projection {
+    /// Vertices moved onto a fit.
+    pub moved: usize,
+    /// Per vertex: a data point lay within `reach` of it (before moving).
+    pub supported: Vec<bool>,
 }
 
 /// Every point projected onto its neighbours' quadric (where surface-like).
@@ -554,7 +573,7 @@ mod tests {
         };
         let before = error(&vertices);
         let normals = radial(&vertices);
-        let moved = project_onto_points(&mut vertices, &normals, &samples, &fit(0.05));
+        let moved = project_onto_points(&mut vertices, &normals, &samples, &fit(0.05)).moved;
         assert!(
             moved * 100 >= vertices.len() * 95,
             "{moved} of {}",
@@ -597,7 +616,7 @@ mod tests {
         let mut vertices = original.clone();
         let normals = radial(&original);
         assert_eq!(
-            project_onto_points(&mut vertices, &normals, &circle, &fit(0.3)),
+            project_onto_points(&mut vertices, &normals, &circle, &fit(0.3)).moved,
             0
         );
         assert_eq!(vertices, original);

@@ -10,9 +10,7 @@
 //! only move vertices, so the mesh stays watertight and manifold.
 
 use crate::cleaning::{project_onto_points, SurfaceFit};
-use rayon::prelude::*;
 use surfrecon_geom::fairing::{area_weighted_normals, fair, FairingOptions};
-use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, TriMesh};
 
 /// Vertices within this many cells of a data point are supported: they
@@ -53,25 +51,26 @@ pub fn refine_surface(
         return stats;
     }
     let reach = SUPPORT_CELLS * spacing;
+    let computed;
     let normals = match &mesh.normals {
-        Some(n) => n.clone(),
-        None => area_weighted_normals(&mesh.vertices, &mesh.triangles),
+        Some(n) => n,
+        None => {
+            computed = area_weighted_normals(&mesh.vertices, &mesh.triangles);
+            &computed
+        }
     };
     let fit = SurfaceFit {
         dim: 3,
         reach,
         neighbours: SNAP_NEIGHBOURS,
     };
-    stats.snapped = project_onto_points(&mut mesh.vertices, &normals, points, &fit);
+    let projection = project_onto_points(&mut mesh.vertices, normals, points, &fit);
+    stats.snapped = projection.moved;
     if !fair_gaps {
         return stats;
     }
-    let tree = KdTree::new(points);
-    let free: Vec<bool> = mesh
-        .vertices
-        .par_iter()
-        .map(|v| tree.nearest(*v).is_none_or(|n| n.distance > reach))
-        .collect();
+    // Unsupported vertices did not move, so their support stands.
+    let free: Vec<bool> = projection.supported.iter().map(|s| !s).collect();
     let unsupported = free.iter().filter(|&&f| f).count();
     if unsupported as f64 > (1.0 - SUPPORTED_SHARE) * free.len() as f64 {
         return stats;

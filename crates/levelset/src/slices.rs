@@ -149,9 +149,11 @@ fn planes(points: &[DVec3], axis: usize) -> Option<Vec<f64>> {
 /// the longest axis), else [`DEFAULT_RESOLUTION`].
 pub fn interpolate_slices(stack: &SliceStack, params: &ReconstructParams) -> Result<Field<3>> {
     let cells = params.resolution.unwrap_or(DEFAULT_RESOLUTION).max(1);
-    let spacing = stack_extent(stack) / cells as f64;
     let gap = stack.gap();
-    let spec = stack_grid(stack, spacing, gap)?;
+    let (lo, hi) = plane_bounds(&stack.slices);
+    let across = stack.levels[stack.levels.len() - 1] - stack.levels[0];
+    let spacing = (hi - lo).max_element().max(across) / cells as f64;
+    let spec = stack_grid(stack, (lo, hi), spacing, gap)?;
     // The field, and each slice's section over the plane.
     spec.check_memory(8 + 8 * stack.levels.len() / spec.dims[stack.axis].max(1))?;
     let [u, v] = stack.plane_axes();
@@ -206,23 +208,24 @@ fn blend(
     (1.0 - t) * sections[k][at] + t * sections[k + 1][at]
 }
 
-/// The grid over the stack: the slices' extent in the plane, half a gap
-/// beyond the end slices along the axis, and a margin of cells around.
-fn stack_grid(stack: &SliceStack, spacing: f64, gap: f64) -> Result<GridSpec<3>> {
+/// The grid over the stack: the slices' extent in the plane (`lo..hi`,
+/// plane coordinates), half a gap beyond the end slices along the axis,
+/// and a margin of cells around.
+fn stack_grid(
+    stack: &SliceStack,
+    (lo, hi): (DVec3, DVec3),
+    spacing: f64,
+    gap: f64,
+) -> Result<GridSpec<3>> {
     let [u, v] = stack.plane_axes();
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in stack.slices.iter().flat_map(vertices) {
-        lo[u] = lo[u].min(p.x);
-        hi[u] = hi[u].max(p.x);
-        lo[v] = lo[v].min(p.y);
-        hi[v] = hi[v].max(p.y);
-    }
-    lo[stack.axis] = stack.levels[0] - 0.5 * gap;
-    hi[stack.axis] = stack.levels[stack.levels.len() - 1] + 0.5 * gap;
+    let mut min = [0.0; 3];
+    let mut max = [0.0; 3];
+    (min[u], min[v], max[u], max[v]) = (lo.x, lo.y, hi.x, hi.y);
+    min[stack.axis] = stack.levels[0] - 0.5 * gap;
+    max[stack.axis] = stack.levels[stack.levels.len() - 1] + 0.5 * gap;
     Ok(GridSpec::<3>::from_bounds(
-        lo,
-        hi,
+        min,
+        max,
         surfrecon_grid::GridSize::Spacing(spacing),
         3,
     )?)
@@ -264,17 +267,14 @@ fn far_side_gap(tree: &KdTree, points: &[DVec3], p: DVec3) -> Option<f64> {
     }
 }
 
-/// Longest extent of the stack (in the planes, and between the end slices).
-fn stack_extent(stack: &SliceStack) -> f64 {
-    let (lo, hi) = stack
-        .slices
+/// Bounds of the slices' points and segment ends (plane coordinates).
+fn plane_bounds(slices: &[Input]) -> (DVec3, DVec3) {
+    slices
         .iter()
         .flat_map(vertices)
         .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
             (lo.min(p), hi.max(p))
-        });
-    let across = stack.levels[stack.levels.len() - 1] - stack.levels[0];
-    (hi - lo).max_element().max(across)
+        })
 }
 
 /// The points and segment ends of a slice.
@@ -301,9 +301,7 @@ fn samples(input: &Input, step: f64) -> Vec<DVec3> {
 /// reconstructed as closed curves by the 2D level-set method, whose field
 /// is resampled (beyond its own grid, growing with the distance to it).
 fn section(slice: &Input, plane: &GridSpec<2>, params: &ReconstructParams) -> Result<Vec<f64>> {
-    let (lo, hi) = vertices(slice).fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-        (lo.min(p), hi.max(p))
-    });
+    let (lo, hi) = plane_bounds(std::slice::from_ref(slice));
     let extent = (hi - lo).max_element();
     let bridge = GAP_BRIDGE * widest_gap(&samples(slice, 0.5 * plane.spacing));
     let slice_params = ReconstructParams {
