@@ -1,7 +1,6 @@
 //! Stage 1 of the unsigned distance: the data sorted in space, and exact
 //! distances in a band of nodes around every datum.
 
-use super::primitives::dist2;
 use super::{DataSet, NO_DATUM};
 use crate::spec::for_each_in_box;
 use crate::GridSpec;
@@ -11,25 +10,38 @@ use rayon::prelude::*;
 /// so the work split never depends on the thread count.
 const SLAB_LAYERS: usize = 4;
 
-/// Working state of one grid node.
-#[derive(Clone, Copy)]
-pub(super) struct Node<const D: usize> {
-    /// Squared distance to `foot` (INFINITY when no datum yet).
-    pub d2: f64,
-    /// Nearest point of `datum` to this node: a point on the datum, so
-    /// its distance to another node bounds that node's distance to the
-    /// datum from above at the cost of a point distance, whatever the kind.
-    pub foot: [f64; D],
+/// Closest datum and its foot per node while the distance is computed.
+///
+/// Feet are kept compact, as `f32` grid coordinates (cells from the
+/// origin): they only rank candidates, to ~1e-7 of the grid's extent;
+/// the final distances are recomputed exactly from the data.
+pub(super) struct Closest<const D: usize> {
     /// Closest datum known so far (in sorted order), or [`NO_DATUM`].
-    pub datum: u32,
+    pub datum: Vec<u32>,
+    /// Nearest point of `datum` to the node (for points, the point): a
+    /// point on the datum, so its distance to another node bounds that
+    /// node's distance to the datum from above, whatever the kind.
+    pub foot: Vec<[f32; D]>,
 }
 
-impl<const D: usize> Node<D> {
-    pub const EMPTY: Self = Node {
-        d2: f64::INFINITY,
-        foot: [f64::NAN; D],
-        datum: NO_DATUM,
-    };
+impl<const D: usize> Closest<D> {
+    /// Squared distance, in cells², from node `idx` (linear `l`) to its foot.
+    #[inline(always)]
+    pub fn d2(&self, l: usize, idx: &[f32; D]) -> f32 {
+        cells_dist2(idx, &self.foot[l])
+    }
+}
+
+/// Squared distance between two points in grid coordinates.
+#[inline(always)]
+pub(super) fn cells_dist2<const D: usize>(a: &[f32; D], b: &[f32; D]) -> f32 {
+    (0..D).map(|k| (a[k] - b[k]) * (a[k] - b[k])).sum()
+}
+
+/// Grid coordinates of a world point, as `f32`.
+#[inline(always)]
+pub(super) fn to_cells<const D: usize>(spec: &GridSpec<D>, p: &[f64; D]) -> [f32; D] {
+    std::array::from_fn(|a| ((p[a] - spec.origin[a]) / spec.spacing) as f32)
 }
 
 /// The data with each kind (points, segments, triangles) ordered by the
@@ -78,16 +90,17 @@ impl<const D: usize> SortedData<D> {
     }
 }
 
-/// Stage 1: exact squared distances and closest data at the nodes within
-/// `radii[kind]` of each datum (points, segments, triangles), with their
-/// feet; the other nodes stay empty. Parallel over fixed slabs; ties go to
-/// the smaller (sorted) datum index, so the result does not depend on the
-/// order data are applied in.
+/// Stage 1: closest data at the nodes within `radii[kind]` of each datum
+/// (points, segments, triangles), with their feet; the other nodes stay
+/// empty. Parallel over fixed slabs. Data are applied in index order and
+/// only a strictly nearer datum replaces a node's, so ties go to the
+/// smaller (sorted) index and the result does not depend on the thread
+/// count.
 pub(super) fn exact_band<const D: usize>(
     data: &DataSet<D>,
     spec: &GridSpec<D>,
     radii: [f64; 3],
-) -> Vec<Node<D>> {
+) -> Closest<D> {
     let last_axis = D - 1;
     let layer = spec.strides()[last_axis];
     let slabs = spec.dims[last_axis].div_ceil(SLAB_LAYERS);
@@ -101,15 +114,18 @@ pub(super) fn exact_band<const D: usize>(
             }
         }
     }
-    let mut keys = vec![EMPTY_KEY; spec.node_count()];
-    keys.par_chunks_mut(SLAB_LAYERS * layer)
+    let mut d2 = vec![f32::INFINITY; spec.node_count()];
+    let mut datum = vec![NO_DATUM; spec.node_count()];
+    d2.par_chunks_mut(SLAB_LAYERS * layer)
+        .zip(datum.par_chunks_mut(SLAB_LAYERS * layer))
         .zip(bins.par_iter())
         .enumerate()
-        .for_each(|(s, (keys, bin))| {
+        .for_each(|(s, ((d2, datum), bin))| {
             let slab_first = s * SLAB_LAYERS;
             let slab_last = (slab_first + SLAB_LAYERS).min(spec.dims[last_axis]) - 1;
             let mut slab = Slab {
-                keys,
+                d2,
+                datum,
                 offset: slab_first * layer,
                 offsets: std::array::from_fn(|_| Vec::new()),
             };
@@ -128,52 +144,51 @@ pub(super) fn exact_band<const D: usize>(
                 }
             }
         });
-    keys.into_par_iter()
+    drop(d2);
+    let foot = datum
+        .par_iter()
         .enumerate()
-        .map(|(l, key)| match key {
-            EMPTY_KEY => Node::EMPTY,
-            key => {
-                let datum = key as u32;
+        .map(|(l, &c)| match c {
+            NO_DATUM => [f32::NAN; D],
+            c if (c as usize) < data.points.len() => to_cells(spec, &data.points[c as usize]),
+            c => {
                 let p = spec.position(spec.unlinear(l));
-                let foot = data.closest_point(datum as usize, &p);
-                Node {
-                    d2: dist2(&p, &foot),
-                    foot,
-                    datum,
-                }
+                to_cells(spec, &data.closest_point(c as usize, &p))
             }
         })
-        .collect()
+        .collect();
+    Closest { datum, foot }
 }
 
-/// A node's best offer so far: the squared distance as `f32` bits (which
-/// order like the numbers, as they are not negative) above the datum
-/// index, so the smallest key is the nearest datum, ties going to the
-/// smaller index, and keeping the better of two offers is an integer
-/// `min` with no branch. The `f32` rounding (relative 6e-8 in d²) can only
-/// pick, among data at equal distance to that precision, the one with the
-/// smaller index; distances are recomputed exactly afterwards.
-type Key = u64;
-
-const EMPTY_KEY: Key = u64::MAX;
-
-#[inline(always)]
-fn key(d2: f64, datum: u32) -> Key {
-    ((d2 as f32).to_bits() as u64) << 32 | datum as u64
-}
-
-/// The keys of the nodes of one slab, indexed by global linear index minus
-/// `offset`, and scratch space for [`point_ball`].
+/// The best offers so far of the nodes of one slab (squared distance in
+/// cells², as `f32`, and datum), indexed by global linear index minus
+/// `offset`, and scratch space for [`point_ball`]. The `f32` rounding
+/// (relative 6e-8) can only choose between data at equal distance to that
+/// precision; distances are recomputed exactly afterwards.
 struct Slab<'a, const D: usize> {
-    keys: &'a mut [Key],
+    d2: &'a mut [f32],
+    datum: &'a mut [u32],
     offset: usize,
-    /// Per axis, squared offsets of the box's node coordinates from a point.
-    offsets: [Vec<f64>; D],
+    /// Per axis, squared offsets (cells²) of the box's node coordinates
+    /// from a point.
+    offsets: [Vec<f32>; D],
+}
+
+impl<const D: usize> Slab<'_, D> {
+    /// Offer datum `i` at squared distance `d2` to node `k` of the slab.
+    #[inline(always)]
+    fn offer(&mut self, k: usize, d2: f32, i: u32) {
+        if d2 < self.d2[k] {
+            self.d2[k] = d2;
+            self.datum[k] = i;
+        }
+    }
 }
 
 /// Point `q` (datum `i`): every node within `radius`, by rows along axis 0
 /// clipped to the ball (points are the dense kind; the ball is half the
-/// box). Rows are short, so the per-row work is a few additions.
+/// box). Rows are short, so the per-row work is a few additions; the row
+/// loop has no branch, so that it vectorizes.
 fn point_ball<const D: usize>(
     spec: &GridSpec<D>,
     q: &[f64; D],
@@ -182,41 +197,61 @@ fn point_ball<const D: usize>(
     (first, mut last): ([usize; D], [usize; D]),
     slab: &mut Slab<D>,
 ) {
-    let (h, inv_h) = (spec.spacing, 1.0 / spec.spacing);
-    let r2 = radius * radius;
+    let qc = spec.to_grid(*q);
+    let r2 = (radius / spec.spacing).powi(2) as f32;
     let strides = spec.strides();
     for a in 1..D {
         let offsets = &mut slab.offsets[a];
         offsets.clear();
-        offsets
-            .extend((first[a]..=last[a]).map(|j| (spec.origin[a] + j as f64 * h - q[a]).powi(2)));
+        offsets.extend((first[a]..=last[a]).map(|j| ((j as f64 - qc[a]).powi(2)) as f32));
     }
-    let (x_first, x_last) = (first[0] as f64, last[0] as f64);
-    // Node coordinate of `q` along axis 0, in cells.
-    let qx = (q[0] - spec.origin[0]) * inv_h;
-    let x0 = spec.origin[0] - q[0];
+    let (x_first, x_last) = (first[0] as i64, last[0] as i64);
+    let qx = qc[0] as f32;
+    // Offsets along the row from the whole and fractional parts of `q`'s
+    // coordinate: exact whatever the grid size.
+    let q_whole = qc[0].floor();
+    let q_frac = (qc[0] - q_whole) as f32;
     last[0] = first[0];
     for_each_in_box(first, last, |row| {
-        let off_row: f64 = (1..D).map(|a| slab.offsets[a][row[a] - first[a]]).sum();
+        let off_row: f32 = (1..D).map(|a| slab.offsets[a][row[a] - first[a]]).sum();
         if off_row > r2 {
             return;
         }
         // Row nodes within the ball, with slack for rounding (a node
-        // slightly outside does no harm). Both ends are clamped to the box
-        // first, so they are not negative and `as` rounds towards zero.
-        let half = (r2 - off_row).sqrt() * inv_h + 1e-9;
-        let (lo, hi) = ((qx - half).max(x_first), (qx + half).min(x_last));
+        // slightly outside does no harm).
+        let half = (r2 - off_row).sqrt() + 1e-4;
+        let lo = ceil(qx - half).max(x_first) as usize;
+        let hi = floor(qx + half).min(x_last) as usize;
         if hi < lo {
             return;
         }
-        let lo = lo as usize + usize::from((lo as usize as f64) < lo);
-        let hi = hi as usize;
         let start: usize = (1..D).map(|a| row[a] * strides[a]).sum::<usize>() - slab.offset;
-        for (x, k) in (lo..=hi).zip(&mut slab.keys[start + lo..=start + hi]) {
-            let dx = x0 + x as f64 * h;
-            *k = (*k).min(key(dx * dx + off_row, i));
+        let d2 = &mut slab.d2[start + lo..start + hi + 1];
+        let datum = &mut slab.datum[start + lo..start + hi + 1];
+        let lo_from_q = (lo as i64 - q_whole as i64) as i32;
+        for (k, (d2, datum)) in d2.iter_mut().zip(datum.iter_mut()).enumerate() {
+            let dx = (lo_from_q + k as i32) as f32 - q_frac;
+            let offer = dx * dx + off_row;
+            let better = offer < *d2;
+            *d2 = if better { offer } else { *d2 };
+            *datum = if better { i } else { *datum };
         }
     });
+}
+
+/// `x.floor()` for the finite, moderate `x` of grid coordinates; without
+/// SSE4.1 the library call would cost more than the rest of a ball row.
+#[inline(always)]
+fn floor(x: f32) -> i64 {
+    let t = x as i64;
+    t - i64::from(t as f32 > x)
+}
+
+/// `x.ceil()`, as [`floor`].
+#[inline(always)]
+fn ceil(x: f32) -> i64 {
+    let t = x as i64;
+    t + i64::from((t as f32) < x)
 }
 
 /// Any datum `i`: every node of the box `first..=last`.
@@ -227,9 +262,10 @@ fn datum_box<const D: usize>(
     (first, last): ([usize; D], [usize; D]),
     slab: &mut Slab<D>,
 ) {
+    let inv_h2 = spec.spacing.powi(-2);
     for_each_in_box(first, last, |idx| {
         let p = spec.position(*idx);
-        let k = &mut slab.keys[spec.linear(*idx) - slab.offset];
-        *k = (*k).min(key(data.distance_squared(i as usize, &p), i));
+        let d2 = (data.distance_squared(i as usize, &p) * inv_h2) as f32;
+        slab.offer(spec.linear(*idx) - slab.offset, d2, i);
     });
 }

@@ -22,6 +22,7 @@
 //! any number of threads.
 
 mod band;
+mod envelope;
 mod primitives;
 mod propagate;
 
@@ -29,7 +30,7 @@ pub use primitives::{segment_closest, segment_dist2, triangle_closest, triangle_
 pub use propagate::NEAR_CELLS;
 
 use crate::{Field, GridError, GridSpec};
-use band::{exact_band, Node, SortedData};
+use band::{exact_band, SortedData};
 use primitives::dist2;
 use rayon::prelude::*;
 use surfrecon_geom::{DVec3, Geometry, TriMesh};
@@ -282,7 +283,7 @@ fn project<const D: usize>(v: DVec3) -> [f64; D] {
     std::array::from_fn(|a| if a < 3 { v[a] } else { 0.0 })
 }
 
-/// Unsigned distance with default options (band of 2 cells, propagated over
+/// Unsigned distance with default options (band of 3 cells, propagated over
 /// the whole grid). See [`unsigned_distance_with`].
 pub fn unsigned_distance<const D: usize>(
     data: &DataSet<D>,
@@ -306,10 +307,10 @@ pub fn unsigned_distance_with<const D: usize>(
             options.band_cells
         )));
     }
-    // Per node at the peak: the working node (distance, foot, datum), the
-    // band's key beside it while they are built, then the output distance
-    // and datum.
-    spec.check_memory(std::mem::size_of::<Node<D>>() + 8 + 8 + 4)?;
+    // Per node at the peak: the datum and its foot, and the band's
+    // distance or the output distance (the output datum reuses the working
+    // one).
+    spec.check_memory(4 + 4 * D + 8)?;
     let radius = options.band_cells * spec.spacing;
     let sorted = SortedData::new(data, spec);
     // Dense point samples hide points between the nodes from propagation,
@@ -327,31 +328,33 @@ pub fn unsigned_distance_with<const D: usize>(
         .filter(|(kind, _)| !kind.is_empty())
         .map(|(_, r)| r)
         .fold(f64::INFINITY, f64::min);
-    let mut nodes = exact_band(&sorted.data, spec, radii);
+    let mut closest = exact_band(&sorted.data, spec, radii);
     if options.propagate {
-        propagate::propagate_closest(&sorted.data, spec, final_radius.powi(2), &mut nodes);
+        let final_below = (final_radius / spec.spacing).powi(2) as f32;
+        propagate::propagate_closest(&sorted.data, spec, final_below, &mut closest);
     }
     let data = &sorted.data;
-    // The exact distance to the chosen datum: passes compare distances to
-    // feet, which on segments and triangles are not the nearest points,
-    // and sum their squares in another order.
-    let (values, closest) = nodes
-        .par_iter()
+    let mut datum = closest.datum;
+    drop(closest.foot);
+    // The exact distance to the chosen datum (feet are rounded, and passed
+    // on from neighbours away from the data).
+    let values = datum
+        .par_iter_mut()
         .enumerate()
-        .map(|(l, n)| match n.datum {
-            NO_DATUM => (f64::INFINITY, NO_DATUM),
-            c => (
-                data.distance(c as usize, &spec.position(spec.unlinear(l))),
-                sorted.original[c as usize],
-            ),
+        .map(|(l, c)| match *c {
+            NO_DATUM => f64::INFINITY,
+            i => {
+                *c = sorted.original[i as usize];
+                data.distance(i as usize, &spec.position(spec.unlinear(l)))
+            }
         })
-        .unzip();
+        .collect();
     Ok(DistanceField {
         field: Field {
             spec: *spec,
             values,
         },
-        closest,
+        closest: datum,
     })
 }
 

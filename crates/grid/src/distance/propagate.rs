@@ -15,22 +15,21 @@
 //! after two rounds). Lines are independent, so they run in parallel and
 //! the result does not depend on the thread count.
 //!
-//! **Settling near the data.** Within [`NEAR_CELLS`] cells of segments and
-//! triangles, Jacobi rounds of neighbour offers bring the nodes to a local
-//! fixed point (see [`settle_near`]). Points need none: their exact band
-//! already covers that region, because dense samples hide points between
-//! the nodes, where no propagation can find them.
+//! **Settling near the data.** Within [`NEAR_CELLS`] cells, Jacobi rounds
+//! of neighbour offers with exact distances bring the nodes to a local
+//! fixed point (see [`settle_near`]): there every node has tried the datum
+//! of every neighbour. The passes rank data by their feet, which for
+//! dense samples and for segments and triangles are often not the nearest.
 
-use super::band::Node;
-use super::primitives::dist2;
+use super::band::{cells_dist2, to_cells, Closest};
+use super::envelope::{lower_envelope, EnvelopeWalk};
 use super::{DataSet, NO_DATUM};
 use crate::spec::for_each_in_box;
 use crate::GridSpec;
 use rayon::prelude::*;
 
-/// Within this many cells of the data, distances are exact for points
-/// (their exact band reaches this far) and settled to a local fixed point
-/// for segments and triangles.
+/// Within this many cells of the data, distances are settled to a local
+/// fixed point.
 pub const NEAR_CELLS: f64 = 5.0;
 
 /// Rounds of passes over all axes. The second round brings data found by
@@ -38,44 +37,54 @@ pub const NEAR_CELLS: f64 = 5.0;
 /// to ~0.1-0.3 h on the test data, for about a third more time.
 const PASS_ROUNDS: usize = 2;
 
-/// Give every node outside the band (squared distance above
-/// `final_below`) a closest datum: line passes, then settling near the data.
+/// Give every node outside the band (squared distance above `final_below`,
+/// in cells²) a closest datum: line passes, then settling near the data.
 pub(super) fn propagate_closest<const D: usize>(
     data: &DataSet<D>,
     spec: &GridSpec<D>,
-    final_below: f64,
-    nodes: &mut [Node<D>],
+    final_below: f32,
+    closest: &mut Closest<D>,
 ) {
     for axis in (0..D).cycle().take(D * PASS_ROUNDS) {
-        line_passes(spec, final_below, nodes, axis);
+        line_passes(spec, final_below, closest, axis);
     }
     // Candidates are upper bounds, off by a fraction of a cell.
-    let near = ((NEAR_CELLS + 1.0) * spec.spacing).powi(2);
+    let near = ((NEAR_CELLS + 1.0) as f32).powi(2);
     if data.points.len() < data.len() {
-        settle_near(data, spec, final_below, near, nodes);
+        settle_near(
+            data,
+            spec,
+            &Neighbours::new(spec),
+            final_below,
+            near,
+            closest,
+        );
     }
 }
 
 /// A foot point offered along a line: `(t - v)² + c` at line coordinate `t`.
 #[derive(Clone, Copy)]
 struct Site<const D: usize> {
-    v: f64,
-    c: f64,
+    v: f32,
+    c: f32,
     datum: u32,
-    foot: [f64; D],
+    foot: [f32; D],
 }
+
+/// One node of a gathered line: its datum and foot.
+type Entry<const D: usize> = (u32, [f32; D]);
 
 /// The envelope pass over every line parallel to `axis`.
 fn line_passes<const D: usize>(
     spec: &GridSpec<D>,
-    final_below: f64,
-    nodes: &mut [Node<D>],
+    final_below: f32,
+    closest: &mut Closest<D>,
     axis: usize,
 ) {
     // Lines across axis 0 go in bundles of neighbours along axis 0, so that
     // gathering them reads whole runs of memory rather than one node per
     // cache line.
-    const BUNDLE: usize = 16;
+    const BUNDLE: usize = 64;
     let strides = spec.strides();
     let bundle = if axis == 0 { 1 } else { BUNDLE };
     let mut outer = spec.dims;
@@ -86,15 +95,18 @@ fn line_passes<const D: usize>(
         let mut first = *idx;
         first[0] *= bundle;
         let width = bundle.min(spec.dims[0] - first[0]);
-        bundles.push((spec.linear(first), width));
+        bundles.push((first, spec.linear(first), width));
     });
-    let shared = LineAccess::new(nodes);
+    let shared = LineAccess::new(closest);
     let (len, stride) = (spec.dims[axis], strides[axis]);
     bundles.par_iter().for_each_init(
-        || (vec![Vec::new(); bundle], Vec::new(), Vec::new()),
-        |(lines, sites, hull), &(start, width)| {
+        || (vec![Vec::new(); bundle], Vec::new(), Vec::new(), Vec::new()),
+        |(lines, sites, hull, changed): &mut (Vec<Vec<Entry<D>>>, _, _, Vec<usize>),
+         &(first, start, width)| {
             // SAFETY: each bundle of lines is visited by one task only, and
-            // lines parallel to one axis share no node.
+            // lines parallel to one axis share no node; its last node is
+            // in the grid.
+            assert!(start + (len - 1) * stride + width - 1 < shared.len);
             for line in &mut lines[..width] {
                 line.clear();
             }
@@ -104,11 +116,12 @@ fn line_passes<const D: usize>(
                 }
             }
             for (b, line) in lines[..width].iter_mut().enumerate() {
-                let base = spec.position(spec.unlinear(start + b));
-                if lower_envelope(line, &base, axis, sites, hull) {
-                    assign_nearest(line, &base, axis, spec.spacing, final_below, sites, hull);
-                    for (j, node) in line.iter().enumerate() {
-                        unsafe { shared.set(start + j * stride + b, *node) };
+                let mut base = first.map(|i| i as f32);
+                base[0] += b as f32;
+                if line_envelope(line, &base, axis, sites, hull) {
+                    assign_nearest(line, &base, axis, final_below, sites, hull, changed);
+                    for &j in changed.iter() {
+                        unsafe { shared.set(start + j * stride + b, line[j]) };
                     }
                 }
             }
@@ -119,139 +132,191 @@ fn line_passes<const D: usize>(
 /// Collect the sites of a line (nodes from `base` along `axis`) and build
 /// their lower envelope in `hull`: (site index, coordinate where it starts
 /// to be the lowest). Returns false when the line holds no datum.
-fn lower_envelope<const D: usize>(
-    line: &[Node<D>],
-    base: &[f64; D],
+fn line_envelope<const D: usize>(
+    line: &[Entry<D>],
+    base: &[f32; D],
     axis: usize,
     sites: &mut Vec<Site<D>>,
-    hull: &mut Vec<(usize, f64)>,
+    hull: &mut Vec<(usize, f32)>,
 ) -> bool {
     sites.clear();
-    for node in line {
+    for &(datum, foot) in line {
         let last = sites.last().map(|s: &Site<D>| (s.datum, s.foot));
-        if node.datum == NO_DATUM || last == Some((node.datum, node.foot)) {
+        if datum == NO_DATUM || last == Some((datum, foot)) {
             continue;
         }
         let c = (0..D)
             .filter(|&b| b != axis)
-            .map(|b| (base[b] - node.foot[b]).powi(2))
+            .map(|b| (base[b] - foot[b]) * (base[b] - foot[b]))
             .sum();
         sites.push(Site {
-            v: node.foot[axis],
+            v: foot[axis],
             c,
-            datum: node.datum,
-            foot: node.foot,
+            datum,
+            foot,
         });
     }
     if sites.is_empty() {
         return false;
     }
-    sites.sort_unstable_by(|a, b| {
-        (a.v, a.c, a.datum)
-            .partial_cmp(&(b.v, b.c, b.datum))
-            .unwrap_or(std::cmp::Ordering::Equal)
-    });
-    hull.clear();
-    hull.push((0, f64::NEG_INFINITY));
-    for (q, site) in sites.iter().enumerate().skip(1) {
-        loop {
-            let &(top, from) = hull.last().expect("the hull keeps its first site");
-            let h = &sites[top];
-            if site.v == h.v {
-                // Same vertex, larger or equal c (sorted): never lower.
-                break;
-            }
-            // Where the parabolas of `h` and `site` cross.
-            let cross = 0.5 * (site.v + h.v) + 0.5 * (site.c - h.c) / (site.v - h.v);
-            if hull.len() > 1 && cross <= from {
-                hull.pop();
-            } else {
-                hull.push((q, cross));
-                break;
-            }
-        }
-    }
+    sort_nearly_sorted(sites);
+    lower_envelope(
+        sites.len(),
+        |k| (sites[k].v, sites[k].c, sites[k].datum),
+        hull,
+    );
     true
 }
 
-/// Give every non-final node of the line the lowest site at its coordinate
-/// when it beats the node's own datum.
-fn assign_nearest<const D: usize>(
-    line: &mut [Node<D>],
-    base: &[f64; D],
-    axis: usize,
-    spacing: f64,
-    final_below: f64,
-    sites: &[Site<D>],
-    hull: &[(usize, f64)],
-) {
-    let mut k = 0;
-    for (j, node) in line.iter_mut().enumerate() {
-        let t = base[axis] + j as f64 * spacing;
-        while k + 1 < hull.len() && hull[k + 1].1 < t {
-            k += 1;
-        }
-        if node.d2 <= final_below {
-            continue;
-        }
-        let site = &sites[hull[k].0];
-        let d2 = (t - site.v).powi(2) + site.c;
-        if d2 < node.d2 || (d2 == node.d2 && site.datum < node.datum) {
-            *node = Node {
-                d2,
-                foot: site.foot,
-                datum: site.datum,
-            };
+/// Site order: by vertex, then height, then datum.
+#[inline(always)]
+fn site_order<const D: usize>(a: &Site<D>, b: &Site<D>) -> std::cmp::Ordering {
+    (a.v.total_cmp(&b.v))
+        .then(a.c.total_cmp(&b.c))
+        .then(a.datum.cmp(&b.datum))
+}
+
+/// Sort sites that usually come nearly in order (feet move along the
+/// surface with the node): insertion sort while it stays cheap, a general
+/// sort when it would not.
+fn sort_nearly_sorted<const D: usize>(sites: &mut [Site<D>]) {
+    let mut budget = 8 * sites.len();
+    for i in 1..sites.len() {
+        let mut j = i;
+        while j > 0 && site_order(&sites[j - 1], &sites[j]).is_gt() {
+            if budget == 0 {
+                sites.sort_unstable_by(site_order);
+                return;
+            }
+            budget -= 1;
+            sites.swap(j - 1, j);
+            j -= 1;
         }
     }
 }
 
-/// Jacobi rounds over the nodes near the data: an open node is offered
-/// the data of all 3^D - 1 neighbours (diagonals matter: a Voronoi cell
-/// can be thinner than a cell), and the neighbours of a changed node open
-/// for the next round. Ends when a round changes nothing: then every near
-/// node has tried the datum of every neighbour. Reading all before writing
-/// keeps the result independent of the thread count.
+/// Give every non-final node of the line the lowest site at its coordinate
+/// when it beats the node's own datum; `changed` lists the nodes that took
+/// one.
+fn assign_nearest<const D: usize>(
+    line: &mut [Entry<D>],
+    base: &[f32; D],
+    axis: usize,
+    final_below: f32,
+    sites: &[Site<D>],
+    hull: &[(usize, f32)],
+    changed: &mut Vec<usize>,
+) {
+    changed.clear();
+    let mut walk = EnvelopeWalk::new(hull);
+    let mut p = *base;
+    for (j, entry) in line.iter_mut().enumerate() {
+        let t = base[axis] + j as f32;
+        let site = &sites[walk.lowest_at(t)];
+        p[axis] = t;
+        let own = match entry.0 {
+            NO_DATUM => f32::INFINITY,
+            _ => cells_dist2(&p, &entry.1),
+        };
+        if own <= final_below {
+            continue;
+        }
+        let d2 = (t - site.v) * (t - site.v) + site.c;
+        if d2 < own || (d2 == own && site.datum < entry.0) {
+            *entry = (site.datum, site.foot);
+            changed.push(j);
+        }
+    }
+}
+
+/// A node's candidate: datum, foot (grid coordinates) and squared
+/// distance to the foot in cells².
+#[derive(Clone, Copy)]
+struct Candidate<const D: usize> {
+    datum: u32,
+    foot: [f32; D],
+    d2: f32,
+}
+
+impl<const D: usize> Candidate<D> {
+    /// Is (`d2`, `datum`) better: nearer, ties to the smaller index?
+    #[inline(always)]
+    fn beaten_by(&self, d2: f32, datum: u32) -> bool {
+        d2 < self.d2 || (d2 == self.d2 && datum < self.datum)
+    }
+}
+
+/// Jacobi rounds over the nodes near the data (squared distance in
+/// `final_below..=near`, cells²). In the first round each is offered the
+/// data of all its neighbours, evaluated exactly; afterwards, the
+/// neighbours of a changed node are offered its new datum. Ends when a
+/// round changes nothing: then every near node has tried the datum of
+/// every neighbour (an offer refused once stays refused, as a node only
+/// gets nearer data). Reading all before writing keeps the result
+/// independent of the thread count.
 fn settle_near<const D: usize>(
     data: &DataSet<D>,
     spec: &GridSpec<D>,
-    final_below: f64,
-    near: f64,
-    nodes: &mut [Node<D>],
+    neighbours: &Neighbours<D>,
+    final_below: f32,
+    near: f32,
+    closest: &mut Closest<D>,
 ) {
-    let in_scope = |n: &Node<D>| n.d2 > final_below && n.d2 <= near;
-    let neighbours = Neighbours::new(spec);
-    let mut open: Vec<u32> = (0..nodes.len() as u32)
+    let in_scope = |closest: &Closest<D>, l: usize| {
+        let d2 = closest.d2(l, &neighbours.unlinear(l).map(|i| i as f32));
+        d2 > final_below && d2 <= near
+    };
+    let mut open: Vec<u32> = (0..closest.datum.len() as u32)
         .into_par_iter()
-        .filter(|&l| in_scope(&nodes[l as usize]))
+        .filter(|&l| in_scope(closest, l as usize))
         .collect();
+    // Feet passed on from neighbours are not this node's nearest point of
+    // its datum: project once, so offers compare exact distances.
+    let own: Vec<[f32; D]> = open
+        .par_iter()
+        .map(|&l| {
+            exact_foot(
+                data,
+                spec,
+                neighbours,
+                closest.datum[l as usize],
+                l as usize,
+            )
+        })
+        .collect();
+    for (&l, foot) in open.iter().zip(own) {
+        closest.foot[l as usize] = foot;
+    }
+    // Nodes changed by the last round (all count before the first).
+    let mut fresh = vec![true; closest.datum.len()];
+    let mut changed: Vec<u32> = Vec::new();
     while !open.is_empty() {
-        let changes: Vec<(u32, Node<D>)> = open
+        let changes: Vec<(u32, Candidate<D>)> = open
             .par_iter()
             .filter_map(|&l| {
-                let idx = spec.unlinear(l as usize);
-                let p = spec.position(idx);
-                let mut node = nodes[l as usize];
-                let mut changed = false;
-                // Neighbours in a row often share a datum: offer it once.
-                let mut offered = NO_DATUM;
-                for (m, step) in neighbours.of(idx) {
-                    let n = &nodes[m];
-                    if n.datum != offered {
-                        offered = n.datum;
-                        changed |= offer(data, &p, &mut node, n.datum, &n.foot, step);
-                    }
-                }
-                changed.then_some((l, node))
+                settle_node(data, spec, neighbours, closest, &fresh, l as usize).map(|c| (l, c))
             })
             .collect();
-        for &(l, node) in &changes {
-            nodes[l as usize] = node;
+        if changed.is_empty() {
+            fresh.fill(false);
+        }
+        for &l in &changed {
+            fresh[l as usize] = false;
+        }
+        changed.clear();
+        for &(l, c) in &changes {
+            closest.datum[l as usize] = c.datum;
+            closest.foot[l as usize] = c.foot;
+            fresh[l as usize] = true;
+            changed.push(l);
         }
         open = changes
             .par_iter()
-            .flat_map_iter(|&(l, _)| neighbours.of(spec.unlinear(l as usize)).map(|(m, _)| m))
-            .filter(|&m| in_scope(&nodes[m]))
+            .flat_map_iter(|&(l, _)| {
+                let idx = neighbours.unlinear(l as usize);
+                neighbours.of(idx, l as usize).map(|(m, _)| m)
+            })
+            .filter(|&m| in_scope(closest, m))
             .map(|m| m as u32)
             .collect();
         open.par_sort_unstable();
@@ -259,86 +324,125 @@ fn settle_near<const D: usize>(
     }
 }
 
-/// Offer datum `c`, whose foot for a node `step` away is `foot`, to `node`
-/// at `p`: adopt it, with its own exact foot, if it is nearer (ties: the
-/// smaller index). Returns whether it did.
-#[inline(always)]
-fn offer<const D: usize>(
+/// Nearest point of datum `c` to node `l`, in grid coordinates.
+fn exact_foot<const D: usize>(
     data: &DataSet<D>,
-    p: &[f64; D],
-    node: &mut Node<D>,
+    spec: &GridSpec<D>,
+    neighbours: &Neighbours<D>,
     c: u32,
-    foot: &[f64; D],
-    step: f64,
-) -> bool {
-    if c == NO_DATUM || c == node.datum {
-        return false;
-    }
-    let mut d2 = dist2(p, foot);
-    if c as usize >= data.points.len() {
-        // Feet on one convex datum of nodes `step` apart are at most `step`
-        // apart, so the exact distance is at least this.
-        if d2.sqrt() - step >= node.d2.sqrt() {
-            return false;
-        }
-        d2 = data.distance_squared(c as usize, p);
-    }
-    if d2 < node.d2 || (d2 == node.d2 && c < node.datum) {
-        node.foot = data.closest_point(c as usize, p);
-        node.d2 = dist2(p, &node.foot);
-        node.datum = c;
-        return true;
-    }
-    false
+    l: usize,
+) -> [f32; D] {
+    let p = spec.position(neighbours.unlinear(l));
+    to_cells(spec, &data.closest_point(c as usize, &p))
 }
 
-/// The 3^D - 1 axis and diagonal neighbours of a node.
-struct Neighbours<const D: usize> {
+/// The best of node `l`'s own datum and the data of its neighbours that
+/// are `fresh`, evaluated exactly; `None` when its own stays.
+fn settle_node<const D: usize>(
+    data: &DataSet<D>,
+    spec: &GridSpec<D>,
+    neighbours: &Neighbours<D>,
+    closest: &Closest<D>,
+    fresh: &[bool],
+    l: usize,
+) -> Option<Candidate<D>> {
+    let idx = neighbours.unlinear(l);
+    let p = idx.map(|i| i as f32);
+    let world = spec.position(idx);
+    let mut best = Candidate {
+        datum: closest.datum[l],
+        foot: closest.foot[l],
+        d2: closest.d2(l, &p),
+    };
+    let own = best.datum;
+    // The last few data offered: neighbours share a handful of data.
+    let mut offered = [own; 4];
+    for (k, (m, step)) in neighbours.of(idx, l).enumerate() {
+        let c = closest.datum[m];
+        if !fresh[m] || c == NO_DATUM || offered.contains(&c) || c == best.datum {
+            continue;
+        }
+        offered[k % offered.len()] = c;
+        let bound = closest.d2(m, &p);
+        let foot = if (c as usize) < data.points.len() {
+            closest.foot[m]
+        } else {
+            // Feet on one convex datum of nodes `step` apart are at most
+            // `step` apart, so the exact distance is at least this.
+            if bound.sqrt() - step >= best.d2.sqrt() {
+                continue;
+            }
+            to_cells(spec, &data.closest_point(c as usize, &world))
+        };
+        let d2 = cells_dist2(&p, &foot);
+        if best.beaten_by(d2, c) {
+            best = Candidate { datum: c, foot, d2 };
+        }
+    }
+    (best.datum != own).then_some(best)
+}
+
+/// The 3^D - 1 axis and diagonal neighbours of the nodes of a grid.
+pub(super) struct Neighbours<const D: usize> {
     dims: [usize; D],
-    strides: [usize; D],
-    /// Step per axis (-1, 0, 1) and length, per neighbour.
-    steps: Vec<([isize; D], f64)>,
+    /// Per neighbour: step per axis (-1, 0, 1), linear offset, length in
+    /// cells.
+    steps: Vec<([isize; D], isize, f32)>,
 }
 
 impl<const D: usize> Neighbours<D> {
-    fn new(spec: &GridSpec<D>) -> Self {
+    pub fn new(spec: &GridSpec<D>) -> Self {
+        let strides = spec.strides();
         let mut steps = Vec::new();
         for_each_in_box([0; D], [2; D], |code| {
             let step = code.map(|c| c as isize - 1);
             let axes = step.iter().filter(|&&s| s != 0).count();
-            if axes > 0 {
-                steps.push((step, spec.spacing * (axes as f64).sqrt()));
+            if axes == 0 {
+                return;
             }
+            let offset = (0..D).map(|a| step[a] * strides[a] as isize).sum();
+            steps.push((step, offset, (axes as f32).sqrt()));
         });
         Neighbours {
             dims: spec.dims,
-            strides: spec.strides(),
             steps,
         }
     }
 
-    /// (linear index, distance) of the neighbours of node `idx` in the grid.
-    fn of(&self, idx: [usize; D]) -> impl Iterator<Item = (usize, f64)> + '_ {
-        self.steps.iter().filter_map(move |(step, len)| {
-            let mut l = 0;
-            for a in 0..D {
-                let i = idx[a]
-                    .checked_add_signed(step[a])
-                    .filter(|&i| i < self.dims[a])?;
-                l += i * self.strides[a];
-            }
-            Some((l, *len))
+    #[inline(always)]
+    pub fn unlinear(&self, mut l: usize) -> [usize; D] {
+        std::array::from_fn(|a| {
+            let i = l % self.dims[a];
+            l /= self.dims[a];
+            i
+        })
+    }
+
+    /// (linear index, distance in cells) of the neighbours of node `idx`
+    /// (linear index `l`) in the grid.
+    #[inline(always)]
+    pub fn of(&self, idx: [usize; D], l: usize) -> impl Iterator<Item = (usize, f32)> + '_ {
+        let interior = (0..D).all(|a| idx[a] > 0 && idx[a] + 1 < self.dims[a]);
+        self.steps.iter().filter_map(move |&(step, offset, len)| {
+            let inside = interior
+                || (0..D).all(|a| {
+                    idx[a]
+                        .checked_add_signed(step[a])
+                        .is_some_and(|i| i < self.dims[a])
+                });
+            inside.then(|| ((l as isize + offset) as usize, len))
         })
     }
 }
 
-/// Shared access to the nodes for parallel passes over disjoint lines:
-/// each node is read and written by one task only (the caller's contract
-/// on `get` and `set`).
+/// Shared access to the nodes' data and feet for parallel passes over
+/// disjoint lines: each node is read and written by one task only (the
+/// caller's contract on `get` and `set`).
 struct LineAccess<'a, const D: usize> {
-    ptr: *mut Node<D>,
+    datum: *mut u32,
+    foot: *mut [f32; D],
     len: usize,
-    _nodes: std::marker::PhantomData<&'a mut [Node<D>]>,
+    _closest: std::marker::PhantomData<&'a mut Closest<D>>,
 }
 
 // SAFETY: access goes through `get`/`set`, whose callers guarantee that no
@@ -346,27 +450,30 @@ struct LineAccess<'a, const D: usize> {
 unsafe impl<const D: usize> Sync for LineAccess<'_, D> {}
 
 impl<'a, const D: usize> LineAccess<'a, D> {
-    fn new(nodes: &'a mut [Node<D>]) -> Self {
+    fn new(closest: &'a mut Closest<D>) -> Self {
+        assert_eq!(closest.datum.len(), closest.foot.len());
         LineAccess {
-            ptr: nodes.as_mut_ptr(),
-            len: nodes.len(),
-            _nodes: std::marker::PhantomData,
+            datum: closest.datum.as_mut_ptr(),
+            foot: closest.foot.as_mut_ptr(),
+            len: closest.datum.len(),
+            _closest: std::marker::PhantomData,
         }
     }
 
     /// # Safety
-    /// No other task touches node `l` meanwhile.
+    /// `l` is a node of the grid, and no other task touches it meanwhile.
     #[inline(always)]
-    unsafe fn get(&self, l: usize) -> Node<D> {
-        assert!(l < self.len);
-        *self.ptr.add(l)
+    unsafe fn get(&self, l: usize) -> Entry<D> {
+        debug_assert!(l < self.len);
+        (*self.datum.add(l), *self.foot.add(l))
     }
 
     /// # Safety
-    /// No other task touches node `l` meanwhile.
+    /// `l` is a node of the grid, and no other task touches it meanwhile.
     #[inline(always)]
-    unsafe fn set(&self, l: usize, node: Node<D>) {
-        assert!(l < self.len);
-        *self.ptr.add(l) = node;
+    unsafe fn set(&self, l: usize, (datum, foot): Entry<D>) {
+        debug_assert!(l < self.len);
+        *self.datum.add(l) = datum;
+        *self.foot.add(l) = foot;
     }
 }
