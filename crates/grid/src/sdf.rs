@@ -49,10 +49,19 @@ pub fn signed_distance(
         return Err(GridError::InvalidInput("the mesh has no triangles".into()));
     }
     let data = DataSet::<3>::from_mesh(mesh)?;
-    // The sign stage after the distance (which checks its own need):
-    // distances, region labels, union-find parents, region order, offsets
-    // and inside flags.
-    spec.check_memory(8 + 4 + 4 + 4 + 4 + 1)?;
+    if spec.node_count() >= u32::MAX as usize {
+        return Err(GridError::InvalidInput(format!(
+            "grid {} has too many nodes to sign (at most {} are supported)",
+            spec.dims_string(),
+            u32::MAX - 1
+        )));
+    }
+    // The sign stage after the distance (which checks its own need), when
+    // every node is a run and a region of its own: distances; run starts,
+    // regions, grouping, region offsets and sizes; the nodes without a
+    // region verdict, those a lattice may decide (8 bytes each), their sides
+    // and winding flags.
+    spec.check_memory(8 + 5 * 4 + 4 + 8 + 2 + 1)?;
     let options = match band {
         None => DistanceOptions::default(),
         Some(w) if w.is_finite() && w >= spec.spacing => DistanceOptions {
@@ -71,16 +80,7 @@ pub fn signed_distance(
         field.values.par_iter_mut().for_each(|v| *v = v.min(w));
     }
     let tree = WindingTree::new(&data.triangles);
-    let inside = inside_nodes(&field, &tree);
-    field
-        .values
-        .par_iter_mut()
-        .zip(inside.par_iter())
-        .for_each(|(v, &ins)| {
-            if ins {
-                *v = -*v;
-            }
-        });
+    negate_inside(&mut field, &tree);
     Ok(field)
 }
 
@@ -108,48 +108,19 @@ pub fn check_closed(mesh: &TriMesh) -> Result<(), GridError> {
     )))
 }
 
-/// Per node: inside the mesh? (see the module docs for the method).
-fn inside_nodes(field: &Field3, tree: &WindingTree) -> Vec<bool> {
-    let spec = field.spec;
+/// Negate the values of the nodes of `field` that lie inside (see the
+/// module docs for the method).
+fn negate_inside(field: &mut Field3, tree: &WindingTree) {
     let regions = Regions::new(field);
-    let mut inside = vec![false; spec.node_count()];
-    let position = |l: u32| DVec3::from_array(spec.position(spec.unlinear(l as usize)));
-    let decided: Vec<Option<bool>> = regions
-        .spans
-        .par_iter()
-        .map(|&(start, len)| {
-            if len <= SMALL_REGION {
-                return None;
-            }
-            let nodes = &regions.order[start..start + len];
-            let votes: Vec<bool> = (0..REGION_SAMPLES)
-                .map(|k| tree.winding_number(position(nodes[k * len / REGION_SAMPLES])) > 0.5)
-                .collect();
-            let first = votes[0];
-            votes.iter().all(|&v| v == first).then_some(first)
-        })
-        .collect();
+    let verdicts = regions.verdicts(field, tree);
     // Regions without a verdict: a winding number per node, interpolated
     // where that is safe.
-    let undecided: Vec<u32> = regions
-        .spans
-        .iter()
-        .zip(&decided)
-        .filter(|(_, d)| d.is_none())
-        .flat_map(|(&(start, len), _)| regions.order[start..start + len].iter().copied())
-        .collect();
+    let undecided = regions.nodes_where(|region| verdicts[region].is_none());
     let per_node = winding_sides(field, tree, &undecided);
-    for (&l, &ins) in undecided.iter().zip(&per_node) {
-        inside[l as usize] = ins;
+    regions.negate_runs(field, |region| verdicts[region] == Some(true));
+    for (&l, _) in undecided.iter().zip(&per_node).filter(|(_, &ins)| ins) {
+        field.values[l as usize] = -field.values[l as usize];
     }
-    for (&(start, len), d) in regions.spans.iter().zip(&decided) {
-        if let Some(ins) = *d {
-            for &l in &regions.order[start..start + len] {
-                inside[l as usize] = ins;
-            }
-        }
-    }
-    inside
 }
 
 /// Coarse lattice steps (in nodes) tried by [`winding_sides`], coarsest
@@ -162,10 +133,10 @@ const WINDING_MARGIN: f64 = 0.2;
 /// Inside (winding number above 1/2) for each node of `nodes`.
 ///
 /// The winding number is harmonic away from the surface. A node farther
-/// from the surface than the diagonal of its cell in a lattice of step S
-/// has no surface in that cell; when the winding numbers at the cell's 8
-/// corners all lie on one side of 1/2 by [`WINDING_MARGIN`], the node takes
-/// that side. Lattices from coarse to fine ([`COARSE_STEPS`]) decide the
+/// from the surface than the farthest corner of its cell in a lattice of
+/// step S (at most the cell's diagonal) has no surface in that cell; when
+/// the winding numbers at the cell's 8 corners all lie on one side of 1/2
+/// by [`WINDING_MARGIN`], the node takes that side. Lattices from coarse to fine ([`COARSE_STEPS`]) decide the
 /// nodes far, then less far, from the surface; the rest get their own
 /// winding number. Leaky regions of scans with holes (all of the grid but
 /// the surface's pockets) then cost a few evaluations per coarse cell
@@ -175,10 +146,20 @@ fn winding_sides(field: &Field3, tree: &WindingTree, nodes: &[u32]) -> Vec<bool>
     let mut side: Vec<Option<bool>> = vec![None; nodes.len()];
     for step in COARSE_STEPS {
         let lattice = Lattice::new(&spec, step);
-        let diagonal = step as f64 * spec.spacing * 3f64.sqrt();
-        let open = |k: usize| side[k].is_none() && field.values[nodes[k] as usize] > diagonal;
+        // Undecided nodes whose cell has no surface (NaN distances fail).
+        let open: Vec<usize> = (0..nodes.len())
+            .into_par_iter()
+            .filter(|&k| {
+                let l = nodes[k] as usize;
+                let d = field.values[l];
+                side[k].is_none() && d * d > lattice.reach_squared(&spec, spec.unlinear(l))
+            })
+            .collect();
+        if open.is_empty() {
+            continue;
+        }
         let mut needed = vec![false; lattice.len()];
-        for k in (0..nodes.len()).filter(|&k| open(k)) {
+        for &k in &open {
             for c in lattice.corners(spec.unlinear(nodes[k] as usize)) {
                 needed[c] = true;
             }
@@ -190,12 +171,9 @@ fn winding_sides(field: &Field3, tree: &WindingTree, nodes: &[u32]) -> Vec<bool>
                 false => f64::NAN,
             })
             .collect();
-        let decided: Vec<Option<bool>> = (0..nodes.len())
-            .into_par_iter()
-            .map(|k| {
-                if !open(k) {
-                    return side[k];
-                }
+        let decided: Vec<Option<bool>> = open
+            .par_iter()
+            .map(|&k| {
                 let corners = lattice.corners(spec.unlinear(nodes[k] as usize));
                 let (lo, hi) = corners
                     .map(|c| winding[c])
@@ -205,7 +183,9 @@ fn winding_sides(field: &Field3, tree: &WindingTree, nodes: &[u32]) -> Vec<bool>
                 (lo > 0.5 + WINDING_MARGIN || hi < 0.5 - WINDING_MARGIN).then_some(lo > 0.5)
             })
             .collect();
-        side = decided;
+        for (&k, d) in open.iter().zip(decided) {
+            side[k] = d;
+        }
     }
     nodes
         .par_iter()
@@ -249,6 +229,19 @@ impl Lattice {
         })
     }
 
+    /// Squared largest distance from node `idx` to a corner of its cell:
+    /// the cell lies within that distance, as it is convex.
+    fn reach_squared(&self, spec: &GridSpec<3>, idx: [usize; 3]) -> f64 {
+        let cells: usize = (0..3)
+            .map(|a| {
+                let lo = idx[a] / self.step * self.step;
+                let hi = (lo + self.step).min(spec.dims[a] - 1);
+                (idx[a] - lo).max(hi - idx[a]).pow(2)
+            })
+            .sum();
+        cells as f64 * spec.spacing * spec.spacing
+    }
+
     /// Position of lattice point `c`.
     fn position(&self, spec: &GridSpec<3>, c: usize) -> DVec3 {
         let lattice = [
@@ -262,122 +255,317 @@ impl Lattice {
 }
 
 /// Connected regions of nodes over free edges (`d(a) + d(b) > h`).
+///
+/// Built from runs: maximal segments of a grid row (along x) whose
+/// consecutive nodes share free edges. The runs partition the nodes in index
+/// order, so a run is just its first node, and regions are joined run by run
+/// rather than node by node.
 struct Regions {
-    /// All nodes, grouped by region (ascending index within each).
-    order: Vec<u32>,
-    /// (start in `order`, length) per region.
-    spans: Vec<(usize, usize)>,
+    /// First node of each run, ascending, then the node count.
+    run_start: Vec<u32>,
+    /// Per row (`y + ny z`): index of its first run, then the run count.
+    row_run: Vec<u32>,
+    /// Region of each run; regions are numbered in order of their first node.
+    run_region: Vec<u32>,
+    /// Runs grouped by region, ascending within each.
+    runs: Vec<u32>,
+    /// Per region: its first entry in `runs`, then `runs.len()`.
+    region_runs: Vec<u32>,
+    /// Node count per region.
+    sizes: Vec<u32>,
 }
 
 impl Regions {
-    /// Layers (along z) per slab of the parallel labelling; fixed, so the
-    /// result never depends on the thread count.
+    /// Layers (along z) per slab of the parallel joining; fixed, so the
+    /// work split never depends on the thread count.
     const SLAB_LAYERS: usize = 8;
 
-    /// Label each slab's regions in parallel (a region's label is its
-    /// smallest node index), join labels across slab boundaries, and group
-    /// the nodes by region in index order.
     fn new(field: &Field3) -> Self {
-        let spec = field.spec;
-        let layer = spec.strides()[2];
-        let mut label = vec![0u32; spec.node_count()];
-        label
-            .par_chunks_mut(Self::SLAB_LAYERS * layer)
+        let (run_start, row_run) = Self::runs(field);
+        let mut regions = Regions {
+            run_start,
+            row_run,
+            run_region: Vec::new(),
+            runs: Vec::new(),
+            region_runs: Vec::new(),
+            sizes: Vec::new(),
+        };
+        let parent = regions.join(field);
+        regions.group(parent);
+        regions
+    }
+
+    /// First nodes of the runs and first runs of the rows (see the fields),
+    /// one z layer per parallel task.
+    fn runs(field: &Field3) -> (Vec<u32>, Vec<u32>) {
+        let [nx, ny, nz] = field.spec.dims;
+        let h = field.spec.spacing;
+        let layers: Vec<(Vec<u32>, Vec<u32>)> = field
+            .values
+            .par_chunks(nx * ny)
             .enumerate()
-            .for_each(|(s, slab)| Self::label_slab(field, s * Self::SLAB_LAYERS * layer, slab));
-        let mut parent: Vec<u32> = (0..spec.node_count() as u32).collect();
-        for z in (Self::SLAB_LAYERS..spec.dims[2]).step_by(Self::SLAB_LAYERS) {
-            for a in (z - 1) * layer..z * layer {
-                if Self::free(field, a, a + layer) {
-                    union(&mut parent, label[a], label[a + layer]);
+            .map(|(z, layer)| {
+                let (mut starts, mut counts) = (Vec::new(), Vec::with_capacity(ny));
+                for (y, row) in layer.chunks(nx).enumerate() {
+                    let first = (z * ny + y) * nx;
+                    let before = starts.len();
+                    starts.push(first as u32);
+                    Self::cuts(row, h, |x| starts.push((first + x) as u32));
+                    counts.push((starts.len() - before) as u32);
                 }
+                (starts, counts)
+            })
+            .collect();
+        let total: usize = layers.iter().map(|(s, _)| s.len()).sum();
+        let mut run_start = Vec::with_capacity(total + 1);
+        let mut row_run = Vec::with_capacity(ny * nz + 1);
+        for (starts, counts) in layers {
+            let mut next = run_start.len() as u32;
+            for c in counts {
+                row_run.push(next);
+                next += c;
             }
+            run_start.extend_from_slice(&starts);
         }
-        for l in &mut label {
-            *l = find(&mut parent, *l);
-        }
-        drop(parent);
-        Self::group(&label)
+        row_run.push(run_start.len() as u32);
+        run_start.push(field.values.len() as u32);
+        (run_start, row_run)
     }
 
-    /// No surface can cross the edge between nodes `a` and `b`.
-    fn free(field: &Field3, a: usize, b: usize) -> bool {
-        field.values[a] + field.values[b] > field.spec.spacing
+    /// Call `cut(x)` for each x (ascending) whose edge to x - 1 is not free.
+    fn cuts(row: &[f64], h: f64, mut cut: impl FnMut(usize)) {
+        // Most rows are mostly free: test blocks of edges without branches
+        // (so the test vectorizes) and look closer only at blocks with a cut.
+        const BLOCK: usize = 16;
+        // A NaN distance fails the test, so it blocks its edges.
+        let free = |a: f64, b: f64| a + b > h;
+        let mut x = 1;
+        while x < row.len() {
+            let end = (x + BLOCK).min(row.len());
+            let pairs = row[x - 1..end - 1].iter().zip(&row[x..end]);
+            if pairs.fold(false, |any, (&a, &b)| any | !free(a, b)) {
+                (x..end)
+                    .filter(|&x| !free(row[x - 1], row[x]))
+                    .for_each(&mut cut);
+            }
+            x = end;
+        }
     }
 
-    /// Breadth-first labelling of the regions of one slab (nodes `offset..`).
-    fn label_slab(field: &Field3, offset: usize, label: &mut [u32]) {
-        let spec = field.spec;
-        let strides = spec.strides();
-        let mut seen = vec![false; label.len()];
-        let mut queue = Vec::new();
-        for seed in 0..label.len() {
-            if seen[seed] {
-                continue;
-            }
-            seen[seed] = true;
-            queue.clear();
-            queue.push(seed);
-            while let Some(l) = queue.pop() {
-                label[l] = (offset + seed) as u32;
-                let idx = spec.unlinear(offset + l);
-                for a in 0..3 {
-                    let lower = (idx[a] > 0).then(|| l.wrapping_sub(strides[a]));
-                    let upper = (idx[a] + 1 < spec.dims[a]).then(|| l + strides[a]);
-                    for m in lower.into_iter().chain(upper) {
-                        if m < label.len() && !seen[m] && Self::free(field, offset + l, offset + m)
-                        {
-                            seen[m] = true;
-                            queue.push(m);
-                        }
+    /// Union-find parents of the runs, joined over free y and z edges:
+    /// within slabs of [`Self::SLAB_LAYERS`] layers in parallel, then across
+    /// the slab boundaries.
+    fn join(&self, field: &Field3) -> Vec<u32> {
+        let [_, ny, nz] = field.spec.dims;
+        let mut parent: Vec<u32> = (0..self.run_count() as u32).collect();
+        // Split `parent` at the first run of each slab.
+        let mut slabs = Vec::new();
+        let mut rest = parent.as_mut_slice();
+        let mut base = 0;
+        for z in (0..nz).step_by(Self::SLAB_LAYERS) {
+            let end = self.row_run[(z + Self::SLAB_LAYERS).min(nz) * ny] as usize;
+            let (slab, tail) = rest.split_at_mut(end - base);
+            slabs.push((z, base as u32, slab));
+            rest = tail;
+            base = end;
+        }
+        slabs.into_par_iter().for_each(|(z0, base, slab)| {
+            for z in z0..(z0 + Self::SLAB_LAYERS).min(nz) {
+                for y in 0..ny {
+                    let row = y + ny * z;
+                    if y > 0 {
+                        self.join_rows(field, row - 1, row, slab, base);
+                    }
+                    if z > z0 {
+                        self.join_rows(field, row - ny, row, slab, base);
                     }
                 }
             }
+        });
+        for z in (Self::SLAB_LAYERS..nz).step_by(Self::SLAB_LAYERS) {
+            for row in ny * z..ny * (z + 1) {
+                self.join_rows(field, row - ny, row, &mut parent, 0);
+            }
+        }
+        parent
+    }
+
+    fn run_count(&self) -> usize {
+        self.run_start.len() - 1
+    }
+
+    /// Join the runs of rows `a` and `b` (neighbours along y or z) over
+    /// their free edges. `parent` holds the parents of runs `base..`.
+    ///
+    /// Walks the overlaps of the two rows' runs: one free edge joins an
+    /// overlapping pair, so the scan of an overlap stops at the first.
+    fn join_rows(&self, field: &Field3, a: usize, b: usize, parent: &mut [u32], base: u32) {
+        let nx = field.spec.dims[0];
+        let h = field.spec.spacing;
+        let (row_a, row_b) = (&field.values[a * nx..][..nx], &field.values[b * nx..][..nx]);
+        // End (in the row) of run `r` of row `row`: the next run's start,
+        // which for the row's last run is the next row's first node (or the
+        // sentinel).
+        let end = |r: usize, row: usize| self.run_start[r + 1] as usize - row * nx;
+        let (mut ra, mut rb) = (self.row_run[a] as usize, self.row_run[b] as usize);
+        let mut x = 0;
+        while x < nx {
+            let (end_a, end_b) = (end(ra, a), end(rb, b));
+            let stop = end_a.min(end_b);
+            if (x..stop).any(|x| row_a[x] + row_b[x] > h) {
+                union(parent, base, ra as u32, rb as u32);
+            }
+            x = stop;
+            ra += usize::from(end_a == stop);
+            rb += usize::from(end_b == stop);
         }
     }
 
-    /// Nodes grouped by their region's root, roots and nodes ascending.
-    fn group(root: &[u32]) -> Self {
-        // Node counts per root, then turned in place into start offsets.
-        let mut start = vec![0u32; root.len()];
-        for &r in root {
-            start[r as usize] += 1;
+    /// Number the regions in order of their first run and group the runs
+    /// by region.
+    fn group(&mut self, mut parent: Vec<u32>) {
+        // Roots are the smallest runs of their sets and parents never
+        // exceed their children, so in ascending order a run's parent
+        // already holds its region number when the run is reached.
+        let mut regions = 0u32;
+        for r in 0..parent.len() {
+            let p = parent[r] as usize;
+            parent[r] = if p == r {
+                regions += 1;
+                regions - 1
+            } else {
+                parent[p]
+            };
         }
-        let mut spans = Vec::new();
-        let mut next = 0u32;
-        for s in start.iter_mut() {
-            let count = *s;
-            if count > 0 {
-                spans.push((next as usize, count as usize));
+        let mut sizes = vec![0u32; regions as usize];
+        let mut next = vec![0u32; regions as usize + 1];
+        for (r, &region) in parent.iter().enumerate() {
+            sizes[region as usize] += self.run_len(r) as u32;
+            next[region as usize + 1] += 1;
+        }
+        for i in 1..next.len() {
+            next[i] += next[i - 1];
+        }
+        let region_runs = next.clone();
+        let mut runs = vec![0u32; parent.len()];
+        for (r, &region) in parent.iter().enumerate() {
+            runs[next[region as usize] as usize] = r as u32;
+            next[region as usize] += 1;
+        }
+        self.run_region = parent;
+        self.runs = runs;
+        self.region_runs = region_runs;
+        self.sizes = sizes;
+    }
+
+    fn run_len(&self, r: usize) -> usize {
+        (self.run_start[r + 1] - self.run_start[r]) as usize
+    }
+
+    /// The runs of `region`, ascending.
+    fn runs_of(&self, region: usize) -> &[u32] {
+        &self.runs[self.region_runs[region] as usize..self.region_runs[region + 1] as usize]
+    }
+
+    /// Per region: inside or outside when it is large and its winding
+    /// numbers at [`REGION_SAMPLES`] nodes spread over it (evenly in index
+    /// order) agree, else `None`.
+    fn verdicts(&self, field: &Field3, tree: &WindingTree) -> Vec<Option<bool>> {
+        let spec = field.spec;
+        let position = |l: usize| DVec3::from_array(spec.position(spec.unlinear(l)));
+        let large: Vec<usize> = (0..self.sizes.len())
+            .filter(|&region| self.sizes[region] as usize > SMALL_REGION)
+            .collect();
+        let decided: Vec<Option<bool>> = large
+            .par_iter()
+            .map(|&region| {
+                let samples = self.samples(region);
+                let first = tree.winding_number(position(samples[0])) > 0.5;
+                samples[1..]
+                    .iter()
+                    .all(|&l| (tree.winding_number(position(l)) > 0.5) == first)
+                    .then_some(first)
+            })
+            .collect();
+        let mut verdicts = vec![None; self.sizes.len()];
+        for (&region, d) in large.iter().zip(decided) {
+            verdicts[region] = d;
+        }
+        verdicts
+    }
+
+    /// The nodes of ranks `k len / REGION_SAMPLES` (k = 0, 1, ...) among
+    /// the `len` nodes of `region` in index order.
+    fn samples(&self, region: usize) -> Vec<usize> {
+        let len = self.sizes[region] as usize;
+        let mut ranks = (0..REGION_SAMPLES)
+            .map(|k| k * len / REGION_SAMPLES)
+            .peekable();
+        let mut samples = Vec::with_capacity(REGION_SAMPLES);
+        let mut passed = 0;
+        for &r in self.runs_of(region) {
+            let r = r as usize;
+            let run_len = self.run_len(r);
+            while let Some(rank) = ranks.next_if(|&rank| rank < passed + run_len) {
+                samples.push(self.run_start[r] as usize + rank - passed);
             }
-            *s = next;
-            next += count;
+            passed += run_len;
         }
-        let mut order = vec![0u32; root.len()];
-        for (l, &r) in root.iter().enumerate() {
-            order[start[r as usize] as usize] = l as u32;
-            start[r as usize] += 1;
+        samples
+    }
+
+    /// All nodes of the regions where `pick(region)` holds, ascending.
+    fn nodes_where(&self, pick: impl Fn(usize) -> bool) -> Vec<u32> {
+        let mut nodes = Vec::new();
+        for (r, &region) in self.run_region.iter().enumerate() {
+            if pick(region as usize) {
+                nodes.extend(self.run_start[r]..self.run_start[r + 1]);
+            }
         }
-        Regions { order, spans }
+        nodes
+    }
+
+    /// Negate the values of the nodes of the regions where
+    /// `inside(region)` holds, one z layer per parallel task.
+    fn negate_runs(&self, field: &mut Field3, inside: impl Fn(usize) -> bool + Sync) {
+        let [nx, ny, _] = field.spec.dims;
+        let layer = nx * ny;
+        field
+            .values
+            .par_chunks_mut(layer)
+            .enumerate()
+            .for_each(|(z, values)| {
+                let runs = self.row_run[z * ny] as usize..self.row_run[(z + 1) * ny] as usize;
+                for r in runs.filter(|&r| inside(self.run_region[r] as usize)) {
+                    let start = self.run_start[r] as usize - z * layer;
+                    for v in &mut values[start..start + self.run_len(r)] {
+                        *v = -*v;
+                    }
+                }
+            });
     }
 }
 
-/// Root of `x` in the union-find forest `parent`, halving the path.
-fn find(parent: &mut [u32], mut x: u32) -> u32 {
-    while parent[x as usize] != x {
-        let up = parent[parent[x as usize] as usize];
-        parent[x as usize] = up;
+/// Root of `x` in the union-find forest over ids `base..` (`parent[i]` is
+/// the parent of id `base + i`), halving the path.
+fn find(parent: &mut [u32], base: u32, mut x: u32) -> u32 {
+    loop {
+        let p = parent[(x - base) as usize];
+        if p == x {
+            return x;
+        }
+        let up = parent[(p - base) as usize];
+        parent[(x - base) as usize] = up;
         x = up;
     }
-    x
 }
 
-/// Join the sets of `a` and `b` under the smaller root (so roots are the
-/// smallest labels, whatever the order of joins).
-fn union(parent: &mut [u32], a: u32, b: u32) {
-    let (ra, rb) = (find(parent, a), find(parent, b));
+/// Join the sets of `a` and `b` under the smaller root, so roots are the
+/// smallest ids of their sets and every parent is below its child.
+fn union(parent: &mut [u32], base: u32, a: u32, b: u32) {
+    let (ra, rb) = (find(parent, base, a), find(parent, base, b));
     let (lo, hi) = (ra.min(rb), ra.max(rb));
-    parent[hi as usize] = lo;
+    parent[(hi - base) as usize] = lo;
 }
 
 /// Bounding-volume tree over triangles for fast generalized winding
@@ -388,115 +576,204 @@ struct WindingTree {
     nodes: Vec<Cluster>,
 }
 
+#[derive(Default)]
 struct Cluster {
     /// Area-weighted centroid of the triangles.
     centre: DVec3,
     /// Sum of the triangles' vector areas (half cross products).
     vector_area: DVec3,
-    /// Largest distance from `centre` to a triangle corner.
-    radius: f64,
+    /// Squared distance beyond which the cluster counts as a dipole:
+    /// [`FAR_RATIO`] times the largest distance from `centre` to a triangle
+    /// corner, squared.
+    far_squared: f64,
     /// Triangle range `start..end` in the tree's order.
     start: usize,
     end: usize,
-    /// Child cluster indices, `None` for leaves.
-    children: Option<(usize, usize)>,
+    /// Clusters are stored depth first, so the first child of cluster `i`
+    /// is `i + 1`; the second is `i + second`. Zero for leaves.
+    second: usize,
+}
+
+/// Subtrees with more triangles than this build their halves in parallel.
+const PARALLEL_BUILD: usize = 4096;
+
+impl Cluster {
+    /// Append to `out` the subtree over `tris` (triangles `offset..` of the
+    /// tree), depth first, reordering `tris` by the splits. Returns the
+    /// subtree's moments: a cluster's are the sums of its children's, so
+    /// only leaves visit their triangles for them.
+    fn build(tris: &mut [[DVec3; 3]], offset: usize, out: &mut Vec<Cluster>) -> Moments {
+        let count = tris.len();
+        if count <= LEAF_SIZE {
+            let moments = Moments::of(tris);
+            out.push(Cluster::new(tris, offset, &moments, 0));
+            return moments;
+        }
+        let id = out.len();
+        out.push(Cluster::default());
+        let mid = split(tris);
+        let (lo, hi) = tris.split_at_mut(mid);
+        let (left, right, second) = if count <= PARALLEL_BUILD {
+            let left = Cluster::build(lo, offset, out);
+            let second = out.len() - id;
+            (left, Cluster::build(hi, offset + mid, out), second)
+        } else {
+            let subtree = |tris: &mut [[DVec3; 3]], offset| {
+                let mut nodes = Vec::new();
+                let moments = Cluster::build(tris, offset, &mut nodes);
+                (nodes, moments)
+            };
+            let ((left_nodes, left), (right_nodes, right)) =
+                rayon::join(|| subtree(lo, offset), || subtree(hi, offset + mid));
+            let second = 1 + left_nodes.len();
+            out.extend(left_nodes);
+            out.extend(right_nodes);
+            (left, right, second)
+        };
+        let moments = left.add(&right);
+        out[id] = Cluster::new(tris, offset, &moments, second);
+        moments
+    }
+
+    /// The cluster over `tris` (triangles `offset..` of the tree) with
+    /// `moments`, its second child at `second`.
+    fn new(tris: &[[DVec3; 3]], offset: usize, moments: &Moments, second: usize) -> Cluster {
+        let centre = moments.centre(tris.len());
+        let radius_squared = tris
+            .iter()
+            .flatten()
+            .map(|p| p.distance_squared(centre))
+            .fold(0.0, f64::max);
+        Cluster {
+            centre,
+            vector_area: moments.vector_area,
+            far_squared: FAR_RATIO * FAR_RATIO * radius_squared,
+            start: offset,
+            end: offset + tris.len(),
+            second,
+        }
+    }
+}
+
+/// Sums over a cluster's triangles.
+#[derive(Clone, Copy, Default)]
+struct Moments {
+    vector_area: DVec3,
+    /// Areas times centroids.
+    weighted: DVec3,
+    area: f64,
+    /// Centroids (for clusters without area).
+    centroids: DVec3,
+}
+
+impl Moments {
+    fn of(tris: &[[DVec3; 3]]) -> Moments {
+        tris.iter().fold(Moments::default(), |m, [a, b, c]| {
+            let vector_area = 0.5 * (*b - *a).cross(*c - *a);
+            let area = vector_area.length();
+            let centroid = (*a + *b + *c) / 3.0;
+            m.add(&Moments {
+                vector_area,
+                weighted: area * centroid,
+                area,
+                centroids: centroid,
+            })
+        })
+    }
+
+    fn add(&self, other: &Moments) -> Moments {
+        Moments {
+            vector_area: self.vector_area + other.vector_area,
+            weighted: self.weighted + other.weighted,
+            area: self.area + other.area,
+            centroids: self.centroids + other.centroids,
+        }
+    }
+
+    /// Area-weighted centroid of `count` triangles, or their mean centroid
+    /// when they have no area.
+    fn centre(&self, count: usize) -> DVec3 {
+        if self.area > 0.0 {
+            self.weighted / self.area
+        } else {
+            self.centroids / count as f64
+        }
+    }
+}
+
+/// Reorder `tris` about the median centroid along the widest axis; returns
+/// the split position.
+fn split(tris: &mut [[DVec3; 3]]) -> usize {
+    let centroid = |t: &[DVec3; 3]| (t[0] + t[1] + t[2]) / 3.0;
+    let (lo, hi) = tris.iter().map(centroid).fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), c| (lo.min(c), hi.max(c)),
+    );
+    let axis = (hi - lo).max_position();
+    let key = |t: &[DVec3; 3]| centroid(t)[axis];
+    // Find the median key among the keys alone, then move the triangles
+    // below it first and those equal to it next (cheaper than selecting
+    // the triangles themselves): the first `mid` are then a lower half.
+    let mut keys: Vec<f64> = tris.iter().map(key).collect();
+    let mid = tris.len() / 2;
+    let median = *keys.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let below = partition(tris, |t| key(t).total_cmp(&median).is_lt());
+    partition(&mut tris[below..], |t| key(t) == median);
+    mid
+}
+
+/// Move the triangles where `first` holds to the front (stably for
+/// those); returns their count.
+fn partition(tris: &mut [[DVec3; 3]], first: impl Fn(&[DVec3; 3]) -> bool) -> usize {
+    let mut count = 0;
+    for k in 0..tris.len() {
+        if first(&tris[k]) {
+            tris.swap(count, k);
+            count += 1;
+        }
+    }
+    count
 }
 
 impl WindingTree {
     fn new(triangles: &[[[f64; 3]; 3]]) -> Self {
-        let triangles: Vec<[DVec3; 3]> =
+        let mut triangles: Vec<[DVec3; 3]> =
             triangles.iter().map(|t| t.map(DVec3::from_array)).collect();
-        let mut tree = WindingTree {
-            triangles,
-            nodes: Vec::new(),
-        };
-        let count = tree.triangles.len();
-        tree.build(0, count);
-        tree
-    }
-
-    /// Build the cluster over triangles `start..end`; returns its index.
-    fn build(&mut self, start: usize, end: usize) -> usize {
-        let tris = &self.triangles[start..end];
-        let mut vector_area = DVec3::ZERO;
-        let mut weighted = DVec3::ZERO;
-        let mut area_sum = 0.0;
-        for [a, b, c] in tris {
-            let va = 0.5 * (*b - *a).cross(*c - *a);
-            vector_area += va;
-            let area = va.length();
-            weighted += area * (*a + *b + *c) / 3.0;
-            area_sum += area;
-        }
-        let mean = tris
-            .iter()
-            .map(|t| (t[0] + t[1] + t[2]) / 3.0)
-            .sum::<DVec3>()
-            / tris.len() as f64;
-        let centre = if area_sum > 0.0 {
-            weighted / area_sum
-        } else {
-            mean
-        };
-        let radius = tris
-            .iter()
-            .flatten()
-            .map(|p| p.distance(centre))
-            .fold(0.0, f64::max);
-        let id = self.nodes.len();
-        self.nodes.push(Cluster {
-            centre,
-            vector_area,
-            radius,
-            start,
-            end,
-            children: None,
-        });
-        if end - start > LEAF_SIZE {
-            let mid = self.split(start, end);
-            let left = self.build(start, mid);
-            let right = self.build(mid, end);
-            self.nodes[id].children = Some((left, right));
-        }
-        id
-    }
-
-    /// Reorder triangles `start..end` about the median centroid along the
-    /// widest axis; returns the split position.
-    fn split(&mut self, start: usize, end: usize) -> usize {
-        let centroid = |t: &[DVec3; 3]| (t[0] + t[1] + t[2]) / 3.0;
-        let (lo, hi) = self.triangles[start..end].iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), t| (lo.min(centroid(t)), hi.max(centroid(t))),
-        );
-        let axis = (hi - lo).max_position();
-        let mid = (start + end) / 2;
-        self.triangles[start..end].select_nth_unstable_by(mid - start, |a, b| {
-            centroid(a)[axis].total_cmp(&centroid(b)[axis])
-        });
-        mid
+        let mut nodes = Vec::new();
+        Cluster::build(&mut triangles, 0, &mut nodes);
+        WindingTree { triangles, nodes }
     }
 
     /// Generalized winding number at `q` (1 inside a closed outward mesh,
     /// 0 outside).
     fn winding_number(&self, q: DVec3) -> f64 {
         let mut total = 0.0;
-        let mut stack = vec![0usize];
-        while let Some(i) = stack.pop() {
+        // Each pop pushes at most two, so the stack never exceeds the depth
+        // plus one; halving splits keep the depth below 64.
+        let mut stack = [0usize; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let i = stack[top];
             let c = &self.nodes[i];
             let r = c.centre - q;
-            let dist = r.length();
-            if dist > FAR_RATIO * c.radius {
-                total += c.vector_area.dot(r) / (dist * dist * dist);
+            let dist_squared = r.length_squared();
+            if dist_squared > c.far_squared {
+                let dist = dist_squared.sqrt();
+                total += c.vector_area.dot(r) / (dist_squared * dist);
                 continue;
             }
-            match c.children {
-                Some((a, b)) => stack.extend([a, b]),
-                None => {
+            match c.second {
+                0 => {
                     total += self.triangles[c.start..c.end]
                         .iter()
                         .map(|t| solid_angle(t, q))
                         .sum::<f64>()
+                }
+                second => {
+                    stack[top] = i + 1;
+                    stack[top + 1] = i + second;
+                    top += 2;
                 }
             }
         }
@@ -764,6 +1041,156 @@ mod tests {
             normals: None,
         };
         assert!(signed_distance(&bad, &spec, None).is_err());
+    }
+
+    /// Per node: its flood-fill component over free edges, components
+    /// numbered in order of their first node.
+    fn flood_fill(field: &Field3) -> Vec<u32> {
+        let spec = field.spec;
+        let strides = spec.strides();
+        let mut component = vec![u32::MAX; spec.node_count()];
+        let mut count = 0;
+        for seed in 0..spec.node_count() {
+            if component[seed] != u32::MAX {
+                continue;
+            }
+            component[seed] = count;
+            let mut stack = vec![seed];
+            while let Some(l) = stack.pop() {
+                let idx = spec.unlinear(l);
+                for a in 0..3 {
+                    let lower = (idx[a] > 0).then(|| l - strides[a]);
+                    let upper = (idx[a] + 1 < spec.dims[a]).then(|| l + strides[a]);
+                    for m in lower.into_iter().chain(upper) {
+                        let free = field.values[l] + field.values[m] > spec.spacing;
+                        if free && component[m] == u32::MAX {
+                            component[m] = count;
+                            stack.push(m);
+                        }
+                    }
+                }
+            }
+            count += 1;
+        }
+        component
+    }
+
+    /// Regions joined run by run (over several slabs, with NaN distances
+    /// blocking their edges) equal a node-by-node flood fill, and their
+    /// samples are the nodes of the promised ranks. Random fields below,
+    /// near and above the percolation threshold give regions of all sizes.
+    #[test]
+    fn regions_match_a_flood_fill() {
+        use rand::{Rng, SeedableRng};
+        let spec = GridSpec::<3> {
+            origin: [0.0; 3],
+            spacing: 1.0,
+            dims: [13, 7, 27],
+        };
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        for scale in [0.7, 0.9, 1.4] {
+            let values = (0..spec.node_count())
+                .map(|_| match rng.random::<f64>() {
+                    u if u < 0.01 => f64::NAN,
+                    _ => scale * rng.random::<f64>(),
+                })
+                .collect();
+            let field = Field3 { spec, values };
+            let component = flood_fill(&field);
+            let regions = Regions::new(&field);
+            let mut region = vec![u32::MAX; spec.node_count()];
+            for r in 0..regions.run_count() {
+                let nodes = regions.run_start[r] as usize..regions.run_start[r + 1] as usize;
+                region[nodes].fill(regions.run_region[r]);
+            }
+            assert_eq!(region, component, "scale {scale}");
+            let mut members = vec![Vec::new(); regions.sizes.len()];
+            for (l, &c) in component.iter().enumerate() {
+                members[c as usize].push(l);
+            }
+            let largest = members.iter().map(Vec::len).max().unwrap_or(0);
+            println!(
+                "scale {scale}: {} regions, largest {largest}",
+                members.len()
+            );
+            for (c, nodes) in members.iter().enumerate() {
+                assert_eq!(regions.sizes[c] as usize, nodes.len());
+                let want: Vec<usize> = (0..REGION_SAMPLES)
+                    .map(|k| nodes[k * nodes.len() / REGION_SAMPLES])
+                    .collect();
+                assert_eq!(regions.samples(c), want);
+            }
+            let odd: Vec<u32> = (0..spec.node_count() as u32)
+                .filter(|&l| component[l as usize] % 2 == 1)
+                .collect();
+            assert_eq!(regions.nodes_where(|c| c % 2 == 1), odd);
+        }
+    }
+
+    /// A node's reach is its distance to the farthest corner of its cell,
+    /// clamped cells at the grid's far ends included.
+    #[test]
+    fn lattice_reach_is_the_farthest_corner() {
+        let spec = GridSpec::<3> {
+            origin: [0.5, -1.0, 2.0],
+            spacing: 0.3,
+            dims: [11, 6, 17],
+        };
+        for step in COARSE_STEPS {
+            let lattice = Lattice::new(&spec, step);
+            for l in 0..spec.node_count() {
+                let idx = spec.unlinear(l);
+                let p = DVec3::from_array(spec.position(idx));
+                let farthest = lattice
+                    .corners(idx)
+                    .map(|c| lattice.position(&spec, c).distance_squared(p))
+                    .fold(0.0, f64::max);
+                let reach = lattice.reach_squared(&spec, idx);
+                assert!((reach - farthest).abs() < 1e-9, "step {step}, node {idx:?}");
+            }
+        }
+    }
+
+    /// Many copies of a triangle collapsed onto a cube edge (equal
+    /// centroids, no area) change neither distances nor signs.
+    #[test]
+    fn collapsed_duplicate_triangles_change_nothing() {
+        let cube = shapes::cuboid(DVec3::splat(-0.5), DVec3::splat(0.5));
+        let [a, b, _] = cube.triangles[0];
+        let mut padded = cube.clone();
+        padded.triangles.extend(std::iter::repeat_n([a, a, b], 40));
+        let spec = grid_around(&cube, 20);
+        let plain = signed_distance(&cube, &spec, None).unwrap();
+        let field = signed_distance(&padded, &spec, None).unwrap();
+        for (p, f) in plain.values.iter().zip(&field.values) {
+            assert_eq!(p.abs(), f.abs());
+            assert!(*p == 0.0 || (*p < 0.0) == (*f < 0.0), "{p} vs {f}");
+        }
+    }
+
+    /// The sign stage gives the same bits on one thread and on three.
+    #[test]
+    fn signs_do_not_depend_on_the_thread_count() {
+        let mut mesh = shapes::icosphere(DVec3::ZERO, 1.0, 3);
+        mesh.triangles
+            .retain(|t| t.iter().all(|&i| mesh.vertices[i as usize].z < 0.8));
+        let spec = grid_around(&mesh, 40);
+        let data = DataSet::<3>::from_mesh(&mesh).unwrap();
+        let unsigned = unsigned_distance_with(&data, &spec, &DistanceOptions::default())
+            .unwrap()
+            .field;
+        let signed = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut field = unsigned.clone();
+                negate_inside(&mut field, &WindingTree::new(&data.triangles));
+                field.values.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+            })
+        };
+        assert_eq!(signed(1), signed(3));
     }
 
     #[test]
