@@ -1,6 +1,7 @@
 //! Stage 1 of the unsigned distance: the data sorted in space, and exact
 //! distances in a band of nodes around every datum.
 
+use super::primitives::dist2;
 use super::{DataSet, NO_DATUM};
 use crate::spec::for_each_in_box;
 use crate::GridSpec;
@@ -187,8 +188,7 @@ impl<const D: usize> Slab<'_, D> {
 
 /// Point `q` (datum `i`): every node within `radius`, by rows along axis 0
 /// clipped to the ball (points are the dense kind; the ball is half the
-/// box). Rows are short, so the per-row work is a few additions; the row
-/// loop has no branch, so that it vectorizes.
+/// box).
 fn point_ball<const D: usize>(
     spec: &GridSpec<D>,
     q: &[f64; D],
@@ -209,8 +209,9 @@ fn point_ball<const D: usize>(
     let qx = qc[0] as f32;
     // Offsets along the row from the whole and fractional parts of `q`'s
     // coordinate: exact whatever the grid size.
-    let q_whole = qc[0].floor();
-    let q_frac = (qc[0] - q_whole) as f32;
+    let q_whole = qc[0].floor() as i64;
+    let q_frac = (qc[0] - q_whole as f64) as f32;
+    let row_len = spec.dims[0];
     last[0] = first[0];
     for_each_in_box(first, last, |row| {
         let off_row: f32 = (1..D).map(|a| slab.offsets[a][row[a] - first[a]]).sum();
@@ -226,17 +227,69 @@ fn point_ball<const D: usize>(
             return;
         }
         let start: usize = (1..D).map(|a| row[a] * strides[a]).sum::<usize>() - slab.offset;
-        let d2 = &mut slab.d2[start + lo..start + hi + 1];
-        let datum = &mut slab.datum[start + lo..start + hi + 1];
-        let lo_from_q = (lo as i64 - q_whole as i64) as i32;
-        for (k, (d2, datum)) in d2.iter_mut().zip(datum.iter_mut()).enumerate() {
-            let dx = (lo_from_q + k as i32) as f32 - q_frac;
-            let offer = dx * dx + off_row;
-            let better = offer < *d2;
-            *d2 = if better { offer } else { *d2 };
-            *datum = if better { i } else { *datum };
+        let (d2, datum) = (
+            &mut slab.d2[start..][..row_len],
+            &mut slab.datum[start..][..row_len],
+        );
+        let first_dx = |x: usize| (x as i64 - q_whole) as i32;
+        if row_len < CHUNK {
+            return (lo..=hi).for_each(|x| {
+                let (d2, datum) = (&mut d2[x], &mut datum[x]);
+                offer_chunk(
+                    std::array::from_mut(d2),
+                    std::array::from_mut(datum),
+                    first_dx(x),
+                    q_frac,
+                    off_row,
+                    i,
+                )
+            });
+        }
+        // Whole chunks from `lo`, the last one ending at `hi`; a row
+        // shorter than a chunk takes one within the grid's row. The extra
+        // nodes get exact offers too, which do no harm.
+        let mut x = lo.min(row_len - CHUNK);
+        loop {
+            let d2: &mut [f32; CHUNK] = (&mut d2[x..x + CHUNK]).try_into().expect("a chunk");
+            let datum: &mut [u32; CHUNK] = (&mut datum[x..x + CHUNK]).try_into().expect("a chunk");
+            offer_chunk(d2, datum, first_dx(x), q_frac, off_row, i);
+            if x + CHUNK > hi {
+                break;
+            }
+            x = (x + CHUNK).min(hi + 1 - CHUNK);
         }
     });
+}
+
+/// Nodes per [`offer_chunk`]: ball rows are short (at most 11 nodes for
+/// the usual 5-cell radius), so a loop over their exact length would run
+/// in its scalar tail; a fixed width vectorizes.
+const CHUNK: usize = 8;
+
+/// Offer a point to consecutive nodes of a row (all of `d2`, `datum`):
+/// the first lies `first_dx` whole cells past the point's whole coordinate
+/// along the row, `q_frac` its fractional part; `off_row` is the squared
+/// offset of the row. Branch-free, so that it vectorizes.
+#[inline(always)]
+fn offer_chunk<const N: usize>(
+    d2: &mut [f32; N],
+    datum: &mut [u32; N],
+    first_dx: i32,
+    q_frac: f32,
+    off_row: f32,
+    i: u32,
+) {
+    // Selects by masks on local copies: LLVM turns `if` selects on memory
+    // into branches, which mispredict about every other node.
+    let (mut best, mut owner) = (*d2, *datum);
+    for k in 0..N {
+        let dx = (first_dx + k as i32) as f32 - q_frac;
+        let offer = dx * dx + off_row;
+        let take = 0u32.wrapping_sub(u32::from(offer < best[k]));
+        best[k] = f32::from_bits((offer.to_bits() & take) | (best[k].to_bits() & !take));
+        owner[k] = (i & take) | (owner[k] & !take);
+    }
+    (*d2, *datum) = (best, owner);
 }
 
 /// `x.floor()` for the finite, moderate `x` of grid coordinates; without
@@ -254,18 +307,79 @@ fn ceil(x: f32) -> i64 {
     t + i64::from((t as f32) < x)
 }
 
-/// Any datum `i`: every node of the box `first..=last`.
+/// Any datum `i`: every node of the box `first..=last`, by rows along
+/// axis 0. Two lower bounds of the distance spare most exact evaluations:
+/// a triangle's plane and the datum's bounding ball. A node whose best
+/// offer so far is nearer than either bound keeps it.
 fn datum_box<const D: usize>(
     data: &DataSet<D>,
     spec: &GridSpec<D>,
     i: u32,
-    (first, last): ([usize; D], [usize; D]),
+    (first, mut last): ([usize; D], [usize; D]),
     slab: &mut Slab<D>,
 ) {
-    let inv_h2 = spec.spacing.powi(-2);
-    for_each_in_box(first, last, |idx| {
-        let p = spec.position(*idx);
-        let d2 = (data.distance_squared(i as usize, &p) * inv_h2) as f32;
-        slab.offer(spec.linear(*idx) - slab.offset, d2, i);
+    let (h, inv_h2) = (spec.spacing, spec.spacing.powi(-2));
+    let plane = data
+        .triangles
+        .get((i as usize).wrapping_sub(data.points.len() + data.segments.len()))
+        .and_then(unit_normal);
+    let (centre, ball) = bounding_ball(data, i as usize);
+    let row_len = last[0] - first[0] + 1;
+    last[0] = first[0];
+    for_each_in_box(first, last, |row| {
+        let mut p = spec.position(*row);
+        let start = spec.linear(*row) - slab.offset;
+        // Height over the plane along the row: `height + slope * k`.
+        let (height, slope) = match &plane {
+            Some((n, a)) => ((0..D).map(|c| n[c] * (p[c] - a[c])).sum(), n[0] * h),
+            None => (0.0, 0.0),
+        };
+        for k in 0..row_len {
+            p[0] = spec.origin[0] + (first[0] + k) as f64 * h;
+            let above_plane = (height + slope * k as f64).abs();
+            let off_ball = dist2(&p, &centre).sqrt() - ball;
+            let bound = above_plane.max(off_ball).max(0.0);
+            if (bound * bound * inv_h2) as f32 >= slab.d2[start + k] {
+                continue;
+            }
+            let d2 = (data.distance_squared(i as usize, &p) * inv_h2) as f32;
+            slab.offer(start + k, d2, i);
+        }
     });
+}
+
+/// Centre and radius of a ball holding datum `i`: the centre of its
+/// bounding box and the largest distance to a corner (rounded up).
+fn bounding_ball<const D: usize>(data: &DataSet<D>, i: usize) -> ([f64; D], f64) {
+    let (lo, hi) = data.datum_bounds(i);
+    let centre = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
+    let farthest = |corners: &[[f64; D]]| {
+        corners
+            .iter()
+            .map(|c| dist2(c, &centre))
+            .fold(0.0, f64::max)
+    };
+    let radius = match data.datum(i) {
+        Some(super::Datum::Segment(s)) => farthest(&s),
+        Some(super::Datum::Triangle(t)) => farthest(&t),
+        _ => 0.0,
+    }
+    .sqrt();
+    (centre, radius * (1.0 + 1e-12))
+}
+
+/// Unit normal and a corner of a 3D triangle; `None` in other dimensions
+/// and for degenerate triangles.
+fn unit_normal<const D: usize>(t: &[[f64; D]; 3]) -> Option<([f64; D], [f64; D])> {
+    if D != 3 {
+        return None;
+    }
+    let e = |k: usize, c: usize| t[k][c] - t[0][c];
+    let n = [
+        e(1, 1) * e(2, 2) - e(1, 2) * e(2, 1),
+        e(1, 2) * e(2, 0) - e(1, 0) * e(2, 2),
+        e(1, 0) * e(2, 1) - e(1, 1) * e(2, 0),
+    ];
+    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    (len > 0.0 && len.is_finite()).then(|| (std::array::from_fn(|c| n[c] / len), t[0]))
 }

@@ -45,8 +45,8 @@ pub(super) fn propagate_closest<const D: usize>(
     final_below: f32,
     closest: &mut Closest<D>,
 ) {
-    for axis in (0..D).cycle().take(D * PASS_ROUNDS) {
-        line_passes(spec, final_below, closest, axis);
+    for _ in 0..PASS_ROUNDS {
+        pass_round(spec, final_below, closest);
     }
     // Candidates are upper bounds, off by a fraction of a cell.
     let near = ((NEAR_CELLS + 1.0) as f32).powi(2);
@@ -74,59 +74,113 @@ struct Site<const D: usize> {
 /// One node of a gathered line: its datum and foot.
 type Entry<const D: usize> = (u32, [f32; D]);
 
-/// The envelope pass over every line parallel to `axis`.
-fn line_passes<const D: usize>(
+/// One round of passes: along the axes within each layer of the last
+/// axis (layer by layer, so a layer stays in cache for all of them), then
+/// along the last axis. The same as passes along each axis in turn over
+/// the whole grid: lines within a layer read and write only that layer.
+fn pass_round<const D: usize>(spec: &GridSpec<D>, final_below: f32, closest: &mut Closest<D>) {
+    let last = D - 1;
+    let shared = LineAccess::new(closest);
+    (0..spec.dims[last])
+        .into_par_iter()
+        .for_each_init(Scratch::default, |scratch, layer| {
+            for axis in 0..last {
+                for_each_bundle(spec, axis, layer..layer + 1, |bundle| {
+                    // SAFETY: each layer is visited by one task only.
+                    unsafe { pass_bundle(spec, &shared, final_below, axis, bundle, scratch) }
+                });
+            }
+        });
+    let mut bundles = Vec::new();
+    for_each_bundle(spec, last, 0..1, |bundle| bundles.push(bundle));
+    bundles
+        .par_iter()
+        .for_each_init(Scratch::default, |scratch, &bundle| {
+            // SAFETY: each bundle is visited by one task only, and lines
+            // parallel to one axis share no node.
+            unsafe { pass_bundle(spec, &shared, final_below, last, bundle, scratch) }
+        });
+}
+
+/// Lines across axis 0 go in bundles of neighbours along axis 0, so that
+/// gathering them reads whole runs of memory rather than one node per
+/// cache line.
+const BUNDLE: usize = 64;
+
+/// A bundle of lines parallel to an axis: its first node's index, linear
+/// index, and the number of lines (neighbours along axis 0).
+type Bundle<const D: usize> = ([usize; D], usize, usize);
+
+/// Every bundle of lines parallel to `axis` whose nodes have their last
+/// coordinate in `layers` (the whole line when `axis` is the last).
+fn for_each_bundle<const D: usize>(
     spec: &GridSpec<D>,
-    final_below: f32,
-    closest: &mut Closest<D>,
     axis: usize,
+    layers: std::ops::Range<usize>,
+    mut visit: impl FnMut(Bundle<D>),
 ) {
-    // Lines across axis 0 go in bundles of neighbours along axis 0, so that
-    // gathering them reads whole runs of memory rather than one node per
-    // cache line.
-    const BUNDLE: usize = 64;
-    let strides = spec.strides();
     let bundle = if axis == 0 { 1 } else { BUNDLE };
-    let mut outer = spec.dims;
-    outer[axis] = 1;
-    outer[0] = outer[0].div_ceil(bundle);
-    let mut bundles = Vec::with_capacity(spec.node_count() / spec.dims[axis] / bundle + 1);
-    for_each_in_box([0; D], outer.map(|n| n - 1), |idx| {
+    let mut first = [0; D];
+    let mut last = spec.dims.map(|n| n - 1);
+    (first[D - 1], last[D - 1]) = (layers.start, layers.end - 1);
+    last[0] = (spec.dims[0] - 1) / bundle;
+    last[axis] = 0;
+    for_each_in_box(first, last, |idx| {
         let mut first = *idx;
         first[0] *= bundle;
         let width = bundle.min(spec.dims[0] - first[0]);
-        bundles.push((first, spec.linear(first), width));
+        visit((first, spec.linear(first), width));
     });
-    let shared = LineAccess::new(closest);
-    let (len, stride) = (spec.dims[axis], strides[axis]);
-    bundles.par_iter().for_each_init(
-        || (vec![Vec::new(); bundle], Vec::new(), Vec::new(), Vec::new()),
-        |(lines, sites, hull, changed): &mut (Vec<Vec<Entry<D>>>, _, _, Vec<usize>),
-         &(first, start, width)| {
-            // SAFETY: each bundle of lines is visited by one task only, and
-            // lines parallel to one axis share no node; its last node is
-            // in the grid.
-            assert!(start + (len - 1) * stride + width - 1 < shared.len);
-            for line in &mut lines[..width] {
-                line.clear();
+}
+
+/// Per-task buffers of [`pass_bundle`].
+#[derive(Default)]
+struct Scratch<const D: usize> {
+    lines: Vec<Vec<Entry<D>>>,
+    sites: Vec<Site<D>>,
+    hull: Vec<(usize, f32)>,
+    changed: Vec<usize>,
+}
+
+/// The envelope pass over one bundle of lines parallel to `axis`.
+///
+/// # Safety
+/// No other task touches the bundle's nodes meanwhile.
+unsafe fn pass_bundle<const D: usize>(
+    spec: &GridSpec<D>,
+    shared: &LineAccess<D>,
+    final_below: f32,
+    axis: usize,
+    (first, start, width): Bundle<D>,
+    scratch: &mut Scratch<D>,
+) {
+    let (len, stride) = (spec.dims[axis], spec.strides()[axis]);
+    assert!(start + (len - 1) * stride + width - 1 < shared.len);
+    let Scratch {
+        lines,
+        sites,
+        hull,
+        changed,
+    } = scratch;
+    lines.resize_with(lines.len().max(width), Vec::new);
+    for line in &mut lines[..width] {
+        line.clear();
+    }
+    for j in 0..len {
+        for (b, line) in lines[..width].iter_mut().enumerate() {
+            line.push(shared.get(start + j * stride + b));
+        }
+    }
+    for (b, line) in lines[..width].iter_mut().enumerate() {
+        let mut base = first.map(|i| i as f32);
+        base[0] += b as f32;
+        if line_envelope(line, &base, axis, sites, hull) {
+            assign_nearest(line, &base, axis, final_below, sites, hull, changed);
+            for &j in changed.iter() {
+                shared.set(start + j * stride + b, line[j]);
             }
-            for j in 0..len {
-                for (b, line) in lines[..width].iter_mut().enumerate() {
-                    line.push(unsafe { shared.get(start + j * stride + b) });
-                }
-            }
-            for (b, line) in lines[..width].iter_mut().enumerate() {
-                let mut base = first.map(|i| i as f32);
-                base[0] += b as f32;
-                if line_envelope(line, &base, axis, sites, hull) {
-                    assign_nearest(line, &base, axis, final_below, sites, hull, changed);
-                    for &j in changed.iter() {
-                        unsafe { shared.set(start + j * stride + b, line[j]) };
-                    }
-                }
-            }
-        },
-    );
+        }
+    }
 }
 
 /// Collect the sites of a line (nodes from `base` along `axis`) and build
