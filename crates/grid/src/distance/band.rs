@@ -370,7 +370,7 @@ fn bounding_ball<const D: usize>(data: &DataSet<D>, i: usize) -> ([f64; D], f64)
 
 /// Unit normal and a corner of a 3D triangle; `None` in other dimensions
 /// and for degenerate triangles.
-fn unit_normal<const D: usize>(t: &[[f64; D]; 3]) -> Option<([f64; D], [f64; D])> {
+pub(super) fn unit_normal<const D: usize>(t: &[[f64; D]; 3]) -> Option<([f64; D], [f64; D])> {
     if D != 3 {
         return None;
     }

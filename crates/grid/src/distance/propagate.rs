@@ -21,7 +21,7 @@
 //! of every neighbour. The passes rank data by their feet, which for
 //! dense samples and for segments and triangles are often not the nearest.
 
-use super::band::{cells_dist2, to_cells, Closest};
+use super::band::{cells_dist2, to_cells, unit_normal, Closest};
 use super::envelope::{lower_envelope, EnvelopeWalk};
 use super::{DataSet, NO_DATUM};
 use crate::spec::for_each_in_box;
@@ -51,14 +51,7 @@ pub(super) fn propagate_closest<const D: usize>(
     // Candidates are upper bounds, off by a fraction of a cell.
     let near = ((NEAR_CELLS + 1.0) as f32).powi(2);
     if data.points.len() < data.len() {
-        settle_near(
-            data,
-            spec,
-            &Neighbours::new(spec),
-            final_below,
-            near,
-            closest,
-        );
+        Settle::new(data, spec, final_below).run(near, closest);
     }
 }
 
@@ -300,140 +293,220 @@ impl<const D: usize> Candidate<D> {
     }
 }
 
-/// Jacobi rounds over the nodes near the data (squared distance in
-/// `final_below..=near`, cells²). In the first round each is offered the
-/// data of all its neighbours, evaluated exactly; afterwards, the
-/// neighbours of a changed node are offered its new datum. Ends when a
-/// round changes nothing: then every near node has tried the datum of
-/// every neighbour (an offer refused once stays refused, as a node only
-/// gets nearer data). Reading all before writing keeps the result
-/// independent of the thread count.
-fn settle_near<const D: usize>(
-    data: &DataSet<D>,
-    spec: &GridSpec<D>,
-    neighbours: &Neighbours<D>,
+/// The settling of the nodes near segments and triangles (see
+/// [`Settle::run`]).
+struct Settle<'a, const D: usize> {
+    data: &'a DataSet<D>,
+    spec: &'a GridSpec<D>,
+    neighbours: Neighbours<D>,
+    /// Nodes at most this far from their foot (cells²) are final.
     final_below: f32,
-    near: f32,
-    closest: &mut Closest<D>,
-) {
-    let in_scope = |closest: &Closest<D>, l: usize| {
-        let d2 = closest.d2(l, &neighbours.unlinear(l).map(|i| i as f32));
-        d2 > final_below && d2 <= near
-    };
-    let mut open: Vec<u32> = (0..closest.datum.len() as u32)
-        .into_par_iter()
-        .filter(|&l| in_scope(closest, l as usize))
-        .collect();
-    // Feet passed on from neighbours are not this node's nearest point of
-    // its datum: project once, so offers compare exact distances.
-    let own: Vec<[f32; D]> = open
-        .par_iter()
-        .map(|&l| {
-            exact_foot(
-                data,
-                spec,
-                neighbours,
-                closest.datum[l as usize],
-                l as usize,
-            )
-        })
-        .collect();
-    for (&l, foot) in open.iter().zip(own) {
-        closest.foot[l as usize] = foot;
-    }
-    // Nodes changed by the last round (all count before the first).
-    let mut fresh = vec![true; closest.datum.len()];
-    let mut changed: Vec<u32> = Vec::new();
-    while !open.is_empty() {
-        let changes: Vec<(u32, Candidate<D>)> = open
-            .par_iter()
-            .filter_map(|&l| {
-                settle_node(data, spec, neighbours, closest, &fresh, l as usize).map(|c| (l, c))
-            })
-            .collect();
-        if changed.is_empty() {
-            fresh.fill(false);
-        }
-        for &l in &changed {
-            fresh[l as usize] = false;
-        }
-        changed.clear();
-        for &(l, c) in &changes {
-            closest.datum[l as usize] = c.datum;
-            closest.foot[l as usize] = c.foot;
-            fresh[l as usize] = true;
-            changed.push(l);
-        }
-        open = changes
-            .par_iter()
-            .flat_map_iter(|&(l, _)| {
-                let idx = neighbours.unlinear(l as usize);
-                neighbours.of(idx, l as usize).map(|(m, _)| m)
-            })
-            .filter(|&m| in_scope(closest, m))
-            .map(|m| m as u32)
-            .collect();
-        open.par_sort_unstable();
-        open.dedup();
-    }
+    /// Per triangle (3D only): unit normal and offset of its plane, whose
+    /// distance bounds the triangle's from below.
+    planes: Vec<Option<([f64; D], f64)>>,
 }
 
-/// Nearest point of datum `c` to node `l`, in grid coordinates.
-fn exact_foot<const D: usize>(
-    data: &DataSet<D>,
-    spec: &GridSpec<D>,
-    neighbours: &Neighbours<D>,
-    c: u32,
-    l: usize,
-) -> [f32; D] {
-    let p = spec.position(neighbours.unlinear(l));
-    to_cells(spec, &data.closest_point(c as usize, &p))
-}
-
-/// The best of node `l`'s own datum and the data of its neighbours that
-/// are `fresh`, evaluated exactly; `None` when its own stays.
-fn settle_node<const D: usize>(
-    data: &DataSet<D>,
-    spec: &GridSpec<D>,
-    neighbours: &Neighbours<D>,
-    closest: &Closest<D>,
-    fresh: &[bool],
-    l: usize,
-) -> Option<Candidate<D>> {
-    let idx = neighbours.unlinear(l);
-    let p = idx.map(|i| i as f32);
-    let world = spec.position(idx);
-    let mut best = Candidate {
-        datum: closest.datum[l],
-        foot: closest.foot[l],
-        d2: closest.d2(l, &p),
-    };
-    let own = best.datum;
-    // The last few data offered: neighbours share a handful of data.
-    let mut offered = [own; 4];
-    for (k, (m, step)) in neighbours.of(idx, l).enumerate() {
-        let c = closest.datum[m];
-        if !fresh[m] || c == NO_DATUM || offered.contains(&c) || c == best.datum {
-            continue;
+impl<'a, const D: usize> Settle<'a, D> {
+    fn new(data: &'a DataSet<D>, spec: &'a GridSpec<D>, final_below: f32) -> Self {
+        let planes = data
+            .triangles
+            .par_iter()
+            .map(|t| unit_normal(t).map(|(n, a)| (n, (0..D).map(|c| n[c] * a[c]).sum::<f64>())))
+            .collect();
+        Settle {
+            data,
+            spec,
+            neighbours: Neighbours::new(spec),
+            final_below,
+            planes,
         }
-        offered[k % offered.len()] = c;
-        let bound = closest.d2(m, &p);
-        let foot = if (c as usize) < data.points.len() {
-            closest.foot[m]
-        } else {
-            // Feet on one convex datum of nodes `step` apart are at most
-            // `step` apart, so the exact distance is at least this.
-            if bound.sqrt() - step >= best.d2.sqrt() {
+    }
+
+    /// Jacobi rounds over the nodes near the data (squared distance in
+    /// `final_below..=near`, cells², when they start). In the first round
+    /// each is offered the data of all its neighbours, evaluated exactly;
+    /// afterwards, only the data of neighbours changed by the last round.
+    /// Ends when a round changes nothing: then every near node has tried
+    /// the datum of every neighbour (an offer refused once stays refused,
+    /// as a node only gets nearer data). Reading all before writing keeps
+    /// the result independent of the thread count.
+    fn run(&self, near: f32, closest: &mut Closest<D>) {
+        let scope = nodes_in_shell(self.spec, closest, self.final_below, near);
+        // Feet passed on from neighbours are not this node's nearest point
+        // of its datum: project once, so offers compare exact distances.
+        let own: Vec<[f32; D]> = scope
+            .par_iter()
+            .map(|&l| self.exact_foot(closest.datum[l as usize], l as usize).0)
+            .collect();
+        for (&l, foot) in scope.iter().zip(own) {
+            closest.foot[l as usize] = foot;
+        }
+        // Nodes changed by the last round (all count before the first), and
+        // the nodes next to them.
+        let mut fresh = vec![true; closest.datum.len()];
+        let mut beside = vec![false; closest.datum.len()];
+        let mut changed: Vec<u32> = Vec::new();
+        let mut open = scope.clone();
+        loop {
+            let changes: Vec<(u32, Candidate<D>)> = open
+                .par_iter()
+                .filter_map(|&l| {
+                    self.settle_node(closest, &fresh, l as usize)
+                        .map(|c| (l, c))
+                })
+                .collect();
+            if changes.is_empty() {
+                return;
+            }
+            if changed.is_empty() {
+                fresh.fill(false);
+            }
+            self.mark_beside(&changed, &mut beside, false);
+            for &l in &changed {
+                fresh[l as usize] = false;
+            }
+            changed.clear();
+            for &(l, c) in &changes {
+                closest.datum[l as usize] = c.datum;
+                closest.foot[l as usize] = c.foot;
+                fresh[l as usize] = true;
+                changed.push(l);
+            }
+            self.mark_beside(&changed, &mut beside, true);
+            open = scope
+                .par_iter()
+                .copied()
+                .filter(|&l| beside[l as usize])
+                .collect();
+        }
+    }
+
+    /// Set `beside` to `mark` at the neighbours of `nodes`.
+    fn mark_beside(&self, nodes: &[u32], beside: &mut [bool], mark: bool) {
+        for &l in nodes {
+            let idx = self.neighbours.unlinear(l as usize);
+            for (m, _) in self.neighbours.of(idx, l as usize) {
+                beside[m] = mark;
+            }
+        }
+    }
+
+    /// Nearest point of datum `c` to node `l`, in grid coordinates, and
+    /// the node's grid coordinates.
+    fn exact_foot(&self, c: u32, l: usize) -> ([f32; D], [f32; D]) {
+        let idx = self.neighbours.unlinear(l);
+        let p = self.spec.position(idx);
+        let foot = to_cells(self.spec, &self.data.closest_point(c as usize, &p));
+        (foot, idx.map(|i| i as f32))
+    }
+
+    /// A lower bound of the squared distance (cells²) from node `p` to
+    /// datum `c`, offered by a neighbour `step` cells away whose foot on it
+    /// lies `reach` cells² from `p`.
+    fn bound_by_foot(&self, c: u32, reach: f32, step: f32) -> f32 {
+        if (c as usize) < self.data.points.len() {
+            // A point is its own foot.
+            return reach;
+        }
+        // Feet on one convex datum of nodes `step` apart are at most `step`
+        // apart.
+        (reach.sqrt() - step).max(0.0).powi(2)
+    }
+
+    /// Squared distance (cells²) from `world` to the plane of datum `c`
+    /// when it is a triangle (3D), else 0: a lower bound either way.
+    fn bound_by_plane(&self, c: u32, world: &[f64; D]) -> f32 {
+        let first_triangle = self.data.points.len() + self.data.segments.len();
+        let plane = (c as usize)
+            .checked_sub(first_triangle)
+            .and_then(|t| self.planes[t]);
+        let Some((n, offset)) = plane else {
+            return 0.0;
+        };
+        let height = ((0..D).map(|a| n[a] * world[a]).sum::<f64>() - offset) / self.spec.spacing;
+        (height * height) as f32
+    }
+
+    /// The best of node `l`'s own datum and the data of its neighbours that
+    /// are `fresh`, evaluated exactly; `None` when its own stays.
+    fn settle_node(&self, closest: &Closest<D>, fresh: &[bool], l: usize) -> Option<Candidate<D>> {
+        let idx = self.neighbours.unlinear(l);
+        let p = idx.map(|i| i as f32);
+        let mut best = Candidate {
+            datum: closest.datum[l],
+            foot: closest.foot[l],
+            d2: closest.d2(l, &p),
+        };
+        if best.d2 <= self.final_below {
+            // Its closest datum lies in the exact band, which offered it.
+            return None;
+        }
+        let own = best.datum;
+        // The distinct data offered, each with a lower bound of its squared
+        // distance; evaluated nearest bound first, while below the best.
+        let mut offers = [(0u32, 0f32); 26];
+        let mut count = 0;
+        for (m, step) in self.neighbours.of(idx, l) {
+            let c = closest.datum[m];
+            if !fresh[m] || c == NO_DATUM || c == own {
                 continue;
             }
-            to_cells(spec, &data.closest_point(c as usize, &world))
-        };
-        let d2 = cells_dist2(&p, &foot);
-        if best.beaten_by(d2, c) {
-            best = Candidate { datum: c, foot, d2 };
+            let lower = self.bound_by_foot(c, closest.d2(m, &p), step);
+            match offers[..count].iter_mut().find(|(d, _)| *d == c) {
+                Some(offer) => offer.1 = offer.1.max(lower),
+                None => {
+                    offers[count] = (c, lower);
+                    count += 1;
+                }
+            }
         }
+        let offers = &mut offers[..count];
+        let world = self.spec.position(idx);
+        for (c, lower) in offers.iter_mut() {
+            *lower = lower.max(self.bound_by_plane(*c, &world));
+        }
+        offers.sort_unstable_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        for &(c, lower) in offers.iter() {
+            if lower > best.d2 {
+                break;
+            }
+            let (foot, _) = self.exact_foot(c, l);
+            let d2 = cells_dist2(&p, &foot);
+            if best.beaten_by(d2, c) {
+                best = Candidate { datum: c, foot, d2 };
+            }
+        }
+        (best.datum != own).then_some(best)
     }
-    (best.datum != own).then_some(best)
+}
+
+/// The nodes whose squared distance to their foot lies in `above..=upto`
+/// (cells²), ascending; one layer of the last axis per parallel task.
+fn nodes_in_shell<const D: usize>(
+    spec: &GridSpec<D>,
+    closest: &Closest<D>,
+    above: f32,
+    upto: f32,
+) -> Vec<u32> {
+    let last = D - 1;
+    let layer = spec.strides()[last];
+    (0..spec.dims[last])
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let (mut first, mut end) = ([0; D], spec.dims.map(|n| n - 1));
+            (first[last], end[last]) = (k, k);
+            let mut nodes = Vec::new();
+            let mut l = k * layer;
+            for_each_in_box(first, end, |idx| {
+                let d2 = closest.d2(l, &idx.map(|i| i as f32));
+                if d2 > above && d2 <= upto {
+                    nodes.push(l as u32);
+                }
+                l += 1;
+            });
+            nodes
+        })
+        .collect()
 }
 
 /// The 3^D - 1 axis and diagonal neighbours of the nodes of a grid.
