@@ -10,7 +10,7 @@
 //!    within the band radius, so it was evaluated. When propagating, the
 //!    band of points reaches [`NEAR_CELLS`] cells, so that distances to
 //!    points are exact there.
-//! 2. **Propagation** ([`propagate`]). Separable passes along each axis
+//! 2. **Propagation** ([`propagate`]). Cone sweeps plane by plane along each axis
 //!    carry the closest data to every other node; near segments and
 //!    triangles, rounds of neighbour offers settle the nodes to a local
 //!    fixed point. Accuracy (tests, against brute force): exact within
@@ -27,7 +27,7 @@
 //! any number of threads.
 
 mod band;
-mod envelope;
+mod cone_sweep;
 mod primitives;
 mod propagate;
 

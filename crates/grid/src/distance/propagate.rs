@@ -1,28 +1,19 @@
 //! Stage 2 of the unsigned distance: closest data for the nodes outside
 //! the exact band.
 //!
-//! **Line passes.** For each axis in turn, every grid line parallel to it
-//! gathers the data its nodes hold, each with its foot point, and gives
-//! every node of the line the nearest of them. Along the line a foot at
-//! coordinate `v`, at squared distance `c` from the line, is at squared
-//! distance `(t - v)² + c` from the node at `t`; the nearest foot per node
-//! is the lower envelope of these parabolas, found in one ordered walk.
-//! After the D axes every node has been offered data from every node:
-//! this is the separable Euclidean distance transform, exact for data on
-//! grid lines. Data off the lines rank slightly differently seen from a
-//! line than from a node off it, so a node can end with a datum a little
-//! farther than the nearest (measured: up to 0.1-0.3 h far from the data
-//! after two rounds). Lines are independent, so they run in parallel and
-//! the result does not depend on the thread count.
+//! **Cone sweeps** (see `cone_sweep`): plane by plane along each axis,
+//! forward and backward, every node takes the nearest foot among its own
+//! and those of its neighbours in the plane before. One round reaches
+//! every node; far from the data a node can end with a datum slightly
+//! farther than the nearest (measured: up to ~0.08 h on the test data).
 //!
 //! **Settling near the data.** Within [`NEAR_CELLS`] cells, Jacobi rounds
 //! of neighbour offers with exact distances bring the nodes to a local
-//! fixed point (see [`settle_near`]): there every node has tried the datum
-//! of every neighbour. The passes rank data by their feet, which for
+//! fixed point (see [`Settle::run`]): there every node has tried the datum
+//! of every neighbour. The sweeps rank data by their feet, which for
 //! dense samples and for segments and triangles are often not the nearest.
 
 use super::band::{cells_dist2, to_cells, unit_normal, Closest};
-use super::envelope::{lower_envelope, EnvelopeWalk};
 use super::{DataSet, NO_DATUM};
 use crate::spec::for_each_in_box;
 use crate::GridSpec;
@@ -32,247 +23,19 @@ use rayon::prelude::*;
 /// fixed point.
 pub const NEAR_CELLS: f64 = 5.0;
 
-/// Rounds of passes over all axes. The second round brings data found by
-/// the last axis back to the first: far-field errors drop from up to ~1 h
-/// to ~0.1-0.3 h on the test data, for about a third more time.
-const PASS_ROUNDS: usize = 2;
-
 /// Give every node outside the band (squared distance above `final_below`,
-/// in cells²) a closest datum: line passes, then settling near the data.
+/// in cells²) a closest datum: cone sweeps, then settling near the data.
 pub(super) fn propagate_closest<const D: usize>(
     data: &DataSet<D>,
     spec: &GridSpec<D>,
     final_below: f32,
     closest: &mut Closest<D>,
 ) {
-    for _ in 0..PASS_ROUNDS {
-        pass_round(spec, final_below, closest);
-    }
+    super::cone_sweep::cone_sweeps(spec, final_below, closest);
     // Candidates are upper bounds, off by a fraction of a cell.
     let near = ((NEAR_CELLS + 1.0) as f32).powi(2);
     if data.points.len() < data.len() {
         Settle::new(data, spec, final_below).run(near, closest);
-    }
-}
-
-/// A foot point offered along a line: `(t - v)² + c` at line coordinate `t`.
-#[derive(Clone, Copy)]
-struct Site<const D: usize> {
-    v: f32,
-    c: f32,
-    datum: u32,
-    foot: [f32; D],
-}
-
-/// One node of a gathered line: its datum and foot.
-type Entry<const D: usize> = (u32, [f32; D]);
-
-/// One round of passes: along the axes within each layer of the last
-/// axis (layer by layer, so a layer stays in cache for all of them), then
-/// along the last axis. The same as passes along each axis in turn over
-/// the whole grid: lines within a layer read and write only that layer.
-fn pass_round<const D: usize>(spec: &GridSpec<D>, final_below: f32, closest: &mut Closest<D>) {
-    let last = D - 1;
-    let shared = LineAccess::new(closest);
-    (0..spec.dims[last])
-        .into_par_iter()
-        .for_each_init(Scratch::default, |scratch, layer| {
-            for axis in 0..last {
-                for_each_bundle(spec, axis, layer..layer + 1, |bundle| {
-                    // SAFETY: each layer is visited by one task only.
-                    unsafe { pass_bundle(spec, &shared, final_below, axis, bundle, scratch) }
-                });
-            }
-        });
-    let mut bundles = Vec::new();
-    for_each_bundle(spec, last, 0..1, |bundle| bundles.push(bundle));
-    bundles
-        .par_iter()
-        .for_each_init(Scratch::default, |scratch, &bundle| {
-            // SAFETY: each bundle is visited by one task only, and lines
-            // parallel to one axis share no node.
-            unsafe { pass_bundle(spec, &shared, final_below, last, bundle, scratch) }
-        });
-}
-
-/// Lines across axis 0 go in bundles of neighbours along axis 0, so that
-/// gathering them reads whole runs of memory rather than one node per
-/// cache line.
-const BUNDLE: usize = 64;
-
-/// A bundle of lines parallel to an axis: its first node's index, linear
-/// index, and the number of lines (neighbours along axis 0).
-type Bundle<const D: usize> = ([usize; D], usize, usize);
-
-/// Every bundle of lines parallel to `axis` whose nodes have their last
-/// coordinate in `layers` (the whole line when `axis` is the last).
-fn for_each_bundle<const D: usize>(
-    spec: &GridSpec<D>,
-    axis: usize,
-    layers: std::ops::Range<usize>,
-    mut visit: impl FnMut(Bundle<D>),
-) {
-    let bundle = if axis == 0 { 1 } else { BUNDLE };
-    let mut first = [0; D];
-    let mut last = spec.dims.map(|n| n - 1);
-    (first[D - 1], last[D - 1]) = (layers.start, layers.end - 1);
-    last[0] = (spec.dims[0] - 1) / bundle;
-    last[axis] = 0;
-    for_each_in_box(first, last, |idx| {
-        let mut first = *idx;
-        first[0] *= bundle;
-        let width = bundle.min(spec.dims[0] - first[0]);
-        visit((first, spec.linear(first), width));
-    });
-}
-
-/// Per-task buffers of [`pass_bundle`].
-#[derive(Default)]
-struct Scratch<const D: usize> {
-    lines: Vec<Vec<Entry<D>>>,
-    sites: Vec<Site<D>>,
-    hull: Vec<(usize, f32)>,
-    changed: Vec<usize>,
-}
-
-/// The envelope pass over one bundle of lines parallel to `axis`.
-///
-/// # Safety
-/// No other task touches the bundle's nodes meanwhile.
-unsafe fn pass_bundle<const D: usize>(
-    spec: &GridSpec<D>,
-    shared: &LineAccess<D>,
-    final_below: f32,
-    axis: usize,
-    (first, start, width): Bundle<D>,
-    scratch: &mut Scratch<D>,
-) {
-    let (len, stride) = (spec.dims[axis], spec.strides()[axis]);
-    assert!(start + (len - 1) * stride + width - 1 < shared.len);
-    let Scratch {
-        lines,
-        sites,
-        hull,
-        changed,
-    } = scratch;
-    lines.resize_with(lines.len().max(width), Vec::new);
-    for line in &mut lines[..width] {
-        line.clear();
-    }
-    for j in 0..len {
-        for (b, line) in lines[..width].iter_mut().enumerate() {
-            line.push(shared.get(start + j * stride + b));
-        }
-    }
-    for (b, line) in lines[..width].iter_mut().enumerate() {
-        let mut base = first.map(|i| i as f32);
-        base[0] += b as f32;
-        if line_envelope(line, &base, axis, sites, hull) {
-            assign_nearest(line, &base, axis, final_below, sites, hull, changed);
-            for &j in changed.iter() {
-                shared.set(start + j * stride + b, line[j]);
-            }
-        }
-    }
-}
-
-/// Collect the sites of a line (nodes from `base` along `axis`) and build
-/// their lower envelope in `hull`: (site index, coordinate where it starts
-/// to be the lowest). Returns false when the line holds no datum.
-fn line_envelope<const D: usize>(
-    line: &[Entry<D>],
-    base: &[f32; D],
-    axis: usize,
-    sites: &mut Vec<Site<D>>,
-    hull: &mut Vec<(usize, f32)>,
-) -> bool {
-    sites.clear();
-    for &(datum, foot) in line {
-        let last = sites.last().map(|s: &Site<D>| (s.datum, s.foot));
-        if datum == NO_DATUM || last == Some((datum, foot)) {
-            continue;
-        }
-        let c = (0..D)
-            .filter(|&b| b != axis)
-            .map(|b| (base[b] - foot[b]) * (base[b] - foot[b]))
-            .sum();
-        sites.push(Site {
-            v: foot[axis],
-            c,
-            datum,
-            foot,
-        });
-    }
-    if sites.is_empty() {
-        return false;
-    }
-    sort_nearly_sorted(sites);
-    lower_envelope(
-        sites.len(),
-        |k| (sites[k].v, sites[k].c, sites[k].datum),
-        hull,
-    );
-    true
-}
-
-/// Site order: by vertex, then height, then datum.
-#[inline(always)]
-fn site_order<const D: usize>(a: &Site<D>, b: &Site<D>) -> std::cmp::Ordering {
-    (a.v.total_cmp(&b.v))
-        .then(a.c.total_cmp(&b.c))
-        .then(a.datum.cmp(&b.datum))
-}
-
-/// Sort sites that usually come nearly in order (feet move along the
-/// surface with the node): insertion sort while it stays cheap, a general
-/// sort when it would not.
-fn sort_nearly_sorted<const D: usize>(sites: &mut [Site<D>]) {
-    let mut budget = 8 * sites.len();
-    for i in 1..sites.len() {
-        let mut j = i;
-        while j > 0 && site_order(&sites[j - 1], &sites[j]).is_gt() {
-            if budget == 0 {
-                sites.sort_unstable_by(site_order);
-                return;
-            }
-            budget -= 1;
-            sites.swap(j - 1, j);
-            j -= 1;
-        }
-    }
-}
-
-/// Give every non-final node of the line the lowest site at its coordinate
-/// when it beats the node's own datum; `changed` lists the nodes that took
-/// one.
-fn assign_nearest<const D: usize>(
-    line: &mut [Entry<D>],
-    base: &[f32; D],
-    axis: usize,
-    final_below: f32,
-    sites: &[Site<D>],
-    hull: &[(usize, f32)],
-    changed: &mut Vec<usize>,
-) {
-    changed.clear();
-    let mut walk = EnvelopeWalk::new(hull);
-    let mut p = *base;
-    for (j, entry) in line.iter_mut().enumerate() {
-        let t = base[axis] + j as f32;
-        let site = &sites[walk.lowest_at(t)];
-        p[axis] = t;
-        let own = match entry.0 {
-            NO_DATUM => f32::INFINITY,
-            _ => cells_dist2(&p, &entry.1),
-        };
-        if own <= final_below {
-            continue;
-        }
-        let d2 = (t - site.v) * (t - site.v) + site.c;
-        if d2 < own || (d2 == own && site.datum < entry.0) {
-            *entry = (site.datum, site.foot);
-            changed.push(j);
-        }
     }
 }
 
@@ -559,48 +322,5 @@ impl<const D: usize> Neighbours<D> {
                 });
             inside.then(|| ((l as isize + offset) as usize, len))
         })
-    }
-}
-
-/// Shared access to the nodes' data and feet for parallel passes over
-/// disjoint lines: each node is read and written by one task only (the
-/// caller's contract on `get` and `set`).
-struct LineAccess<'a, const D: usize> {
-    datum: *mut u32,
-    foot: *mut [f32; D],
-    len: usize,
-    _closest: std::marker::PhantomData<&'a mut Closest<D>>,
-}
-
-// SAFETY: access goes through `get`/`set`, whose callers guarantee that no
-// node is touched by two tasks.
-unsafe impl<const D: usize> Sync for LineAccess<'_, D> {}
-
-impl<'a, const D: usize> LineAccess<'a, D> {
-    fn new(closest: &'a mut Closest<D>) -> Self {
-        assert_eq!(closest.datum.len(), closest.foot.len());
-        LineAccess {
-            datum: closest.datum.as_mut_ptr(),
-            foot: closest.foot.as_mut_ptr(),
-            len: closest.datum.len(),
-            _closest: std::marker::PhantomData,
-        }
-    }
-
-    /// # Safety
-    /// `l` is a node of the grid, and no other task touches it meanwhile.
-    #[inline(always)]
-    unsafe fn get(&self, l: usize) -> Entry<D> {
-        debug_assert!(l < self.len);
-        (*self.datum.add(l), *self.foot.add(l))
-    }
-
-    /// # Safety
-    /// `l` is a node of the grid, and no other task touches it meanwhile.
-    #[inline(always)]
-    unsafe fn set(&self, l: usize, (datum, foot): Entry<D>) {
-        debug_assert!(l < self.len);
-        *self.datum.add(l) = datum;
-        *self.foot.add(l) = foot;
     }
 }
