@@ -77,6 +77,7 @@ impl<const D: usize> PlaneShape<D> {
     }
 
     /// Bordered coordinates of row `index`, or `None` for a border row.
+    #[allow(clippy::needless_range_loop)] // `b` indexes three arrays
     fn interior_row(&self, mut index: usize) -> Option<[usize; D]> {
         let mut r = [0; D];
         for b in 0..D {
@@ -293,8 +294,8 @@ impl<'a, const D: usize> GridAccess<'a, D> {
             let l = start + i * stride;
             row.datum[BORDER + i] = *self.datum.add(l);
             let foot = *self.foot.add(l);
-            for b in 0..D {
-                row.foot[b][BORDER + i] = foot[b];
+            for (row_foot, f) in row.foot.iter_mut().zip(foot) {
+                row_foot[BORDER + i] = f;
             }
         }
     }
