@@ -162,16 +162,16 @@ fn sweep<const D: usize>(
                     return;
                 };
                 let first = shape.first_node(&r, plane);
-                let (starts, stride) = grid.row_starts(spec, shape, &r, 1, &|_| plane);
+                let (start, stride) = grid.row_start(spec, first, shape.row_axis);
                 // SAFETY: each task touches the nodes of its own row only.
-                unsafe { grid.gather_row(starts[0], stride, row) };
+                unsafe { grid.gather_row(start, stride, row) };
                 if k == 0 {
                     return;
                 }
                 shape.neighbour_rows(&r, &mut scratch.neighbours);
                 if offer_row(&first, shape.row_axis, final_below, previous, row, scratch) {
                     // SAFETY: as above.
-                    unsafe { grid.scatter_row(starts[0], stride, row, &scratch.source) };
+                    unsafe { grid.scatter_row(start, stride, row, &scratch.source) };
                 }
             });
         planes.swap(0, 1);
@@ -314,22 +314,11 @@ impl<'a, const D: usize> GridAccess<'a, D> {
         }
     }
 
-    /// Grid index of the first node of interior row `r` in each plane
-    /// `plane_at(1..=count)`, and the stride along the row.
-    fn row_starts(
-        &self,
-        spec: &GridSpec<D>,
-        shape: &PlaneShape<D>,
-        r: &[usize; D],
-        count: usize,
-        plane_at: &impl Fn(usize) -> usize,
-    ) -> (Vec<usize>, usize) {
-        let stride = spec.strides()[shape.row_axis];
-        let starts: Vec<usize> = (1..=count)
-            .map(|j| spec.linear(shape.first_node(r, plane_at(j))))
-            .collect();
-        let last = spec.dims[shape.row_axis] - 1;
-        assert!(starts.iter().all(|s| s + last * stride < self.len));
-        (starts, stride)
+    /// Grid index of node `first` and the stride along `axis`, checking
+    /// that the row from `first` along `axis` lies in the grid.
+    fn row_start(&self, spec: &GridSpec<D>, first: [usize; D], axis: usize) -> (usize, usize) {
+        let (start, stride) = (spec.linear(first), spec.strides()[axis]);
+        assert!(start + (spec.dims[axis] - 1 - first[axis]) * stride < self.len);
+        (start, stride)
     }
 }
