@@ -13,6 +13,7 @@ pub mod field_io;
 pub mod marching;
 pub mod sdf;
 pub mod shell;
+mod simd;
 pub mod sparse;
 pub mod spec;
 pub mod sweep;

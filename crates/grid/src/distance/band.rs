@@ -3,6 +3,7 @@
 
 use super::primitives::dist2;
 use super::{DataSet, NO_DATUM};
+use crate::simd::widest;
 use crate::spec::for_each_in_box;
 use crate::GridSpec;
 use rayon::prelude::*;
@@ -130,20 +131,25 @@ pub(super) fn exact_band<const D: usize>(
                 offset: slab_first * layer,
                 offsets: std::array::from_fn(|_| Vec::new()),
             };
-            for &i in bin {
-                let radius = radius_of(i as usize);
-                let Some((mut first, mut last)) =
-                    spec.node_box(data.datum_bounds(i as usize), radius)
-                else {
-                    continue;
-                };
-                first[last_axis] = first[last_axis].max(slab_first);
-                last[last_axis] = last[last_axis].min(slab_last);
-                match data.points.get(i as usize) {
-                    Some(q) => point_ball(spec, q, i, radius, (first, last), &mut slab),
-                    None => datum_box(data, spec, i, (first, last), &mut slab),
-                }
-            }
+            widest(
+                #[inline(always)]
+                || {
+                    for &i in bin {
+                        let radius = radius_of(i as usize);
+                        let Some((mut first, mut last)) =
+                            spec.node_box(data.datum_bounds(i as usize), radius)
+                        else {
+                            continue;
+                        };
+                        first[last_axis] = first[last_axis].max(slab_first);
+                        last[last_axis] = last[last_axis].min(slab_last);
+                        match data.points.get(i as usize) {
+                            Some(q) => point_ball(spec, q, i, radius, (first, last), &mut slab),
+                            None => datum_box(data, spec, i, (first, last), &mut slab),
+                        }
+                    }
+                },
+            )
         });
     drop(d2);
     let foot = datum
@@ -189,6 +195,7 @@ impl<const D: usize> Slab<'_, D> {
 /// Point `q` (datum `i`): every node within `radius`, by rows along axis 0
 /// clipped to the ball (points are the dense kind; the ball is half the
 /// box).
+#[inline(always)]
 fn point_ball<const D: usize>(
     spec: &GridSpec<D>,
     q: &[f64; D],

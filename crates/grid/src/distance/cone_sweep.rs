@@ -11,6 +11,7 @@
 
 use super::band::Closest;
 use super::NO_DATUM;
+use crate::simd::widest;
 use crate::spec::for_each_in_box;
 use crate::GridSpec;
 use rayon::prelude::*;
@@ -163,16 +164,21 @@ fn sweep<const D: usize>(
                 };
                 let first = shape.first_node(&r, plane);
                 let (start, stride) = grid.row_start(spec, first, shape.row_axis);
-                // SAFETY: each task touches the nodes of its own row only.
-                unsafe { grid.gather_row(start, stride, row) };
-                if k == 0 {
-                    return;
-                }
-                shape.neighbour_rows(&r, &mut scratch.neighbours);
-                if offer_row(&first, shape.row_axis, final_below, previous, row, scratch) {
-                    // SAFETY: as above.
-                    unsafe { grid.scatter_row(start, stride, row, &scratch.source) };
-                }
+                widest(
+                    #[inline(always)]
+                    || {
+                        // SAFETY: each task touches the nodes of its own row only.
+                        unsafe { grid.gather_row(start, stride, row) };
+                        if k == 0 {
+                            return;
+                        }
+                        shape.neighbour_rows(&r, &mut scratch.neighbours);
+                        if offer_row(&first, shape.row_axis, final_below, previous, row, scratch) {
+                            // SAFETY: as above.
+                            unsafe { grid.scatter_row(start, stride, row, &scratch.source) };
+                        }
+                    },
+                )
             });
         planes.swap(0, 1);
     }
@@ -181,6 +187,7 @@ fn sweep<const D: usize>(
 /// Offer the nodes of `row` (the first at grid position `first`) the
 /// feet of their neighbours in the plane before, and let each take the
 /// nearest when it beats its own. Returns whether any node changed.
+#[inline(always)]
 fn offer_row<const D: usize>(
     first: &[usize; D],
     row_axis: usize,
@@ -289,6 +296,7 @@ impl<'a, const D: usize> GridAccess<'a, D> {
     ///
     /// # Safety
     /// No other task writes these nodes meanwhile.
+    #[inline(always)]
     unsafe fn gather_row(&self, start: usize, stride: usize, row: &mut Row<D>) {
         for i in 0..row.datum.len() - 2 * BORDER {
             let l = start + i * stride;
@@ -304,6 +312,7 @@ impl<'a, const D: usize> GridAccess<'a, D> {
     ///
     /// # Safety
     /// No other task touches these nodes meanwhile.
+    #[inline(always)]
     unsafe fn scatter_row(&self, start: usize, stride: usize, row: &Row<D>, source: &[u32]) {
         for (i, &s) in source.iter().enumerate() {
             if s != OWN {

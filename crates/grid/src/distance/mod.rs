@@ -579,6 +579,26 @@ mod tests {
     }
 
     #[test]
+    fn same_result_with_any_vector_instructions() {
+        let mut r = rng(4);
+        let mut data = DataSet::<3> {
+            points: (0..300).map(|_| random_point(&mut r, 0.0, 1.0)).collect(),
+            ..Default::default()
+        };
+        data.segments = (0..20)
+            .map(|_| [0; 2].map(|_| random_point(&mut r, 0.2, 0.8)))
+            .collect();
+        data.triangles = (0..20)
+            .map(|_| [0; 3].map(|_| random_point(&mut r, 0.2, 0.8)))
+            .collect();
+        let spec = unit_grid::<3>(40);
+        let widest = unsigned_distance(&data, &spec).unwrap();
+        let baseline =
+            crate::simd::tests::with_baseline(|| unsigned_distance(&data, &spec).unwrap());
+        assert_eq!(widest, baseline);
+    }
+
+    #[test]
     fn narrow_band_is_exact_inside_and_empty_outside() {
         let data = DataSet::<2> {
             segments: vec![[[0.2, 0.5], [0.8, 0.5]]],
