@@ -20,18 +20,52 @@ const SLAB_LAYERS: usize = 4;
 pub(super) struct Closest<const D: usize> {
     /// Closest datum known so far (in sorted order), or [`NO_DATUM`].
     pub datum: Vec<u32>,
-    /// Nearest point of `datum` to the node (for points, the point): a
-    /// point on the datum, so its distance to another node bounds that
-    /// node's distance to the datum from above, whatever the kind.
-    pub foot: Vec<[f32; D]>,
+    pub feet: Feet<D>,
+}
+
+/// The nearest point of a node's datum to the node (for points, the
+/// point): a point on the datum, so its distance to another node bounds
+/// that node's distance to the datum from above, whatever the kind.
+pub(super) enum Feet<const D: usize> {
+    /// Data of points only: a node's foot is its datum, so one per datum
+    /// suffices (4 bytes per node instead of 4 + 4·D, and fewer memory
+    /// lines to touch per node).
+    OfPoints(Vec<[f32; D]>),
+    /// One per node, indexed like the nodes.
+    PerNode(Vec<[f32; D]>),
 }
 
 impl<const D: usize> Closest<D> {
-    /// Squared distance, in cells², from node `idx` (linear `l`) to its foot.
+    /// Foot of node `l` (NaN when it has no datum).
+    #[inline(always)]
+    pub fn foot(&self, l: usize) -> [f32; D] {
+        match &self.feet {
+            Feet::OfPoints(points) => foot_of_point(points, self.datum[l]),
+            Feet::PerNode(feet) => feet[l],
+        }
+    }
+
+    /// Squared distance, in cells², from node `l` at `idx` to its foot.
     #[inline(always)]
     pub fn d2(&self, l: usize, idx: &[f32; D]) -> f32 {
-        cells_dist2(idx, &self.foot[l])
+        cells_dist2(idx, &self.foot(l))
     }
+
+    /// Give node `l` datum `c` with foot `foot` (implied when the feet
+    /// are the points).
+    pub fn set(&mut self, l: usize, c: u32, foot: [f32; D]) {
+        self.datum[l] = c;
+        if let Feet::PerNode(feet) = &mut self.feet {
+            feet[l] = foot;
+        }
+    }
+}
+
+/// Foot of datum `c` when the feet are the points: the point, or NaN for
+/// [`NO_DATUM`].
+#[inline(always)]
+pub(super) fn foot_of_point<const D: usize>(points: &[[f32; D]], c: u32) -> [f32; D] {
+    points.get(c as usize).copied().unwrap_or([f32::NAN; D])
 }
 
 /// Squared distance between two points in grid coordinates.
@@ -152,19 +186,24 @@ pub(super) fn exact_band<const D: usize>(
             )
         });
     drop(d2);
-    let foot = datum
-        .par_iter()
-        .enumerate()
-        .map(|(l, &c)| match c {
-            NO_DATUM => [f32::NAN; D],
-            c if (c as usize) < data.points.len() => to_cells(spec, &data.points[c as usize]),
-            c => {
-                let p = spec.position(spec.unlinear(l));
-                to_cells(spec, &data.closest_point(c as usize, &p))
-            }
-        })
-        .collect();
-    Closest { datum, foot }
+    let feet = if data.points.len() == data.len() {
+        Feet::OfPoints(data.points.par_iter().map(|p| to_cells(spec, p)).collect())
+    } else {
+        Feet::PerNode(
+            datum
+                .par_iter()
+                .enumerate()
+                .map(|(l, &c)| match c {
+                    NO_DATUM => [f32::NAN; D],
+                    c => {
+                        let p = spec.position(spec.unlinear(l));
+                        to_cells(spec, &data.closest_point(c as usize, &p))
+                    }
+                })
+                .collect(),
+        )
+    };
+    Closest { datum, feet }
 }
 
 /// The best offers so far of the nodes of one slab (squared distance in

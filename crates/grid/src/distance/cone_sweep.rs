@@ -9,7 +9,7 @@
 //! thread count. Planes are copied into structure-of-arrays rows, with an
 //! empty border, so that the offers run as straight vectorizable loops.
 
-use super::band::Closest;
+use super::band::{foot_of_point, Closest, Feet};
 use super::NO_DATUM;
 use crate::simd::widest;
 use crate::spec::for_each_in_box;
@@ -272,9 +272,15 @@ fn offer_shifted<const D: usize>(
 /// touch disjoint nodes.
 struct GridAccess<'a, const D: usize> {
     datum: *mut u32,
-    foot: *mut [f32; D],
+    feet: FeetAccess<'a, D>,
     len: usize,
     _closest: std::marker::PhantomData<&'a mut Closest<D>>,
+}
+
+/// The feet of [`Feet`], as [`GridAccess`] reaches them.
+enum FeetAccess<'a, const D: usize> {
+    OfPoints(&'a [[f32; D]]),
+    PerNode(*mut [f32; D]),
 }
 
 // SAFETY: access goes through `gather_row`/`scatter_row`, whose callers
@@ -283,10 +289,16 @@ unsafe impl<const D: usize> Sync for GridAccess<'_, D> {}
 
 impl<'a, const D: usize> GridAccess<'a, D> {
     fn new(closest: &'a mut Closest<D>) -> Self {
-        assert_eq!(closest.datum.len(), closest.foot.len());
+        let feet = match &mut closest.feet {
+            Feet::OfPoints(points) => FeetAccess::OfPoints(points),
+            Feet::PerNode(feet) => {
+                assert_eq!(closest.datum.len(), feet.len());
+                FeetAccess::PerNode(feet.as_mut_ptr())
+            }
+        };
         GridAccess {
             datum: closest.datum.as_mut_ptr(),
-            foot: closest.foot.as_mut_ptr(),
+            feet,
             len: closest.datum.len(),
             _closest: std::marker::PhantomData,
         }
@@ -300,8 +312,12 @@ impl<'a, const D: usize> GridAccess<'a, D> {
     unsafe fn gather_row(&self, start: usize, stride: usize, row: &mut Row<D>) {
         for i in 0..row.datum.len() - 2 * BORDER {
             let l = start + i * stride;
-            row.datum[BORDER + i] = *self.datum.add(l);
-            let foot = *self.foot.add(l);
+            let c = *self.datum.add(l);
+            row.datum[BORDER + i] = c;
+            let foot = match self.feet {
+                FeetAccess::OfPoints(points) => foot_of_point(points, c),
+                FeetAccess::PerNode(feet) => *feet.add(l),
+            };
             for (row_foot, f) in row.foot.iter_mut().zip(foot) {
                 row_foot[BORDER + i] = f;
             }
@@ -318,7 +334,9 @@ impl<'a, const D: usize> GridAccess<'a, D> {
             if s != OWN {
                 let l = start + i * stride;
                 *self.datum.add(l) = row.datum[BORDER + i];
-                *self.foot.add(l) = std::array::from_fn(|b| row.foot[b][BORDER + i]);
+                if let FeetAccess::PerNode(feet) = self.feet {
+                    *feet.add(l) = std::array::from_fn(|b| row.foot[b][BORDER + i]);
+                }
             }
         }
     }

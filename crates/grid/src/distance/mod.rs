@@ -313,10 +313,15 @@ pub fn unsigned_distance_with<const D: usize>(
             options.band_cells
         )));
     }
-    // Per node at the peak: the datum and its foot, and the band's
-    // distance or the output distance (the output datum reuses the working
-    // one).
-    spec.check_memory(4 + 4 * D + 8)?;
+    // Per node at the peak: the datum and its foot (kept per datum for
+    // points only), and the band's distance or the output distance (the
+    // output datum reuses the working one).
+    let foot_bytes = if data.points.len() == data.len() {
+        0
+    } else {
+        4 * D
+    };
+    spec.check_memory(4 + foot_bytes + 8)?;
     let radius = options.band_cells * spec.spacing;
     let sorted = SortedData::new(data, spec);
     // Dense point samples hide points between the nodes from propagation,
@@ -348,19 +353,16 @@ pub fn unsigned_distance_with<const D: usize>(
         true => ((NEAR_CELLS + 1.0) as f32).powi(2),
         false => f32::INFINITY,
     };
-    let Closest { mut datum, foot } = closest;
-    let values = datum
-        .par_iter_mut()
-        .zip(foot.par_iter())
-        .enumerate()
-        .map(|(l, (c, foot))| match *c {
+    let values = (0..spec.node_count())
+        .into_par_iter()
+        .map(|l| match closest.datum[l] {
             NO_DATUM => f64::INFINITY,
             i => {
-                *c = sorted.original[i as usize];
                 let idx = spec.unlinear(l);
+                let foot = closest.foot(l);
                 let cells = idx.map(|k| k as f32);
                 if (i as usize) < data.points.len()
-                    || band::cells_dist2(&cells, foot) <= exact_within
+                    || band::cells_dist2(&cells, &foot) <= exact_within
                 {
                     data.distance(i as usize, &spec.position(idx))
                 } else {
@@ -372,6 +374,11 @@ pub fn unsigned_distance_with<const D: usize>(
             }
         })
         .collect();
+    let mut datum = closest.datum;
+    datum
+        .par_iter_mut()
+        .filter(|c| **c != NO_DATUM)
+        .for_each(|c| *c = sorted.original[*c as usize]);
     Ok(DistanceField {
         field: Field {
             spec: *spec,

@@ -102,7 +102,7 @@ impl<'a, const D: usize> Settle<'a, D> {
             .map(|&l| self.exact_foot(closest.datum[l as usize], l as usize).0)
             .collect();
         for (&l, foot) in scope.iter().zip(own) {
-            closest.foot[l as usize] = foot;
+            closest.set(l as usize, closest.datum[l as usize], foot);
         }
         // Nodes changed by the last round (all count before the first), and
         // the nodes next to them.
@@ -130,8 +130,7 @@ impl<'a, const D: usize> Settle<'a, D> {
             }
             changed.clear();
             for &(l, c) in &changes {
-                closest.datum[l as usize] = c.datum;
-                closest.foot[l as usize] = c.foot;
+                closest.set(l as usize, c.datum, c.foot);
                 fresh[l as usize] = true;
                 changed.push(l);
             }
@@ -197,7 +196,7 @@ impl<'a, const D: usize> Settle<'a, D> {
         let p = idx.map(|i| i as f32);
         let mut best = Candidate {
             datum: closest.datum[l],
-            foot: closest.foot[l],
+            foot: closest.foot(l),
             d2: closest.d2(l, &p),
         };
         if best.d2 <= self.final_below {
