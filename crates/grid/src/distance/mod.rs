@@ -35,7 +35,7 @@ pub use primitives::{segment_closest, segment_dist2, triangle_closest, triangle_
 pub use propagate::NEAR_CELLS;
 
 use crate::{Field, GridError, GridSpec};
-use band::{exact_band, Closest, SortedData};
+use band::{exact_band, SortedData};
 use primitives::dist2;
 use rayon::prelude::*;
 use surfrecon_geom::{DVec3, Geometry, TriMesh};
