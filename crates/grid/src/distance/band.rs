@@ -231,9 +231,11 @@ impl<const D: usize> Slab<'_, D> {
     }
 }
 
-/// Point `q` (datum `i`): every node within `radius`, by rows along axis 0
-/// clipped to the ball (points are the dense kind; the ball is half the
-/// box).
+/// Point `q` (datum `i`): every node within `radius`, by rows along
+/// axis 0. Each row within the ball takes whole chunks over the box's
+/// span, so no row is clipped to the ball: the nodes beyond it get exact
+/// offers too, which do no harm (for the usual 5-cell radius, the span of
+/// 11 nodes is one chunk).
 #[inline(always)]
 fn point_ball<const D: usize>(
     spec: &GridSpec<D>,
@@ -251,25 +253,16 @@ fn point_ball<const D: usize>(
         offsets.clear();
         offsets.extend((first[a]..=last[a]).map(|j| ((j as f64 - qc[a]).powi(2)) as f32));
     }
-    let (x_first, x_last) = (first[0] as i64, last[0] as i64);
-    let qx = qc[0] as f32;
     // Offsets along the row from the whole and fractional parts of `q`'s
     // coordinate: exact whatever the grid size.
     let q_whole = qc[0].floor() as i64;
     let q_frac = (qc[0] - q_whole as f64) as f32;
-    let row_len = spec.dims[0];
+    let first_dx = |x: usize| (x as i64 - q_whole) as i32;
+    let (row_len, span) = (spec.dims[0], first[0]..=last[0]);
     last[0] = first[0];
     for_each_in_box(first, last, |row| {
         let off_row: f32 = (1..D).map(|a| slab.offsets[a][row[a] - first[a]]).sum();
         if off_row > r2 {
-            return;
-        }
-        // Row nodes within the ball, with slack for rounding (a node
-        // slightly outside does no harm).
-        let half = (r2 - off_row).sqrt() + 1e-4;
-        let lo = ceil(qx - half).max(x_first) as usize;
-        let hi = floor(qx + half).min(x_last) as usize;
-        if hi < lo {
             return;
         }
         let start: usize = (1..D).map(|a| row[a] * strides[a]).sum::<usize>() - slab.offset;
@@ -277,40 +270,32 @@ fn point_ball<const D: usize>(
             &mut slab.d2[start..][..row_len],
             &mut slab.datum[start..][..row_len],
         );
-        let first_dx = |x: usize| (x as i64 - q_whole) as i32;
         if row_len < CHUNK {
-            return (lo..=hi).for_each(|x| {
+            return span.clone().for_each(|x| {
                 let (d2, datum) = (&mut d2[x], &mut datum[x]);
-                offer_chunk(
-                    std::array::from_mut(d2),
-                    std::array::from_mut(datum),
-                    first_dx(x),
-                    q_frac,
-                    off_row,
-                    i,
-                )
+                let (d2, datum) = (std::array::from_mut(d2), std::array::from_mut(datum));
+                offer_chunk(d2, datum, first_dx(x), q_frac, off_row, i)
             });
         }
-        // Whole chunks from `lo`, the last one ending at `hi`; a row
-        // shorter than a chunk takes one within the grid's row. The extra
-        // nodes get exact offers too, which do no harm.
-        let mut x = lo.min(row_len - CHUNK);
+        // Chunks from the span's start (within the grid's row), the last
+        // one ending at the span's end.
+        let mut x = (*span.start()).min(row_len - CHUNK);
         loop {
             let d2: &mut [f32; CHUNK] = (&mut d2[x..x + CHUNK]).try_into().expect("a chunk");
             let datum: &mut [u32; CHUNK] = (&mut datum[x..x + CHUNK]).try_into().expect("a chunk");
             offer_chunk(d2, datum, first_dx(x), q_frac, off_row, i);
-            if x + CHUNK > hi {
+            if x + CHUNK > *span.end() {
                 break;
             }
-            x = (x + CHUNK).min(hi + 1 - CHUNK);
+            x = (x + CHUNK).min(span.end() + 1 - CHUNK);
         }
     });
 }
 
-/// Nodes per [`offer_chunk`]: ball rows are short (at most 11 nodes for
-/// the usual 5-cell radius), so a loop over their exact length would run
-/// in its scalar tail; a fixed width vectorizes.
-const CHUNK: usize = 8;
+/// Nodes per [`offer_chunk`]: a loop over a row's exact length would run
+/// in its scalar tail; a fixed width vectorizes. 16 holds the span of the
+/// usual 5-cell ball (11 nodes) and fills an AVX-512 register.
+const CHUNK: usize = 16;
 
 /// Offer a point to consecutive nodes of a row (all of `d2`, `datum`):
 /// the first lies `first_dx` whole cells past the point's whole coordinate
@@ -336,21 +321,6 @@ fn offer_chunk<const N: usize>(
         owner[k] = (i & take) | (owner[k] & !take);
     }
     (*d2, *datum) = (best, owner);
-}
-
-/// `x.floor()` for the finite, moderate `x` of grid coordinates; without
-/// SSE4.1 the library call would cost more than the rest of a ball row.
-#[inline(always)]
-fn floor(x: f32) -> i64 {
-    let t = x as i64;
-    t - i64::from(t as f32 > x)
-}
-
-/// `x.ceil()`, as [`floor`].
-#[inline(always)]
-fn ceil(x: f32) -> i64 {
-    let t = x as i64;
-    t + i64::from((t as f32) < x)
 }
 
 /// Any datum `i`: every node of the box `first..=last`, by rows along

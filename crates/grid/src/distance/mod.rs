@@ -361,16 +361,15 @@ pub fn unsigned_distance_with<const D: usize>(
                 let idx = spec.unlinear(l);
                 let foot = closest.foot(l);
                 let cells = idx.map(|k| k as f32);
-                if (i as usize) < data.points.len()
-                    || band::cells_dist2(&cells, &foot) <= exact_within
+                if i as usize >= data.points.len()
+                    && band::cells_dist2(&cells, &foot) > exact_within
                 {
-                    data.distance(i as usize, &spec.position(idx))
-                } else {
                     let d2: f64 = (0..D)
                         .map(|a| (idx[a] as f64 - foot[a] as f64).powi(2))
                         .sum();
-                    d2.sqrt() * spec.spacing
+                    return d2.sqrt() * spec.spacing;
                 }
+                data.distance(i as usize, &spec.position(idx))
             }
         })
         .collect();
@@ -460,6 +459,37 @@ mod tests {
         };
         let (_, far) = check("2D random points", &data, &unit_grid(160));
         assert!(far <= FAR_TOLERANCE, "far error {far} h");
+    }
+
+    #[test]
+    fn points_on_grids_with_short_rows_match_brute_force() {
+        // Rows along axis 0 shorter than a chunk of the exact band, and
+        // about as long as one ball.
+        let mut r = rng(5);
+        for width in [0.1, 0.4] {
+            let points = (0..200)
+                .map(|_| {
+                    let p: [f64; 3] = random_point(&mut r, 0.0, 1.0);
+                    [p[0] * width, p[1], p[2]]
+                })
+                .collect();
+            let data = DataSet::<3> {
+                points,
+                ..Default::default()
+            };
+            let spec = GridSpec::from_bounds(
+                [0.0; 3],
+                [width, 1.0, 1.0],
+                crate::GridSize::Resolution(40),
+                3,
+            )
+            .unwrap();
+            check(
+                &format!("3D points, {} nodes along x", spec.dims[0]),
+                &data,
+                &spec,
+            );
+        }
     }
 
     #[test]
