@@ -12,12 +12,13 @@
 
 /// Run `kernel`, compiled for x86-64-v4 when the CPU has it.
 ///
-/// The kernel must be a closure that calls `#[inline(always)]` code, so
-/// that its loops are compiled inside the wide variant.
+/// The kernel must be a closure marked `#[inline(always)]` that calls
+/// only `#[inline(always)]` code in its hot loops, so that they are
+/// compiled inside the wide variant (a call out runs the baseline code).
 #[inline(always)]
 pub(crate) fn widest<R>(kernel: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
-    if has_x86_64_v4() && !tests::baseline_only() {
+    if has_x86_64_v4() && !baseline_only() {
         // SAFETY: the CPU has every feature `x86_64_v4` enables.
         return unsafe { x86_64_v4(kernel) };
     }
@@ -44,31 +45,26 @@ unsafe fn x86_64_v4<R>(kernel: impl FnOnce() -> R) -> R {
     kernel()
 }
 
+/// Set by a test to run the baseline variant; other tests running
+/// meanwhile only take the slower path.
 #[cfg(test)]
-pub(crate) mod tests {
-    use std::sync::atomic::{AtomicBool, Ordering};
+static BASELINE_ONLY: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
-    /// Set by a test to run the baseline variant; other tests running
-    /// meanwhile only take the slower path.
-    static BASELINE_ONLY: AtomicBool = AtomicBool::new(false);
-
-    pub(crate) fn baseline_only() -> bool {
-        BASELINE_ONLY.load(Ordering::Relaxed)
-    }
-
-    /// `f`'s result with the baseline variant of every kernel.
-    pub(crate) fn with_baseline<R>(f: impl FnOnce() -> R) -> R {
-        BASELINE_ONLY.store(true, Ordering::Relaxed);
-        let result = f();
-        BASELINE_ONLY.store(false, Ordering::Relaxed);
-        result
-    }
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn baseline_only() -> bool {
+    #[cfg(test)]
+    return BASELINE_ONLY.load(std::sync::atomic::Ordering::Relaxed);
+    #[cfg(not(test))]
+    false
 }
 
-#[cfg(not(test))]
-mod tests {
-    #[inline(always)]
-    pub(super) fn baseline_only() -> bool {
-        false
-    }
+/// `f`'s result with the baseline variant of every kernel.
+#[cfg(test)]
+pub(crate) fn with_baseline<R>(f: impl FnOnce() -> R) -> R {
+    use std::sync::atomic::Ordering::Relaxed;
+    BASELINE_ONLY.store(true, Relaxed);
+    let result = f();
+    BASELINE_ONLY.store(false, Relaxed);
+    result
 }

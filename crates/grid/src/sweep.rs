@@ -8,8 +8,10 @@
 //! characteristics of every direction are followed by one of the orders, so
 //! a few rounds of 2^D sweeps reach the fixed point (Zhao 2005).
 //!
-//! The node traversal ([`for_each_node_ordered`]) is shared with the
-//! closest-datum sweeps of [`crate::distance`].
+//! Used where only values are known (rebuilding a field from a thin shell,
+//! reinitializing a level set). From data, [`crate::distance`] propagates
+//! the closest datum instead, which is far more accurate (test
+//! `godunov_sweeping_from_the_band_is_less_accurate`).
 
 use crate::Field;
 

@@ -635,8 +635,7 @@ mod tests {
             .collect();
         let spec = unit_grid::<3>(40);
         let widest = unsigned_distance(&data, &spec).unwrap();
-        let baseline =
-            crate::simd::tests::with_baseline(|| unsigned_distance(&data, &spec).unwrap());
+        let baseline = crate::simd::with_baseline(|| unsigned_distance(&data, &spec).unwrap());
         assert_eq!(widest, baseline);
     }
 
