@@ -14,6 +14,7 @@
 //! `godunov_sweeping_from_the_band_is_less_accurate`).
 
 use crate::{Field, GridSpec};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Upper bound on full rounds (of 2^D sweeps each); the iteration normally
 /// stops much earlier.
@@ -33,8 +34,11 @@ pub const SWEEP_TOLERANCE: f64 = 1e-9;
 /// changed. Iterates sweeps until one sweep changes no value (a fixed
 /// point of the update), a full round of 2^D sweeps changes no value by
 /// more than [`SWEEP_TOLERANCE`] grid spacings, or a bounded number of
-/// rounds has run; returns the number of sweeps done. The result depends
-/// only on the input, not on timing or threads.
+/// rounds has run; returns the number of sweeps done. Only nodes beside
+/// a change are evaluated again ("locking"), and large 3D grids are swept
+/// by rayon's number of threads in a pipeline over planes; the values are
+/// those of plain sequential Gauss–Seidel, bit for bit, whatever the
+/// thread count.
 ///
 /// # Panics
 /// When `frozen.len()` differs from the node count (a programming error).
@@ -45,44 +49,179 @@ pub fn fast_sweep<const D: usize>(field: &mut Field<D>, frozen: &[bool]) -> usiz
         "fast_sweep: one frozen flag per node"
     );
     let spec = field.spec;
-    let strides = spec.strides();
-    let h = spec.spacing;
-    let values = &mut field.values;
-    let mut unlocked = initially_unlocked(&spec, values, frozen);
+    let mut unlocked = initially_unlocked(&spec, &field.values, frozen);
+    let grid = SweepGrid {
+        spec,
+        values: field.values.as_mut_ptr(),
+        unlocked: unlocked.as_mut_ptr(),
+        frozen,
+    };
+    let threads = pipeline_threads(&spec);
     let mut sweeps = 0;
     for round in 0..MAX_ROUNDS {
         let mut largest_change = 0.0f64;
         for order in 0..1usize << D {
             sweeps += 1;
-            let mut changed = false;
-            for_each_node_ordered(&spec.dims, order, |l, idx| {
-                if !unlocked[l] {
-                    return;
-                }
-                unlocked[l] = false;
-                let mut minima = [f64::INFINITY; D];
-                for a in 0..D {
-                    minima[a] = axis_min(values, l, idx[a], spec.dims[a], strides[a]);
-                }
-                let u = godunov_update(&mut minima, h);
-                if u < values[l] {
-                    largest_change = largest_change.max(values[l] - u);
-                    values[l] = u;
-                    changed = true;
-                    unlock_neighbours(&spec.dims, &strides, l, idx, frozen, &mut unlocked);
-                }
-            });
+            let (change, changed) = grid.sweep(order, threads);
+            largest_change = largest_change.max(change);
             // One complete sweep without change: every node satisfies its
             // update with the current values, so further sweeps are no-ops.
             if !changed && (round > 0 || order > 0) {
                 return sweeps;
             }
         }
-        if largest_change <= SWEEP_TOLERANCE * h {
+        if largest_change <= SWEEP_TOLERANCE * spec.spacing {
             return sweeps;
         }
     }
     sweeps
+}
+
+/// Threads for the pipelined sweeps: rayon's count, but one for small or
+/// 2D grids (a 2D plane is a single line, so threads could not overlap).
+fn pipeline_threads<const D: usize>(spec: &GridSpec<D>) -> usize {
+    if D < 3 || spec.node_count() < 1 << 16 {
+        return 1;
+    }
+    rayon::current_num_threads().clamp(1, spec.dims[D - 1])
+}
+
+/// A field being swept, shared by the threads of a pipelined sweep.
+///
+/// Invariant of [`SweepGrid::sweep`]: the planes along the last axis are
+/// dealt round-robin to the threads, and a thread starts line `j` of a
+/// plane only once the plane before has finished its line `j`. A node's
+/// update reads its axis neighbours: in the plane before, already updated
+/// in this sweep; in the plane after, not yet touched. Every node is thus
+/// updated exactly as in sequential Gauss–Seidel order, whatever the
+/// thread count, and no memory location is accessed by two threads
+/// without a release/acquire on a plane's progress in between.
+struct SweepGrid<'a, const D: usize> {
+    spec: GridSpec<D>,
+    values: *mut f64,
+    unlocked: *mut bool,
+    frozen: &'a [bool],
+}
+
+// SAFETY: see the invariant above.
+unsafe impl<const D: usize> Sync for SweepGrid<'_, D> {}
+
+impl<const D: usize> SweepGrid<'_, D> {
+    /// One sweep in `order` (bit `a` set: axis `a` backwards), on
+    /// `threads` threads; the largest decrease and whether any value
+    /// changed.
+    fn sweep(&self, order: usize, threads: usize) -> (f64, bool) {
+        let planes = self.spec.dims[D - 1];
+        let progress: Vec<AtomicUsize> = (0..planes).map(|_| AtomicUsize::new(0)).collect();
+        let run = |first: usize| {
+            let mut result = (0.0f64, false);
+            for k in (first..planes).step_by(threads) {
+                let previous = k.checked_sub(1).map(|p| &progress[p]);
+                let (change, changed) = self.sweep_plane(order, k, previous, &progress[k]);
+                result = (result.0.max(change), result.1 || changed);
+            }
+            result
+        };
+        if threads == 1 {
+            return run(0);
+        }
+        std::thread::scope(|scope| {
+            let workers: Vec<_> = (1..threads).map(|t| scope.spawn(move || run(t))).collect();
+            workers
+                .into_iter()
+                .map(|w| w.join().expect("a sweep thread panicked"))
+                .fold(run(0), |a, b| (a.0.max(b.0), a.1 || b.1))
+        })
+    }
+
+    /// The `k`-th plane of the sweep, line by line, each after the same
+    /// line of the plane before (`previous`); counts its lines done in
+    /// `done`.
+    fn sweep_plane(
+        &self,
+        order: usize,
+        k: usize,
+        previous: Option<&AtomicUsize>,
+        done: &AtomicUsize,
+    ) -> (f64, bool) {
+        let dims = self.spec.dims;
+        let strides = self.spec.strides();
+        let along = |a: usize, i: usize| {
+            if order >> a & 1 == 1 {
+                dims[a] - 1 - i
+            } else {
+                i
+            }
+        };
+        let lines: usize = dims[1..D - 1].iter().product();
+        let mut idx = [0; D];
+        idx[D - 1] = along(D - 1, k);
+        let (mut largest_change, mut changed) = (0.0f64, false);
+        for j in 0..lines {
+            if let Some(previous) = previous {
+                wait_until_above(previous, j);
+            }
+            let mut rest = j;
+            for a in 1..D - 1 {
+                idx[a] = along(a, rest % dims[a]);
+                rest /= dims[a];
+            }
+            let row: usize = (1..D).map(|a| idx[a] * strides[a]).sum();
+            for i in 0..dims[0] {
+                idx[0] = along(0, i);
+                // SAFETY: the invariant of `SweepGrid`.
+                let change = unsafe { self.update(row + idx[0], &idx, &strides) };
+                largest_change = largest_change.max(change);
+                changed |= change > 0.0;
+            }
+            done.store(j + 1, Ordering::Release);
+        }
+        (largest_change, changed)
+    }
+
+    /// Evaluate node `l` at `idx` if unlocked; returns the decrease of its
+    /// value (0 when none).
+    ///
+    /// # Safety
+    /// No other thread touches `l` or its axis neighbours meanwhile.
+    #[inline(always)]
+    unsafe fn update(&self, l: usize, idx: &[usize; D], strides: &[usize; D]) -> f64 {
+        if !*self.unlocked.add(l) {
+            return 0.0;
+        }
+        *self.unlocked.add(l) = false;
+        let dims = &self.spec.dims;
+        let minima = &mut [f64::INFINITY; D];
+        for a in 0..D {
+            if idx[a] > 0 {
+                minima[a] = *self.values.add(l - strides[a]);
+            }
+            if idx[a] + 1 < dims[a] {
+                minima[a] = minima[a].min(*self.values.add(l + strides[a]));
+            }
+        }
+        let u = godunov_update(minima, self.spec.spacing);
+        let old = *self.values.add(l);
+        if u >= old {
+            return 0.0;
+        }
+        *self.values.add(l) = u;
+        unlock_neighbours(dims, strides, l, idx, self.frozen, self.unlocked);
+        old - u
+    }
+}
+
+/// Spin, then yield, until `progress` exceeds `line`.
+fn wait_until_above(progress: &AtomicUsize, line: usize) {
+    let mut spins = 0u32;
+    while progress.load(Ordering::Acquire) <= line {
+        if spins < 1 << 10 {
+            std::hint::spin_loop();
+            spins += 1;
+        } else {
+            std::thread::yield_now();
+        }
+    }
 }
 
 /// "Locking" (Bak, McLaughlin & Renzi 2010): a node is evaluated only
@@ -97,48 +236,38 @@ fn initially_unlocked<const D: usize>(
 ) -> Vec<bool> {
     let strides = spec.strides();
     let mut unlocked = vec![false; values.len()];
+    let flags = unlocked.as_mut_ptr();
     for_each_node_ordered(&spec.dims, 0, |l, idx| {
         if values[l].is_finite() {
-            unlock_neighbours(&spec.dims, &strides, l, idx, frozen, &mut unlocked);
+            // SAFETY: one flag per node, owned here.
+            unsafe { unlock_neighbours(&spec.dims, &strides, l, idx, frozen, flags) };
         }
     });
     unlocked
 }
 
 /// Unlock the free axis neighbours of node `l` at `idx`.
+///
+/// # Safety
+/// `unlocked` holds one flag per node, and no other thread touches these
+/// neighbours' flags meanwhile.
 #[inline(always)]
-fn unlock_neighbours<const D: usize>(
+unsafe fn unlock_neighbours<const D: usize>(
     dims: &[usize; D],
     strides: &[usize; D],
     l: usize,
     idx: &[usize; D],
     frozen: &[bool],
-    unlocked: &mut [bool],
+    unlocked: *mut bool,
 ) {
     for a in 0..D {
         if idx[a] > 0 && !frozen[l - strides[a]] {
-            unlocked[l - strides[a]] = true;
+            *unlocked.add(l - strides[a]) = true;
         }
         if idx[a] + 1 < dims[a] && !frozen[l + strides[a]] {
-            unlocked[l + strides[a]] = true;
+            *unlocked.add(l + strides[a]) = true;
         }
     }
-}
-
-/// Smaller of the two neighbour values of node `l` along one axis.
-#[inline(always)]
-fn axis_min(values: &[f64], l: usize, i: usize, n: usize, stride: usize) -> f64 {
-    let lo = if i > 0 {
-        values[l - stride]
-    } else {
-        f64::INFINITY
-    };
-    let hi = if i + 1 < n {
-        values[l + stride]
-    } else {
-        f64::INFINITY
-    };
-    lo.min(hi)
 }
 
 /// Godunov upwind solution of |∇u| = 1 at a node whose per-axis neighbour
@@ -319,6 +448,22 @@ mod tests {
         assert!(s3 <= 3 * 8, "3D sweeps {s3}");
     }
 
+    /// Smaller of the two neighbour values of node `l` along one axis.
+    #[inline(always)]
+    fn axis_min(values: &[f64], l: usize, i: usize, n: usize, stride: usize) -> f64 {
+        let lo = if i > 0 {
+            values[l - stride]
+        } else {
+            f64::INFINITY
+        };
+        let hi = if i + 1 < n {
+            values[l + stride]
+        } else {
+            f64::INFINITY
+        };
+        lo.min(hi)
+    }
+
     /// Plain Gauss–Seidel with every node evaluated in every sweep and the
     /// same stopping rule, to check that locking changes nothing.
     fn sweep_every_node<const D: usize>(field: &mut Field<D>, frozen: &[bool]) -> usize {
@@ -353,22 +498,36 @@ mod tests {
     }
 
     #[test]
-    fn locking_changes_no_value() {
-        // Two sources and a finite upper bound somewhere: curved fronts
-        // that need several rounds.
-        let g = spec::<3>(40, 0.025);
+    fn same_values_as_plain_gauss_seidel_for_any_thread_count() {
+        // Sources and a finite upper bound somewhere: curved fronts that
+        // need several rounds, on a grid big enough to be pipelined.
+        let g = spec::<3>(48, 0.02);
         let mut f = Field::filled(g, f64::INFINITY);
         let mut frozen = vec![false; g.node_count()];
-        for (idx, v) in [([5, 7, 9], 0.0), ([30, 33, 20], 0.01), ([20, 2, 35], 0.02)] {
+        for (idx, v) in [([5, 7, 9], 0.0), ([30, 33, 20], 0.01), ([20, 2, 45], 0.02)] {
             f.values[g.linear(idx)] = v;
             frozen[g.linear(idx)] = true;
         }
-        f.values[g.linear([39, 39, 0])] = 0.3;
+        f.values[g.linear([47, 47, 0])] = 0.3;
         let mut plain = f.clone();
-        let sweeps = fast_sweep(&mut f, &frozen);
-        assert_eq!(sweeps, sweep_every_node(&mut plain, &frozen));
-        assert!(sweeps > 2 * 8, "{sweeps} sweeps: too easy a test");
-        assert_eq!(f, plain);
+        let plain_sweeps = sweep_every_node(&mut plain, &frozen);
+        assert!(
+            plain_sweeps > 2 * 8,
+            "{plain_sweeps} sweeps: too easy a test"
+        );
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut swept = f.clone();
+            let sweeps = pool.install(|| {
+                assert_eq!(pipeline_threads(&g), threads);
+                fast_sweep(&mut swept, &frozen)
+            });
+            assert_eq!(sweeps, plain_sweeps, "{threads} threads");
+            assert!(swept == plain, "{threads} threads: values differ");
+        }
     }
 
     #[test]
