@@ -81,8 +81,11 @@ pub struct DistanceField<const D: usize> {
 pub struct DistanceOptions {
     /// Radius, in cells, of the exactly computed band around each datum.
     pub band_cells: f64,
-    /// Fill the whole grid by closest-datum sweeping; `false` leaves nodes
-    /// outside the band at `INFINITY` (narrow-band mode).
+    /// Fill the whole grid by closest-datum sweeping. With `false`
+    /// (narrow-band mode), nodes within the band get their exact distance
+    /// and the others stay at `INFINITY` or, near the band's edge, at the
+    /// distance to some datum; either way above the band radius, so
+    /// clamping to it gives the exact band.
     pub propagate: bool,
 }
 
@@ -658,6 +661,8 @@ mod tests {
                 assert_eq!(df.closest[l], 0);
             } else if df.closest[l] == NO_DATUM {
                 assert_eq!(df.field.values[l], f64::INFINITY);
+            } else {
+                assert!(df.field.values[l] >= exact && exact > 3.0 * spec.spacing);
             }
         }
     }
