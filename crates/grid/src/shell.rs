@@ -23,15 +23,16 @@
 //!
 //! Rebuild ([`Shell::rebuild`]): |φ| by fast sweeping from the shell values
 //! (frozen), then the signs by tagging: a node with no sign change to any
-//! neighbour has the sign of all its neighbours, so signs spread breadth
-//! first from the shell nodes through the non-shell nodes. This marks the
-//! region outside the shell exterior (positive) as a flood fill from the
-//! grid boundary would, and is also right when the surface touches the
-//! grid boundary or encloses several separate regions. A grid without any
-//! shell node comes back positive.
+//! neighbour has the sign of all its neighbours, so signs spread from the
+//! shell nodes along each row, then breadth first over the rows without
+//! a shell node. This marks the region outside the shell exterior
+//! (positive) as a flood fill from the grid boundary would, and is also
+//! right when the surface touches the grid boundary or encloses several
+//! separate regions. A grid without any shell node comes back positive.
 
 use crate::sweep::fast_sweep;
 use crate::{Field, GridError, GridSpec};
+use rayon::prelude::*;
 use std::collections::VecDeque;
 use std::io::Write;
 use std::path::Path;
@@ -58,6 +59,25 @@ pub enum AnyShell {
 #[inline]
 fn negative(v: f64) -> bool {
     v < 0.0
+}
+
+/// Signs of one row: each run of nodes off the shell takes the sign of
+/// the shell node before it, or else after it. Returns whether the row
+/// has a shell node (else it is left as it was).
+fn fill_row(inside: &mut [bool], is_shell: &[bool]) -> bool {
+    let Some(first) = is_shell.iter().position(|&s| s) else {
+        return false;
+    };
+    let mut sign = inside[first];
+    inside[..first].fill(sign);
+    for (inside, &shell) in inside[first..].iter_mut().zip(&is_shell[first..]) {
+        if shell {
+            sign = *inside;
+        } else {
+            *inside = sign;
+        }
+    }
+    true
 }
 
 /// Whether node `l` has a sign change to an axis neighbour.
@@ -111,26 +131,38 @@ impl<const D: usize> Shell<D> {
         Ok(field)
     }
 
-    /// Per node: whether it is inside, spread breadth first from the shell.
+    /// Per node: whether it is inside. A node off the shell has the sign
+    /// of all its neighbours, so along a row (axis 0) each run of such
+    /// nodes takes the sign of a shell node at either end, in parallel
+    /// over rows; rows without a shell node are uniform and take the
+    /// sign of a neighbouring row, breadth first over rows.
     fn tag_inside(&self, is_shell: &[bool]) -> Vec<bool> {
-        let n = self.spec.node_count();
-        let strides = self.spec.strides();
-        let mut inside = vec![false; n];
-        let mut reached = is_shell.to_vec();
-        let mut queue: VecDeque<usize> = VecDeque::with_capacity(self.indices.len());
+        let row_len = self.spec.dims[0];
+        let mut inside = vec![false; self.spec.node_count()];
         for (&l, &v) in self.indices.iter().zip(&self.values) {
             inside[l as usize] = negative(v);
-            queue.push_back(l as usize);
         }
-        while let Some(l) = queue.pop_front() {
-            let idx = self.spec.unlinear(l);
-            for a in 0..D {
-                let below = (idx[a] > 0).then(|| l - strides[a]);
-                let above = (idx[a] + 1 < self.spec.dims[a]).then(|| l + strides[a]);
+        let mut known: Vec<bool> = inside
+            .par_chunks_mut(row_len)
+            .zip(is_shell.par_chunks(row_len))
+            .map(|(inside, is_shell)| fill_row(inside, is_shell))
+            .collect();
+        let mut queue: VecDeque<usize> = (0..known.len()).filter(|&r| known[r]).collect();
+        let rows = GridSpec {
+            dims: std::array::from_fn(|a| if a == 0 { 1 } else { self.spec.dims[a] }),
+            ..self.spec
+        };
+        let row_strides = rows.strides();
+        while let Some(r) = queue.pop_front() {
+            let idx = rows.unlinear(r);
+            for a in 1..D {
+                let below = (idx[a] > 0).then(|| r - row_strides[a]);
+                let above = (idx[a] + 1 < rows.dims[a]).then(|| r + row_strides[a]);
                 for m in [below, above].into_iter().flatten() {
-                    if !reached[m] {
-                        reached[m] = true;
-                        inside[m] = inside[l];
+                    if !known[m] {
+                        known[m] = true;
+                        let sign = inside[r * row_len];
+                        inside[m * row_len..][..row_len].fill(sign);
                         queue.push_back(m);
                     }
                 }
@@ -504,6 +536,15 @@ mod tests {
         // fill from the boundary would wrongly call it outside.
         let spec = cube_spec(12, -1.0, 1.0);
         check_rebuild(&sample3(spec, |p| p.x - 0.13), 1.0);
+    }
+
+    #[test]
+    fn rows_without_shell_nodes_take_their_neighbours_sign() {
+        // Rows along x that never meet the surface: on both sides of a
+        // plane across z, and inside and around a cylinder along x.
+        let spec = cube_spec(12, -1.0, 1.0);
+        check_rebuild(&sample3(spec, |p| p.z - 0.13), 1.0);
+        check_rebuild(&sample3(spec, |p| p.y.hypot(p.z) - 0.55), 1.0);
     }
 
     #[test]
