@@ -327,6 +327,7 @@ fn offer_chunk<const N: usize>(
 /// axis 0. Two lower bounds of the distance spare most exact evaluations:
 /// a triangle's plane and the datum's bounding ball. A node whose best
 /// offer so far is nearer than either bound keeps it.
+#[inline(always)]
 fn datum_box<const D: usize>(
     data: &DataSet<D>,
     spec: &GridSpec<D>,
