@@ -84,10 +84,11 @@ fn fill_row(inside: &mut [bool], is_shell: &[bool]) -> bool {
 fn on_shell<const D: usize>(field: &Field<D>, l: usize, strides: &[usize; D]) -> bool {
     let idx = field.spec.unlinear(l);
     let s = negative(field.values[l]);
-    (0..D).any(|a| {
-        (idx[a] > 0 && negative(field.values[l - strides[a]]) != s)
-            || (idx[a] + 1 < field.spec.dims[a] && negative(field.values[l + strides[a]]) != s)
-    })
+    let changes = field
+        .spec
+        .axis_neighbours(l, &idx, strides)
+        .any(|m| negative(field.values[m]) != s);
+    changes
 }
 
 impl<const D: usize> Shell<D> {
@@ -155,16 +156,12 @@ impl<const D: usize> Shell<D> {
         let row_strides = rows.strides();
         while let Some(r) = queue.pop_front() {
             let idx = rows.unlinear(r);
-            for a in 1..D {
-                let below = (idx[a] > 0).then(|| r - row_strides[a]);
-                let above = (idx[a] + 1 < rows.dims[a]).then(|| r + row_strides[a]);
-                for m in [below, above].into_iter().flatten() {
-                    if !known[m] {
-                        known[m] = true;
-                        let sign = inside[r * row_len];
-                        inside[m * row_len..][..row_len].fill(sign);
-                        queue.push_back(m);
-                    }
+            for m in rows.axis_neighbours(r, &idx, &row_strides) {
+                if !known[m] {
+                    known[m] = true;
+                    let sign = inside[r * row_len];
+                    inside[m * row_len..][..row_len].fill(sign);
+                    queue.push_back(m);
                 }
             }
         }

@@ -92,6 +92,22 @@ impl<const D: usize> GridSpec<D> {
         s
     }
 
+    /// Linear indices of the axis neighbours of node `idx` (linear index
+    /// `l`) that lie in the grid; `strides` as from [`Self::strides`].
+    #[inline(always)]
+    pub fn axis_neighbours<'a>(
+        &'a self,
+        l: usize,
+        idx: &'a [usize; D],
+        strides: &'a [usize; D],
+    ) -> impl Iterator<Item = usize> + 'a {
+        (0..D).flat_map(move |a| {
+            let below = (idx[a] > 0).then(|| l - strides[a]);
+            let above = (idx[a] + 1 < self.dims[a]).then(|| l + strides[a]);
+            below.into_iter().chain(above)
+        })
+    }
+
     /// Position of node `idx`.
     #[inline]
     pub fn position(&self, idx: [usize; D]) -> [f64; D] {

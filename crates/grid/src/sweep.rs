@@ -206,7 +206,7 @@ impl<const D: usize> SweepGrid<'_, D> {
             return 0.0;
         }
         *self.values.add(l) = u;
-        unlock_neighbours(dims, strides, l, idx, self.frozen, self.unlocked);
+        unlock_neighbours(&self.spec, strides, l, idx, self.frozen, self.unlocked);
         old - u
     }
 }
@@ -240,7 +240,7 @@ fn initially_unlocked<const D: usize>(
     for_each_node_ordered(&spec.dims, 0, |l, idx| {
         if values[l].is_finite() {
             // SAFETY: one flag per node, owned here.
-            unsafe { unlock_neighbours(&spec.dims, &strides, l, idx, frozen, flags) };
+            unsafe { unlock_neighbours(spec, &strides, l, idx, frozen, flags) };
         }
     });
     unlocked
@@ -253,19 +253,16 @@ fn initially_unlocked<const D: usize>(
 /// neighbours' flags meanwhile.
 #[inline(always)]
 unsafe fn unlock_neighbours<const D: usize>(
-    dims: &[usize; D],
+    spec: &GridSpec<D>,
     strides: &[usize; D],
     l: usize,
     idx: &[usize; D],
     frozen: &[bool],
     unlocked: *mut bool,
 ) {
-    for a in 0..D {
-        if idx[a] > 0 && !frozen[l - strides[a]] {
-            *unlocked.add(l - strides[a]) = true;
-        }
-        if idx[a] + 1 < dims[a] && !frozen[l + strides[a]] {
-            *unlocked.add(l + strides[a]) = true;
+    for m in spec.axis_neighbours(l, idx, strides) {
+        if !frozen[m] {
+            *unlocked.add(m) = true;
         }
     }
 }

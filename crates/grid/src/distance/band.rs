@@ -186,7 +186,7 @@ pub(super) fn exact_band<const D: usize>(
             )
         });
     drop(d2);
-    let feet = if data.points.len() == data.len() {
+    let feet = if data.only_points() {
         Feet::OfPoints(data.points.par_iter().map(|p| to_cells(spec, p)).collect())
     } else {
         Feet::PerNode(

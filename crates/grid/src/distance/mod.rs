@@ -114,6 +114,11 @@ impl<const D: usize> DataSet<D> {
         self.len() == 0
     }
 
+    /// Whether every datum is a point (no segments or triangles).
+    pub fn only_points(&self) -> bool {
+        self.segments.is_empty() && self.triangles.is_empty()
+    }
+
     /// Datum number `i`, or `None` when out of range.
     pub fn datum(&self, i: usize) -> Option<Datum<D>> {
         let (np, ns) = (self.points.len(), self.segments.len());
@@ -324,11 +329,7 @@ pub fn unsigned_distance_with<const D: usize>(
     // Per node at the peak: the datum and its foot (kept per datum for
     // points only), and the band's distance or the output distance (the
     // output datum reuses the working one).
-    let foot_bytes = if data.points.len() == data.len() {
-        0
-    } else {
-        4 * D
-    };
+    let foot_bytes = if data.only_points() { 0 } else { 4 * D };
     spec.check_memory(4 + foot_bytes + 8)?;
     let radius = options.band_cells * spec.spacing;
     let sorted = SortedData::new(data, spec);
@@ -367,15 +368,14 @@ pub fn unsigned_distance_with<const D: usize>(
             NO_DATUM => f64::INFINITY,
             i => {
                 let idx = spec.unlinear(l);
-                let foot = closest.foot(l);
-                let cells = idx.map(|k| k as f32);
-                if i as usize >= data.points.len()
-                    && band::cells_dist2(&cells, &foot) > exact_within
-                {
-                    let d2: f64 = (0..D)
-                        .map(|a| (idx[a] as f64 - foot[a] as f64).powi(2))
-                        .sum();
-                    return d2.sqrt() * spec.spacing;
+                if i as usize >= data.points.len() {
+                    let foot = closest.foot(l);
+                    if band::cells_dist2(&idx.map(|k| k as f32), &foot) > exact_within {
+                        let d2: f64 = (0..D)
+                            .map(|a| (idx[a] as f64 - foot[a] as f64).powi(2))
+                            .sum();
+                        return d2.sqrt() * spec.spacing;
+                    }
                 }
                 data.distance(i as usize, &spec.position(idx))
             }

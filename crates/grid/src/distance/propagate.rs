@@ -35,7 +35,7 @@ pub(super) fn propagate_closest<const D: usize>(
     super::cone_sweep::cone_sweeps(spec, final_below, closest);
     // Candidates are upper bounds, off by a fraction of a cell.
     let near = ((NEAR_CELLS + 1.0) as f32).powi(2);
-    if data.points.len() < data.len() {
+    if !data.only_points() {
         Settle::new(data, spec, final_below).run(near, closest);
     }
 }
