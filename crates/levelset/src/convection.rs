@@ -50,7 +50,7 @@ pub fn convect<const D: usize>(
     d: &mut BandDistance<D>,
     params: &EvolveParams,
 ) -> EvolveStats {
-    evolve(band, d, Motion::Convection, params)
+    evolve(band, d, Motion::Convection, params, &Default::default())
 }
 
 #[cfg(test)]

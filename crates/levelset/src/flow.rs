@@ -18,10 +18,12 @@
 //! tolerance) or after a maximum number of steps. With `keep_topology`, no
 //! step changes the surface's topology.
 
+use crate::anchors::{DataCells, TangentSides};
 use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
 use crate::convection::{advection_term, upwind_advection};
 use crate::reinit::reinitialize;
 use crate::topology::Neighbourhood;
+use surfrecon_geom::DVec3;
 use surfrecon_grid::sparse::WINDOW;
 
 /// Which law moves the surface.
@@ -77,12 +79,14 @@ pub struct EvolveStats {
 }
 
 /// Run `motion` on `band` until convergence or `params.max_steps`; ends
-/// with a reinitialized band.
+/// with a reinitialized band. `anchors` keep the surface on the data
+/// ([`crate::anchors`]).
 pub fn evolve<const D: usize>(
     band: &mut NarrowBand<D>,
     d: &mut BandDistance<D>,
     motion: Motion,
     params: &EvolveParams,
+    anchors: &Anchors<D>,
 ) -> EvolveStats {
     let mut stats = EvolveStats::default();
     if band.is_empty() {
@@ -111,9 +115,12 @@ pub fn evolve<const D: usize>(
     // The flow's zero set from one interval earlier, with its step count.
     let mut earlier: Option<(Snapshot<D>, usize)> = None;
     stats.max_band = band.len();
-    let topology = params
-        .keep_topology
-        .then(|| Neighbourhood::new(&cube_strides::<D>()));
+    let guard = Guard {
+        topology: params
+            .keep_topology
+            .then(|| Neighbourhood::new(&cube_strides::<D>())),
+        anchors,
+    };
     while stats.steps < params.max_steps {
         // Only p ≠ 1 needs the energy while stepping (the factor F); the
         // report's energy is taken at the end.
@@ -130,7 +137,7 @@ pub fn evolve<const D: usize>(
                 let (stable, speed_scale) = stable_step(band, d, &coef);
                 let dt = stable * params.cfl;
                 for _ in 0..n {
-                    step(band, d, &coef, dt, topology.as_ref());
+                    step(band, d, &coef, dt, &guard);
                 }
                 reinitialize(band);
                 d.cover(band);
@@ -143,7 +150,7 @@ pub fn evolve<const D: usize>(
                     // Speeds are recomputed every step: speeds frozen over
                     // several steps overshoot where the zero set crosses
                     // the data.
-                    interface_step(band, d, &coef, params.cfl, topology.as_ref());
+                    interface_step(band, d, &coef, params.cfl, &guard);
                 }
                 reinitialize(band);
                 d.cover(band);
@@ -212,7 +219,7 @@ fn step<const D: usize>(
     d: &BandDistance<D>,
     coef: &Coefficients,
     dt: f64,
-    topology: Option<&Neighbourhood>,
+    guard: &Guard<D>,
 ) {
     let h = band.spec().spacing;
     let rates = band.map_active(coef.motion != Motion::Convection, Some(d.grid()), |s| {
@@ -223,41 +230,84 @@ fn step<const D: usize>(
         }
         dt * r
     });
-    apply(band, rates, topology);
+    apply(band, rates, guard);
 }
 
-/// Adds `updates` (one per band node) to φ. With `topology`, a node that
-/// would change side does so only if it is a simple point at that moment;
-/// such nodes are visited in band order so the result is deterministic.
-fn apply<const D: usize>(
-    band: &mut NarrowBand<D>,
-    updates: Vec<f64>,
-    topology: Option<&Neighbourhood>,
-) {
+/// What keeps the evolving surface on the data ([`crate::anchors`]); the
+/// default holds nothing.
+pub struct Anchors<'a, const D: usize> {
+    pub cells: Option<&'a DataCells<D>>,
+    /// 3D only.
+    pub sides: Option<&'a TangentSides>,
+}
+
+impl<const D: usize> Default for Anchors<'_, D> {
+    fn default() -> Self {
+        Anchors {
+            cells: None,
+            sides: None,
+        }
+    }
+}
+
+/// What may stop a node from changing side.
+struct Guard<'a, const D: usize> {
+    /// The simple point test (topology kept).
+    topology: Option<Neighbourhood>,
+    anchors: &'a Anchors<'a, D>,
+}
+
+impl<const D: usize> Guard<'_, D> {
+    fn is_active(&self) -> bool {
+        self.topology.is_some() || self.anchors.cells.is_some() || self.anchors.sides.is_some()
+    }
+
+    /// Whether `node` may change side now.
+    fn allows(&self, band: &NarrowBand<D>, node: [usize; D], to_inside: bool) -> bool {
+        let side = |idx: [usize; D]| inside(band.phi.get(idx));
+        if let Some(sides) = self.anchors.sides {
+            let p = band.spec().position(node);
+            let p = DVec3::from_array(std::array::from_fn(|a| if a < D { p[a] } else { 0.0 }));
+            if !sides.allows(p, to_inside) {
+                return false;
+            }
+        }
+        if let Some(cells) = self.anchors.cells {
+            if !cells.allows(node, to_inside, side) {
+                return false;
+            }
+        }
+        // The neighbourhood is numbered in the node's own 3^D cube (see
+        // `cube_strides`): no divisions by the grid's dimensions per
+        // neighbour.
+        let centre = (3usize.pow(D as u32) - 1) / 2;
+        self.topology.as_ref().is_none_or(|cube| {
+            cube.is_simple(centre, |n| {
+                side(std::array::from_fn(|a| {
+                    node[a] + n / 3usize.pow(a as u32) % 3 - 1
+                }))
+            })
+        })
+    }
+}
+
+/// Adds `updates` (one per band node) to φ. A node that would change side
+/// does so only if `guard` allows it at that moment; such nodes are
+/// visited in band order so the result is deterministic.
+fn apply<const D: usize>(band: &mut NarrowBand<D>, updates: Vec<f64>, guard: &Guard<D>) {
     let mut flips = Vec::new();
     for (i, u) in updates.into_iter().enumerate() {
         let k = band.active[i];
         let old = band.value(k);
         let new = old + u;
-        if topology.is_some() && inside(new) != inside(old) {
+        if guard.is_active() && inside(new) != inside(old) {
             flips.push((k, new));
         } else {
             band.set(k, new);
         }
     }
-    let Some(cube) = topology else {
-        return;
-    };
-    // The neighbourhood is numbered in the node's own 3^D cube (see
-    // `cube_strides`): no divisions by the grid's dimensions per neighbour.
-    let centre = (3usize.pow(D as u32) - 1) / 2;
     for (k, new) in flips {
-        let node = band.node(k);
-        let simple = cube.is_simple(centre, |n| {
-            let idx = std::array::from_fn(|a| node[a] + n / 3usize.pow(a as u32) % 3 - 1);
-            inside(band.phi.get(idx))
-        });
-        if simple {
+        if guard.allows(band, band.node(k), inside(new)) {
             band.set(k, new);
         }
     }
@@ -319,7 +369,7 @@ fn interface_step<const D: usize>(
     d: &BandDistance<D>,
     coef: &Coefficients,
     cfl: f64,
-    topology: Option<&Neighbourhood>,
+    guard: &Guard<D>,
 ) {
     let h = band.spec().spacing;
     let updates = band.map_active(true, Some(d.grid()), |s| {
@@ -330,7 +380,7 @@ fn interface_step<const D: usize>(
         }
         cfl * sp.dt * rate
     });
-    apply(band, updates, topology);
+    apply(band, updates, guard);
 }
 
 /// d and its gradient (per cell) at the point of the zero set closest to

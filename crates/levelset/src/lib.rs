@@ -15,6 +15,7 @@
 //! band ([`band`]) kept a signed distance by [`reinit`]; large grids are
 //! solved coarse-to-fine ([`multires`]).
 
+pub mod anchors;
 pub mod band;
 pub mod cleaning;
 pub mod convection;

@@ -1,11 +1,16 @@
-//! Multiresolution: solve on coarser grids first, interpolate φ to the next
-//! finer grid and continue there with few steps. The coarse grids cost a
-//! fraction of the fine one (1/2^dim per level) yet do most of the motion.
+//! Multiresolution: the dense distance and the tagging run on a coarser
+//! grid (1/2^dim of the nodes per level), φ is interpolated to each finer
+//! grid, grown back to the points the coarse surface missed
+//! ([`grow_to_points`]), and only the finest level evolves: evolving on a
+//! coarse grid erodes parts thinner than its cells.
 
 use crate::band::{inside, is_inner, NarrowBand};
 use crate::error::Result;
+use crate::reinit::reinitialize;
 use rayon::prelude::*;
+use surfrecon_geom::DVec3;
 use surfrecon_grid::sparse::{BlockGrid, BLOCK};
+use surfrecon_grid::spec::for_each_in_box;
 use surfrecon_grid::{Field, GridSpec};
 
 /// Grids larger than this (nodes along the longest axis) get a coarse level.
@@ -141,6 +146,53 @@ pub fn upsample_band<const D: usize>(
         }
     });
     Ok(NarrowBand::from_grid(grid, half_width))
+}
+
+/// Points farther outside the surface than this many cells count as
+/// missed ([`grow_to_points`]): a coarser level's zero set is within a
+/// coarse cell (two fine cells) of what it reached.
+pub const MISSED_CELLS: f64 = 2.0;
+
+/// Grow the surface of `band` to the points it left outside: every point
+/// whose φ exceeds [`MISSED_CELLS`] cells gets the ball of `radius` around
+/// it added to the inside (φ = min(φ, |x − p| − radius)). A coarse level
+/// cuts parts thinner than its cells (the tip of a spike, a fin); their
+/// points run in a chain from the body, so balls wider than half the
+/// sampling gap join them to it, and the evolution shrinks the tube onto
+/// the data. Returns the band (reinitialized) and the number of points.
+pub fn grow_to_points<const D: usize>(
+    band: NarrowBand<D>,
+    points: &[DVec3],
+    radius: f64,
+) -> (NarrowBand<D>, usize) {
+    let spec = *band.spec();
+    let h = spec.spacing;
+    let half_width = band.half_width;
+    let position = |p: &DVec3| -> [f64; D] { std::array::from_fn(|a| p[a]) };
+    let missed: Vec<[f64; D]> = points
+        .par_iter()
+        .map(position)
+        .filter(|&p| interpolate_with(&spec, |i| band.phi.get(i), p) > MISSED_CELLS * h)
+        .collect();
+    if missed.is_empty() {
+        return (band, 0);
+    }
+    let mut grid = band.phi;
+    for p in &missed {
+        let Some((lo, hi)) = spec.node_box((*p, *p), radius) else {
+            continue;
+        };
+        for_each_in_box(lo, hi, |&idx| {
+            let x = spec.position(idx);
+            let dist = (0..D).map(|a| (x[a] - p[a]).powi(2)).sum::<f64>().sqrt() - radius;
+            if dist < grid.get(idx) && is_inner(&spec, idx) {
+                grid.set(idx, dist.clamp(-half_width, half_width));
+            }
+        });
+    }
+    let mut band = NarrowBand::from_grid(grid, half_width);
+    reinitialize(&mut band);
+    (band, missed.len())
 }
 
 #[cfg(test)]

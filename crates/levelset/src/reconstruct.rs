@@ -3,11 +3,12 @@
 //! fine) → mesh or curves → in 3D, refinement. Stacks of contour slices
 //! take the [`crate::slices`] path instead.
 
+use crate::anchors::{DataCells, TangentSides};
 use crate::band::{BandDistance, NarrowBand};
 use crate::cleaning::{clean_points, CleaningStats};
 use crate::error::{LevelsetError, Result};
-use crate::flow::{evolve, EvolveParams, EvolveStats, Motion};
-use crate::multires::{auto_levels, coarsen, interpolate, upsample_band};
+use crate::flow::{evolve, Anchors, EvolveParams, EvolveStats, Motion};
+use crate::multires::{auto_levels, coarsen, grow_to_points, interpolate, upsample_band};
 use crate::refine::{refine_surface, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
 use crate::slices::{detect_slices, interpolate_slices, SliceStack};
@@ -93,17 +94,17 @@ pub struct ReconstructParams {
     pub epsilon: Option<f64>,
     /// Exponent p ≥ 1 of the weighted area energy (1 or 2 are usual).
     pub p: f64,
-    /// Maximum minimal surface flow steps per level.
+    /// Maximum minimal surface flow steps.
     pub steps: usize,
-    /// Maximum convection steps per level.
+    /// Maximum convection steps.
     pub convection_steps: usize,
     /// Narrow band half-width in cells (≥ 2).
     pub band: f64,
-    /// Resolution levels (None: automatic, coarse levels for large grids).
+    /// Resolution levels (None: automatic, coarse levels for large grids;
+    /// coarse levels only build the initial surface).
     pub levels: Option<usize>,
     /// Convergence: mean zero-set displacement per step near the data,
-    /// relative to the largest possible (see [`EvolveParams::tolerance`]);
-    /// twice as loose on coarse levels.
+    /// relative to the largest possible (see [`EvolveParams::tolerance`]).
     pub tolerance: f64,
     /// Also treat everything outside the data's bounding box as exterior
     /// (helps highly non-uniform data).
@@ -166,6 +167,9 @@ pub struct Report {
     pub tagged_inside: usize,
     /// Inside components dropped after tagging for lack of data.
     pub removed_components: usize,
+    /// Points a coarser level left outside its surface, which a finer
+    /// level grew the surface back to ([`crate::multires::grow_to_points`]).
+    pub grown_to_points: usize,
     /// Band nodes at the end.
     pub band_nodes: usize,
     /// Blocks of 8^D nodes (the sparse grid's blocks) allocated for φ.
@@ -177,7 +181,8 @@ pub struct Report {
     /// finest level at the end.
     pub band_bytes: usize,
     pub distance_bytes: usize,
-    /// Convection and flow statistics, per level (coarsest first).
+    /// Convection and flow statistics (the finest level, the only one
+    /// that evolves).
     pub convection: Vec<EvolveStats>,
     pub flow: Vec<EvolveStats>,
     /// The final convection after the flow (finest level only).
@@ -187,7 +192,8 @@ pub struct Report {
     /// Axis and number of the contour slices when the data formed a stack
     /// (then no level-set evolution in 3D ran).
     pub slices: Option<(usize, usize)>,
-    /// Seconds per stage, in execution order (stages repeat per level).
+    /// Seconds per stage, in execution order (upsampling and growing
+    /// repeat per level).
     pub timings: Vec<(String, f64)>,
 }
 
@@ -369,29 +375,29 @@ fn evolve_field<const D: usize>(
         coarsest_distance(input, coarsest_spec, levels > 1)
     })?;
     let mut band = initial_band(input, params, sampling, &coarsest_d, report)?;
-    let mut d = BandDistance::dense(coarsest_d.clone())?;
-    let stage = Stage {
-        coarsest: true,
-        finest: levels == 1,
-    };
-    solve_level(&mut band, &mut d, params, stage, report);
-    // Finer levels: the distance only on the band's blocks.
+    // Coarser levels only tag: evolving there erodes parts thinner than
+    // their cells, which no finer level could grow back. Each finer level
+    // takes the tagged surface and grows it to the points it missed.
     for level in (0..levels - 1).rev() {
         let spec = coarsen(&fine, 1 << level);
-        let mut d = report.time("distance", || {
-            refined_distance(input, spec, coarsest_d.clone(), FINE_EXACT_CELLS)
-        })?;
         band = report.time("upsample", || -> Result<NarrowBand<D>> {
             let mut b = upsample_band(&band, spec, params.band * spec.spacing)?;
             reinitialize(&mut b);
             Ok(b)
         })?;
-        let stage = Stage {
-            coarsest: false,
-            finest: level == 0,
-        };
-        solve_level(&mut band, &mut d, params, stage, report);
+        let radius = (GROW_CELLS * spec.spacing).max(GROW_GAPS * sampling);
+        let (grown, missed) = report.time("grow", || grow_to_points(band, &input.points, radius));
+        band = grown;
+        report.grown_to_points += missed;
     }
+    let mut d = if levels == 1 {
+        BandDistance::dense(coarsest_d)?
+    } else {
+        report.time("distance", || {
+            refined_distance(input, fine, coarsest_d, FINE_EXACT_CELLS)
+        })?
+    };
+    solve_finest(input, sampling, &mut band, &mut d, params, report);
     report.band_nodes = band.len();
     report.band_blocks = band.block_count();
     report.band_bytes = band.memory_bytes();
@@ -417,18 +423,36 @@ fn coarsest_distance<const D: usize>(
     Ok(Arc::new(d))
 }
 
-/// One level's evolution, with the distance computed on the band's blocks
-/// first (the evolution adds blocks as the band moves), so its cost shows
-/// as such; records the distance's size.
-fn solve_level<const D: usize>(
+/// Balls grown around missed points ([`grow_to_points`]): this many
+/// cells, or this many sampling gaps (so that the balls along a chain of
+/// points overlap), whichever is larger.
+const GROW_CELLS: f64 = 1.5;
+const GROW_GAPS: f64 = 0.6;
+
+/// The finest level's evolution, with the distance computed on the band's
+/// blocks first (the evolution adds blocks as the band moves), so its cost
+/// shows as such; records the distance's size.
+fn solve_finest<const D: usize>(
+    input: &Input,
+    sampling: f64,
     band: &mut NarrowBand<D>,
     d: &mut BandDistance<D>,
     params: &ReconstructParams,
-    stage: Stage,
     report: &mut Report,
 ) {
     report.time("distance", || d.cover(band));
-    evolve_level(band, d, params, stage, report);
+    let h = band.spec().spacing;
+    let (cells, sides) = report.time("anchors", || {
+        (
+            DataCells::new(*band.spec(), input.all_vertices()),
+            TangentSides::new(&input.points, band, 2.0 * h.max(sampling), h.max(sampling)),
+        )
+    });
+    let anchors = Anchors {
+        cells: Some(&cells),
+        sides: sides.as_ref(),
+    };
+    evolve_level(band, d, &anchors, params, report);
     report.distance_blocks = d.grid().blocks().len();
     report.distance_bytes = d.memory_bytes();
 }
@@ -640,57 +664,47 @@ fn nearest_node<const D: usize>(spec: &GridSpec<D>, v: DVec3) -> Option<usize> {
     Some(spec.linear(idx))
 }
 
-/// Where a level stands in the coarse-to-fine sequence.
-#[derive(Clone, Copy)]
-struct Stage {
-    coarsest: bool,
-    finest: bool,
-}
-
-/// Convergence tolerances are this many times looser on coarse levels:
-/// they only give the next level its start.
-const COARSE_TOLERANCE: f64 = 2.0;
-
-/// Convection, minimal surface flow, and on the finest level a last
-/// convection that settles the zero set onto the data.
+/// Convection, minimal surface flow, and a last convection that settles
+/// the zero set onto the data.
 fn evolve_level<const D: usize>(
     band: &mut NarrowBand<D>,
     d: &mut BandDistance<D>,
+    anchors: &Anchors<D>,
     params: &ReconstructParams,
-    stage: Stage,
     report: &mut Report,
 ) {
-    // Finer levels start from an already converged coarse solution.
-    let scale = |n: usize| if stage.coarsest { n } else { n.div_ceil(2) };
-    let tolerance = if stage.finest {
-        params.tolerance
-    } else {
-        COARSE_TOLERANCE * params.tolerance
-    };
     let conv = EvolveParams {
-        max_steps: scale(params.convection_steps),
-        tolerance,
+        max_steps: params.convection_steps,
+        tolerance: params.tolerance,
         keep_topology: params.keep_topology,
         ..Default::default()
     };
-    let stats = report.time("convection", || evolve(band, d, Motion::Convection, &conv));
+    let stats = report.time("convection", || {
+        evolve(band, d, Motion::Convection, &conv, anchors)
+    });
     report.convection.push(stats);
     let flow = EvolveParams {
-        max_steps: scale(params.steps),
+        max_steps: params.steps,
         ..conv
     };
     let stats = report.time("flow", || {
-        evolve(band, d, Motion::MinimalSurface { p: params.p }, &flow)
+        evolve(
+            band,
+            d,
+            Motion::MinimalSurface { p: params.p },
+            &flow,
+            anchors,
+        )
     });
     report.flow.push(stats);
-    if stage.finest {
-        // The flow smooths, and where d > 0 between samples its curvature
-        // term also pulls the surface slightly inside the data; a last
-        // convection puts the zero set back on the data where there are
-        // data, leaving the flow's shape where the surface spans gaps.
-        let stats = report.time("settle", || evolve(band, d, Motion::Convection, &conv));
-        report.settle.push(stats);
-    }
+    // The flow smooths, and where d > 0 between samples its curvature term
+    // also pulls the surface slightly inside the data; a last convection
+    // puts the zero set back on the data where there are data, leaving
+    // the flow's shape where the surface spans gaps.
+    let stats = report.time("settle", || {
+        evolve(band, d, Motion::Convection, &conv, anchors)
+    });
+    report.settle.push(stats);
 }
 
 /// The input with at most one point per cube of side `cell` (the first
