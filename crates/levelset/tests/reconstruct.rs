@@ -622,3 +622,74 @@ fn contour_slice_stacks_take_the_interpolation_path() {
     assert_eq!(evolved.report.slices, None);
     assert!(topology(&evolved.mesh).0);
 }
+
+/// Points of a unit sphere with four thin cones (base radius 0.08–0.14,
+/// 0.8 long beyond the sphere), uniform by area, none inside another part.
+fn spiky_sphere_points() -> Vec<DVec3> {
+    use rand::Rng;
+    let cones = [
+        (DVec3::X, 0.08),
+        (DVec3::NEG_X, 0.10),
+        (DVec3::new(0.0, 0.6, 0.8), 0.12),
+        (DVec3::new(0.0, -0.8, 0.6), 0.14),
+    ];
+    let inside_cone = |p: DVec3| {
+        cones.iter().any(|&(u, rb)| {
+            let t = (p.dot(u) - 1.0) / 0.8;
+            (0.0..1.0).contains(&t) && (p - p.dot(u) * u).length() < rb * (1.0 - t)
+        })
+    };
+    let mut points: Vec<DVec3> = sphere_points(6000, 31)
+        .into_iter()
+        .filter(|&p| !inside_cone(p))
+        .collect();
+    let mut g = rng(32);
+    for &(u, rb) in &cones {
+        let e1 = u.any_orthonormal_vector();
+        let e2 = u.cross(e1);
+        // Lateral area π rb √(rb² + L²) at the sphere's sampling density.
+        let n = (std::f64::consts::PI * rb * 0.8 * 6000.0 / (4.0 * std::f64::consts::PI)) as usize;
+        for _ in 0..n {
+            // Area density along the axis falls linearly to the tip.
+            let t = 1.0 - g.random::<f64>().sqrt();
+            let a = g.random::<f64>() * std::f64::consts::TAU;
+            let r = rb * (1.0 - t);
+            points.push(u * (1.0 + 0.8 * t) + r * (a.cos() * e1 + a.sin() * e2));
+        }
+    }
+    points
+}
+
+#[test]
+fn thin_spikes_are_kept_to_their_tips() {
+    let points = spiky_sphere_points();
+    for levels in [1, 2] {
+        let p = ReconstructParams {
+            levels: Some(levels),
+            ..params(64)
+        };
+        let r = reconstruct_3d(&Input::from_points(points.clone()), &p).unwrap();
+        let (watertight, euler, comps) = topology(&r.mesh);
+        assert!(watertight && euler == 2 && comps == 1, "{levels} levels");
+        // Every point within two cells of the surface (mesh vertices lie
+        // within a cell of each other) but a few lone samples at the very
+        // tips, which cleaning drops as outliers; none beyond four cells.
+        let h = r.report.spacing;
+        let tree = surfrecon_geom::spatial::KdTree::new(&r.mesh.vertices);
+        let distances: Vec<f64> = points
+            .iter()
+            .map(|&q| tree.nearest(q).unwrap().distance)
+            .collect();
+        let far = distances.iter().filter(|&&d| d > 2.0 * h).count();
+        let worst = distances.iter().copied().fold(0.0, f64::max);
+        eprintln!("{levels} levels: {far} points beyond 2h, worst {worst}, h {h}");
+        assert!(
+            far <= points.len() / 1000,
+            "{levels} levels: {far} points beyond 2h"
+        );
+        assert!(
+            worst < 4.0 * h,
+            "{levels} levels: a point {worst} from the surface (h {h})"
+        );
+    }
+}
