@@ -7,6 +7,8 @@
 //! - File formats in [`io`]: PLY (ascii, binary LE/BE), OBJ, OFF, STL, XYZ,
 //!   chosen by extension; outputs are written atomically ([`io::write_atomic`]).
 //! - [`spatial::KdTree`]: k-nearest and radius queries shared by all methods.
+//! - [`curves`]: curve networks (polylines or points along curves), their
+//!   crossings and the surface normals they imply.
 //! - [`normals`]: plane-fit estimation and globally consistent orientation.
 //! - [`fairing`]: smooth (bi-Laplacian) fills for unsupported mesh parts.
 //! - [`metrics`]: Chamfer, Hausdorff, F-score, normal consistency, topology.
@@ -14,6 +16,7 @@
 //! - [`shapes`]: analytic test shapes and uniform surface sampling.
 
 pub mod aabb;
+pub mod curves;
 pub mod error;
 pub mod fairing;
 pub mod geometry;

@@ -1,0 +1,1157 @@
+//! Curve networks: curves as first-class data, and the surface normal a
+//! network of curves on a surface implies.
+//!
+//! - [`curves_from_polylines`]: OBJ `l` polylines as [`Curve`]s (pieces that
+//!   meet end to end and continue smoothly are joined).
+//! - [`chain_points`]: detects point sets that lie along curves and chains
+//!   them into [`Curve`]s (points near crossings, where the neighbourhood is
+//!   not a line, are bridged and put back where they fit).
+//! - [`CurveNetwork::new`]: finds the crossings of the curves and gives every
+//!   curve vertex the normal of the surface the curves lie on: at a crossing
+//!   the two tangents fix it (their cross product), along a curve it stays
+//!   perpendicular to the tangent and turns linearly (in a rotation-minimizing
+//!   frame) from one crossing to the next. Signs are made consistent over the
+//!   network by a maximum spanning tree of the crossing graph, then outward by
+//!   the extreme vertices. Curves that cross nothing get no normal.
+//! - [`CurveNetwork::samples`]: evenly spaced oriented samples for an
+//!   implicit fit.
+
+use crate::normals::symmetric_eigen3;
+use crate::spatial::KdTree;
+use crate::Polylines;
+use glam::DVec3;
+use std::f64::consts::PI;
+
+/// One curve: its vertices in order; a closed curve joins its last vertex
+/// back to its first (which is not repeated).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Curve {
+    pub points: Vec<DVec3>,
+    pub closed: bool,
+}
+
+impl Curve {
+    /// Number of segments.
+    pub fn segment_count(&self) -> usize {
+        match (self.closed, self.points.len()) {
+            (_, 0 | 1) => 0,
+            (true, n) => n,
+            (false, n) => n - 1,
+        }
+    }
+
+    /// Segment `i` as its two end points.
+    pub fn segment(&self, i: usize) -> (DVec3, DVec3) {
+        let n = self.points.len();
+        (self.points[i], self.points[(i + 1) % n])
+    }
+
+    /// Arc length at each vertex, plus the total length last.
+    pub fn arc_lengths(&self) -> Vec<f64> {
+        let mut s = vec![0.0];
+        for i in 0..self.segment_count() {
+            let (a, b) = self.segment(i);
+            s.push(s[i] + a.distance(b));
+        }
+        s
+    }
+
+    pub fn length(&self) -> f64 {
+        *self.arc_lengths().last().unwrap_or(&0.0)
+    }
+
+    /// Unit tangent at each vertex (central differences; one-sided at the
+    /// ends of an open curve).
+    pub fn tangents(&self) -> Vec<DVec3> {
+        let n = self.points.len();
+        (0..n)
+            .map(|i| {
+                let (prev, next) = if self.closed {
+                    ((i + n - 1) % n, (i + 1) % n)
+                } else {
+                    (i.saturating_sub(1), (i + 1).min(n - 1))
+                };
+                (self.points[next] - self.points[prev]).normalize_or_zero()
+            })
+            .collect()
+    }
+}
+
+/// Where two curves cross, and the surface normal there (unit, signed
+/// after orientation).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Crossing {
+    pub position: DVec3,
+    pub normal: DVec3,
+    /// The two curves (index, arc length along it).
+    pub on: [(usize, f64); 2],
+}
+
+/// Curves with their crossings and a normal at every vertex of every curve
+/// that crosses another.
+#[derive(Clone, Debug)]
+pub struct CurveNetwork {
+    pub curves: Vec<Curve>,
+    pub crossings: Vec<Crossing>,
+    /// Per curve, per vertex: the implied unit surface normal (outward), or
+    /// `None` on curves without a crossing.
+    pub normals: Vec<Vec<Option<DVec3>>>,
+    /// Median segment length.
+    pub spacing: f64,
+}
+
+/// Curves cross where they pass closer than this share of the spacing.
+const CROSSING_TOLERANCE: f64 = 0.75;
+/// Tangents at a crossing make at least this angle (sine).
+const CROSSING_MIN_SINE: f64 = 0.3;
+/// Two crossings of the same pair of curves are one if closer than this many spacings.
+const CROSSING_MERGE: f64 = 4.0;
+
+impl CurveNetwork {
+    /// Crossings, normals and their orientation for `curves`.
+    pub fn new(curves: Vec<Curve>) -> Self {
+        let curves: Vec<Curve> = curves
+            .into_iter()
+            .filter(|c| c.points.len() >= 2)
+            .collect();
+        let spacing = median_segment(&curves);
+        let mut crossings = find_crossings(&curves, spacing);
+        let frames: Vec<Frames> = curves.iter().map(Frames::new).collect();
+        let signs = orient_crossings(&curves, &frames, &crossings);
+        for (c, s) in crossings.iter_mut().zip(&signs) {
+            c.normal *= *s;
+        }
+        let mut normals: Vec<Vec<Option<DVec3>>> = curves
+            .iter()
+            .zip(&frames)
+            .enumerate()
+            .map(|(k, (c, f))| interpolate_normals(k, c, f, &crossings))
+            .collect();
+        make_outward(&curves, &mut normals, &mut crossings);
+        CurveNetwork {
+            curves,
+            crossings,
+            normals,
+            spacing,
+        }
+    }
+
+    /// Total vertex count.
+    pub fn vertex_count(&self) -> usize {
+        self.curves.iter().map(|c| c.points.len()).sum()
+    }
+
+    /// Curves that cross at least one other.
+    pub fn crossed_curves(&self) -> usize {
+        self.normals
+            .iter()
+            .filter(|n| n.iter().any(Option::is_some))
+            .count()
+    }
+
+    /// Samples every `step` of arc length (and at every crossing), with the
+    /// normal where the curve has one. Samples closer than half a step to
+    /// an earlier one are left out (the fit needs distinct points).
+    pub fn samples(&self, step: f64) -> Vec<(DVec3, Option<DVec3>)> {
+        let mut out: Vec<(DVec3, Option<DVec3>)> = self
+            .crossings
+            .iter()
+            .map(|c| (c.position, Some(c.normal)))
+            .collect();
+        let mut candidates = Vec::new();
+        for (c, normals) in self.curves.iter().zip(&self.normals) {
+            resample(c, normals, step, &mut candidates);
+        }
+        let mut accepted = SpacedSet::new(0.5 * step);
+        for (p, _) in &out {
+            accepted.insert(*p);
+        }
+        for (p, n) in candidates {
+            if accepted.insert(p) {
+                out.push((p, n));
+            }
+        }
+        out
+    }
+}
+
+/// Points kept at least `min_distance` apart (uniform hash grid).
+struct SpacedSet {
+    cell: f64,
+    cells: std::collections::HashMap<[i64; 3], Vec<DVec3>>,
+}
+
+impl SpacedSet {
+    fn new(min_distance: f64) -> Self {
+        SpacedSet {
+            cell: min_distance.max(f64::MIN_POSITIVE),
+            cells: Default::default(),
+        }
+    }
+
+    fn key(&self, p: DVec3) -> [i64; 3] {
+        (p / self.cell).floor().as_i64vec3().to_array()
+    }
+
+    /// Inserts `p` unless a kept point is within the distance; true if inserted.
+    fn insert(&mut self, p: DVec3) -> bool {
+        let k = self.key(p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let q = [k[0] + dx, k[1] + dy, k[2] + dz];
+                    if let Some(v) = self.cells.get(&q) {
+                        if v.iter().any(|o| o.distance(p) < self.cell) {
+                            return false;
+                        }
+                    }
+                }
+            }
+        }
+        self.cells.entry(k).or_default().push(p);
+        true
+    }
+}
+
+fn median_segment(curves: &[Curve]) -> f64 {
+    let mut lengths: Vec<f64> = curves
+        .iter()
+        .flat_map(|c| (0..c.segment_count()).map(move |i| c.segment(i)))
+        .map(|(a, b)| a.distance(b))
+        .filter(|l| *l > 0.0)
+        .collect();
+    if lengths.is_empty() {
+        return 0.0;
+    }
+    lengths.sort_by(f64::total_cmp);
+    lengths[lengths.len() / 2]
+}
+
+/// Positions and normals every `step` along `c` (normals interpolated
+/// between vertices, `None` where the curve has none).
+fn resample(
+    c: &Curve,
+    normals: &[Option<DVec3>],
+    step: f64,
+    out: &mut Vec<(DVec3, Option<DVec3>)>,
+) {
+    let s = c.arc_lengths();
+    let total = *s.last().unwrap_or(&0.0);
+    let count = ((total / step).round() as usize).max(1);
+    let count = if c.closed { count } else { count + 1 };
+    let spacing = if c.closed {
+        total / count as f64
+    } else {
+        total / (count - 1).max(1) as f64
+    };
+    let mut seg = 0;
+    for k in 0..count {
+        let at = k as f64 * spacing;
+        while seg + 1 < c.segment_count() && s[seg + 1] < at {
+            seg += 1;
+        }
+        let len = s[seg + 1] - s[seg];
+        let t = if len > 0.0 {
+            ((at - s[seg]) / len).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let (a, b) = c.segment(seg);
+        let j = (seg + 1) % c.points.len();
+        let n = match (normals[seg], normals[j]) {
+            (Some(na), Some(nb)) => Some(na.lerp(nb, t).normalize_or(na)),
+            _ => None,
+        };
+        out.push((a.lerp(b, t), n));
+    }
+}
+
+/// Rotation-minimizing frames along a curve: `normal[i]` ⟂ `tangent[i]`,
+/// transported by projection from vertex to vertex; `holonomy` is the
+/// angle the frame has turned (about the first tangent) after one loop of a
+/// closed curve.
+struct Frames {
+    tangent: Vec<DVec3>,
+    normal: Vec<DVec3>,
+    arc: Vec<f64>,
+    holonomy: f64,
+}
+
+impl Frames {
+    fn new(c: &Curve) -> Self {
+        let tangent = c.tangents();
+        let mut normal = Vec::with_capacity(tangent.len());
+        let mut n = tangent[0].any_orthonormal_vector();
+        for t in &tangent {
+            n = transport(n, *t);
+            normal.push(n);
+        }
+        let holonomy = if c.closed {
+            let back = transport(n, tangent[0]);
+            angle_in_frame(back, tangent[0], normal[0])
+        } else {
+            0.0
+        };
+        Frames {
+            tangent,
+            normal,
+            arc: c.arc_lengths(),
+            holonomy,
+        }
+    }
+
+    /// Angle of `v` about the tangent at vertex `i`, from the frame normal.
+    fn angle(&self, i: usize, v: DVec3) -> f64 {
+        angle_in_frame(v, self.tangent[i], self.normal[i])
+    }
+
+    /// Vector at angle `a` in the frame of vertex `i`.
+    fn direction(&self, i: usize, a: f64) -> DVec3 {
+        let b = self.tangent[i].cross(self.normal[i]);
+        self.normal[i] * a.cos() + b * a.sin()
+    }
+
+    /// The vertex nearest to arc length `s`.
+    fn vertex_at(&self, s: f64) -> usize {
+        let n = self.tangent.len();
+        let i = self.arc.partition_point(|&x| x < s).min(self.arc.len() - 1);
+        let i = if i > 0 && (s - self.arc[i - 1]) < (self.arc[i] - s) {
+            i - 1
+        } else {
+            i
+        };
+        i % n
+    }
+}
+
+/// `n` made perpendicular to `t` with as little turning as possible.
+fn transport(n: DVec3, t: DVec3) -> DVec3 {
+    let p = n - n.dot(t) * t;
+    if p.length_squared() > 1e-20 {
+        p.normalize()
+    } else {
+        t.any_orthonormal_vector()
+    }
+}
+
+fn angle_in_frame(v: DVec3, t: DVec3, n: DVec3) -> f64 {
+    let b = t.cross(n);
+    v.dot(b).atan2(v.dot(n))
+}
+
+/// Angle `a` shifted by whole turns to lie within half a turn of `near`.
+fn unwrap_near(a: f64, near: f64) -> f64 {
+    a - 2.0 * PI * ((a - near) / (2.0 * PI)).round()
+}
+
+/// Crossings of each curve, sorted by arc length: (arc, crossing index).
+fn crossings_by_curve(curves: &[Curve], crossings: &[Crossing]) -> Vec<Vec<(f64, usize)>> {
+    let mut on: Vec<Vec<(f64, usize)>> = vec![Vec::new(); curves.len()];
+    for (k, c) in crossings.iter().enumerate() {
+        for (curve, s) in c.on {
+            on[curve].push((s, k));
+        }
+    }
+    for v in &mut on {
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    on
+}
+
+/// Sign (+1 or -1) per crossing so that the normal turns by less than a
+/// quarter turn between neighbouring crossings along the curves, where it
+/// can: relations between consecutive crossings on each curve, kept by a
+/// maximum spanning forest (Kruskal with a parity union-find).
+fn orient_crossings(curves: &[Curve], frames: &[Frames], crossings: &[Crossing]) -> Vec<f64> {
+    let on = crossings_by_curve(curves, crossings);
+    // (weight, a, b, same sign?)
+    let mut relations: Vec<(f64, usize, usize, bool)> = Vec::new();
+    for (k, list) in on.iter().enumerate() {
+        let f = &frames[k];
+        let angle = |&(s, idx): &(f64, usize)| f.angle(f.vertex_at(s), crossings[idx].normal);
+        for w in list.windows(2) {
+            let d = angle(&w[1]) - angle(&w[0]);
+            relations.push((d.cos().abs(), w[0].1, w[1].1, d.cos() >= 0.0));
+        }
+        if curves[k].closed && list.len() >= 2 {
+            let (first, last) = (&list[0], &list[list.len() - 1]);
+            let d = angle(first) - f.holonomy - angle(last);
+            relations.push((d.cos().abs(), last.1, first.1, d.cos() >= 0.0));
+        }
+    }
+    relations.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut uf = ParityUnionFind::new(crossings.len());
+    for (_, a, b, same) in relations {
+        uf.union(a, b, !same);
+    }
+    (0..crossings.len())
+        .map(|k| if uf.find(k).1 { -1.0 } else { 1.0 })
+        .collect()
+}
+
+/// Union-find where each element carries a parity relative to its root.
+struct ParityUnionFind {
+    parent: Vec<usize>,
+    parity: Vec<bool>,
+}
+
+impl ParityUnionFind {
+    fn new(n: usize) -> Self {
+        ParityUnionFind {
+            parent: (0..n).collect(),
+            parity: vec![false; n],
+        }
+    }
+
+    /// Root and parity relative to it.
+    fn find(&mut self, x: usize) -> (usize, bool) {
+        let p = self.parent[x];
+        if p == x {
+            return (x, false);
+        }
+        let (root, pp) = self.find(p);
+        self.parent[x] = root;
+        self.parity[x] ^= pp;
+        (root, self.parity[x])
+    }
+
+    /// Joins the sets of `a` and `b` with parity(a) ^ parity(b) = `differ`,
+    /// unless they are joined already.
+    fn union(&mut self, a: usize, b: usize, differ: bool) {
+        let (ra, pa) = self.find(a);
+        let (rb, pb) = self.find(b);
+        if ra != rb {
+            self.parent[rb] = ra;
+            self.parity[rb] = pa ^ pb ^ differ;
+        }
+    }
+}
+
+/// Normal at every vertex of curve `k`: the angle in the transported frame
+/// turns linearly in arc length between consecutive crossings (and stays
+/// constant past the end crossings of an open curve).
+fn interpolate_normals(
+    k: usize,
+    c: &Curve,
+    f: &Frames,
+    crossings: &[Crossing],
+) -> Vec<Option<DVec3>> {
+    let mut keys: Vec<(f64, f64)> = Vec::new();
+    let mut list: Vec<(f64, usize)> = crossings
+        .iter()
+        .enumerate()
+        .flat_map(|(i, x)| x.on.iter().filter(|o| o.0 == k).map(move |o| (o.1, i)))
+        .collect();
+    list.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for &(s, i) in &list {
+        let a = f.angle(f.vertex_at(s), crossings[i].normal);
+        let a = keys.last().map_or(a, |&(_, prev)| unwrap_near(a, prev));
+        keys.push((s, a));
+    }
+    if keys.is_empty() {
+        return vec![None; c.points.len()];
+    }
+    let length = *f.arc.last().unwrap_or(&0.0);
+    if c.closed {
+        let (s0, a0) = keys[0];
+        let last = keys[keys.len() - 1].1;
+        keys.push((s0 + length, unwrap_near(a0 - f.holonomy, last)));
+    }
+    (0..c.points.len())
+        .map(|i| {
+            let mut s = f.arc[i];
+            if c.closed && s < keys[0].0 {
+                s += length;
+            }
+            Some(f.direction(i, piecewise_linear(&keys, s)))
+        })
+        .collect()
+}
+
+/// Linear interpolation in sorted `(x, y)` keys, constant beyond the ends.
+fn piecewise_linear(keys: &[(f64, f64)], x: f64) -> f64 {
+    let j = keys.partition_point(|k| k.0 <= x);
+    if j == 0 {
+        return keys[0].1;
+    }
+    if j == keys.len() {
+        return keys[j - 1].1;
+    }
+    let ((x0, y0), (x1, y1)) = (keys[j - 1], keys[j]);
+    let t = if x1 > x0 { (x - x0) / (x1 - x0) } else { 0.0 };
+    y0 + t * (y1 - y0)
+}
+
+/// Flips every connected group of crossed curves whose normals point
+/// inward: at the network's extreme vertices in 26 directions the outward
+/// normal has a positive component along the direction.
+fn make_outward(curves: &[Curve], normals: &mut [Vec<Option<DVec3>>], crossings: &mut [Crossing]) {
+    let groups = curve_groups(curves.len(), crossings);
+    let group_count = groups.iter().copied().max().map_or(0, |g| g + 1);
+    let mut vote = vec![0.0; group_count];
+    for d in directions26() {
+        let mut best = vec![(f64::NEG_INFINITY, None); group_count];
+        for (k, c) in curves.iter().enumerate() {
+            for (p, n) in c.points.iter().zip(&normals[k]) {
+                if let Some(n) = n {
+                    let h = p.dot(d);
+                    if h > best[groups[k]].0 {
+                        best[groups[k]] = (h, Some(n.dot(d)));
+                    }
+                }
+            }
+        }
+        for (g, (_, v)) in best.iter().enumerate() {
+            vote[g] += v.unwrap_or(0.0);
+        }
+    }
+    for (k, n) in normals.iter_mut().enumerate() {
+        if vote[groups[k]] < 0.0 {
+            n.iter_mut().flatten().for_each(|v| *v = -*v);
+        }
+    }
+    for c in crossings {
+        if vote[groups[c.on[0].0]] < 0.0 {
+            c.normal = -c.normal;
+        }
+    }
+}
+
+/// Group index per curve: curves joined through crossings share one.
+fn curve_groups(curve_count: usize, crossings: &[Crossing]) -> Vec<usize> {
+    let mut uf = ParityUnionFind::new(curve_count);
+    for c in crossings {
+        uf.union(c.on[0].0, c.on[1].0, false);
+    }
+    let mut ids = std::collections::HashMap::new();
+    (0..curve_count)
+        .map(|k| {
+            let r = uf.find(k).0;
+            let next = ids.len();
+            *ids.entry(r).or_insert(next)
+        })
+        .collect()
+}
+
+fn directions26() -> impl Iterator<Item = DVec3> {
+    (-1..=1)
+        .flat_map(|x| (-1..=1).flat_map(move |y| (-1..=1).map(move |z| (x, y, z))))
+        .filter(|&d| d != (0, 0, 0))
+        .map(|(x, y, z)| DVec3::new(x as f64, y as f64, z as f64).normalize())
+}
+
+/// Closest points of segments `a0a1` and `b0b1`: parameters (s, t) in [0, 1].
+fn segment_closest(a0: DVec3, a1: DVec3, b0: DVec3, b1: DVec3) -> (f64, f64) {
+    let (u, v, w) = (a1 - a0, b1 - b0, a0 - b0);
+    let (a, b, c, d, e) = (u.dot(u), u.dot(v), v.dot(v), u.dot(w), v.dot(w));
+    let den = a * c - b * b;
+    let mut s = if den > 1e-300 {
+        ((b * e - c * d) / den).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let mut t = if c > 0.0 { (b * s + e) / c } else { 0.0 };
+    if !(0.0..=1.0).contains(&t) {
+        t = t.clamp(0.0, 1.0);
+        s = if a > 0.0 {
+            ((b * t - d) / a).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+    }
+    (s, t)
+}
+
+/// Places where two curves (or two far-apart parts of one) pass within
+/// [`CROSSING_TOLERANCE`] spacings at a clear angle; one crossing per pair
+/// of curves and place, the closest approach.
+fn find_crossings(curves: &[Curve], spacing: f64) -> Vec<Crossing> {
+    if spacing <= 0.0 {
+        return Vec::new();
+    }
+    let arcs: Vec<Vec<f64>> = curves.iter().map(Curve::arc_lengths).collect();
+    let mut segs: Vec<(usize, usize)> = Vec::new();
+    let mut mids = Vec::new();
+    let mut longest = 0.0f64;
+    for (k, c) in curves.iter().enumerate() {
+        for i in 0..c.segment_count() {
+            let (a, b) = c.segment(i);
+            segs.push((k, i));
+            mids.push(0.5 * (a + b));
+            longest = longest.max(a.distance(b));
+        }
+    }
+    let tree = KdTree::new(&mids);
+    let tol = CROSSING_TOLERANCE * spacing;
+    // (distance, crossing)
+    let mut found: Vec<(f64, Crossing)> = Vec::new();
+    for (si, &(ka, ia)) in segs.iter().enumerate() {
+        let (a0, a1) = curves[ka].segment(ia);
+        for nb in tree.within(mids[si], longest + tol) {
+            let (kb, ib) = segs[nb.index];
+            if (kb, ib) <= (ka, ia) {
+                continue;
+            }
+            let (b0, b1) = curves[kb].segment(ib);
+            let (s, t) = segment_closest(a0, a1, b0, b1);
+            let (pa, pb) = (a0.lerp(a1, s), b0.lerp(b1, t));
+            let dist = pa.distance(pb);
+            let (ta, tb) = ((a1 - a0).normalize_or_zero(), (b1 - b0).normalize_or_zero());
+            let normal = ta.cross(tb);
+            if dist > tol || normal.length() < CROSSING_MIN_SINE {
+                continue;
+            }
+            let arc_a = arcs[ka][ia] + s * a0.distance(a1);
+            let arc_b = arcs[kb][ib] + t * b0.distance(b1);
+            if ka == kb && arc_gap(&curves[ka], &arcs[ka], arc_a, arc_b) < 10.0 * spacing {
+                continue;
+            }
+            found.push((
+                dist,
+                Crossing {
+                    position: 0.5 * (pa + pb),
+                    normal: normal.normalize(),
+                    on: [(ka, arc_a), (kb, arc_b)],
+                },
+            ));
+        }
+    }
+    found.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut kept: Vec<Crossing> = Vec::new();
+    for (_, c) in found {
+        let duplicate = kept.iter().any(|k| {
+            k.on[0].0 == c.on[0].0
+                && k.on[1].0 == c.on[1].0
+                && k.position.distance(c.position) < CROSSING_MERGE * spacing
+        });
+        if !duplicate {
+            kept.push(c);
+        }
+    }
+    kept
+}
+
+/// Distance along curve `c` between arc lengths `a` and `b` (the shorter
+/// way round on a closed curve).
+fn arc_gap(c: &Curve, arcs: &[f64], a: f64, b: f64) -> f64 {
+    let d = (a - b).abs();
+    if c.closed {
+        d.min(arcs.last().unwrap_or(&0.0) - d)
+    } else {
+        d
+    }
+}
+
+/// Polylines as curves: a line whose ends are the same vertex (or the same
+/// position) is closed; lines that meet end to end where no third line
+/// ends, and continue without a sharp turn, are joined first.
+pub fn curves_from_polylines(p: &Polylines) -> Vec<Curve> {
+    let mut pieces: Vec<Vec<DVec3>> = p
+        .lines
+        .iter()
+        .map(|l| {
+            l.iter()
+                .filter_map(|&i| p.vertices.get(i as usize).copied())
+                .collect::<Vec<_>>()
+        })
+        .filter(|v| v.len() >= 2)
+        .collect();
+    join_pieces(&mut pieces);
+    pieces.into_iter().map(curve_from_chain).collect()
+}
+
+/// A chain of positions as a curve: closed when its ends coincide.
+fn curve_from_chain(mut v: Vec<DVec3>) -> Curve {
+    let closed = v.len() > 3 && v[0] == v[v.len() - 1];
+    if closed {
+        v.pop();
+    }
+    Curve { points: v, closed }
+}
+
+/// Joins pieces end to end where exactly two piece ends share a position
+/// and the turn there is less than 60°.
+fn join_pieces(pieces: &mut Vec<Vec<DVec3>>) {
+    loop {
+        let mut ends: std::collections::HashMap<[u64; 3], Vec<(usize, bool)>> =
+            Default::default();
+        for (i, p) in pieces.iter().enumerate() {
+            if p[0] == p[p.len() - 1] {
+                continue;
+            }
+            ends.entry(key(p[0])).or_default().push((i, false));
+            ends.entry(key(p[p.len() - 1])).or_default().push((i, true));
+        }
+        let joint = ends.values().find(|v| {
+            v.len() == 2 && v[0].0 != v[1].0 && {
+                let da = end_direction(&pieces[v[0].0], v[0].1);
+                let db = end_direction(&pieces[v[1].0], v[1].1);
+                da.dot(db) < -0.5
+            }
+        });
+        let Some(j) = joint.cloned() else {
+            return;
+        };
+        let (mut a, b) = (pieces[j[0].0].clone(), pieces[j[1].0].clone());
+        if !j[0].1 {
+            a.reverse();
+        }
+        let mut b = b;
+        if j[1].1 {
+            b.reverse();
+        }
+        a.extend_from_slice(&b[1..]);
+        let (lo, hi) = (j[0].0.min(j[1].0), j[0].0.max(j[1].0));
+        pieces.swap_remove(hi);
+        pieces[lo] = a;
+    }
+}
+
+fn key(p: DVec3) -> [u64; 3] {
+    p.to_array().map(f64::to_bits)
+}
+
+/// Direction leaving piece `p` at its end (`last`) or start.
+fn end_direction(p: &[DVec3], last: bool) -> DVec3 {
+    let n = p.len();
+    if last {
+        (p[n - 1] - p[n - 2]).normalize_or_zero()
+    } else {
+        (p[0] - p[1]).normalize_or_zero()
+    }
+}
+
+/// A point is on a clean stretch of curve when its neighbours (within this
+/// many local spacings) spread along one line: second PCA eigenvalue below
+/// [`LINE_RATIO`] of the first.
+const LINE_RADIUS: f64 = 2.5;
+const LINE_RATIO: f64 = 0.04;
+/// Share of points that must be on clean stretches for a point set to be
+/// read as curves.
+const MIN_CURVE_SHARE: f64 = 0.6;
+/// Chains with fewer points are dropped.
+const MIN_CHAIN: usize = 5;
+
+/// Chains a point set that lies along curves into curves, or `None` when
+/// the points do not look like curves (e.g. they sample a surface).
+///
+/// Points whose neighbourhood is a line are linked to their nearest
+/// neighbour ahead and behind along the line's direction (links must be
+/// mutual). The chains this gives stop where curves cross; their ends are
+/// joined across crossings to the end that continues them best, and the
+/// points near crossings are put back into the chain they fit.
+pub fn chain_points(points: &[DVec3]) -> Option<Vec<Curve>> {
+    if points.len() < 4 * MIN_CHAIN {
+        return None;
+    }
+    let tree = KdTree::new(points);
+    let spacing: Vec<f64> = points
+        .iter()
+        .map(|p| tree.knn(*p, 3).get(2).map_or(0.0, |n| n.distance))
+        .collect();
+    let s = median(&spacing);
+    if s <= 0.0 {
+        return None;
+    }
+    let tangents: Vec<Option<DVec3>> = points
+        .iter()
+        .zip(&spacing)
+        .map(|(p, &sp)| line_direction(&tree, points, *p, LINE_RADIUS * sp.max(0.5 * s)))
+        .collect();
+    let clean = tangents.iter().filter(|t| t.is_some()).count();
+    if (clean as f64) < MIN_CURVE_SHARE * points.len() as f64 {
+        return None;
+    }
+    let links = mutual_links(&tree, points, &tangents, 4.0 * s);
+    let chains = walk_chains(&links);
+    let mut pieces: Vec<(Vec<usize>, bool)> = chains
+        .into_iter()
+        .filter(|(c, _)| c.len() >= 2)
+        .collect();
+    join_across_crossings(points, &mut pieces, 8.0 * s);
+    let used: Vec<bool> = {
+        let mut u = vec![false; points.len()];
+        for (c, _) in &pieces {
+            c.iter().for_each(|&i| u[i] = true);
+        }
+        u
+    };
+    let curves: Vec<Curve> = pieces
+        .into_iter()
+        .filter(|(c, _)| c.len() >= MIN_CHAIN)
+        .map(|(c, closed)| Curve {
+            points: insert_unused(points, &c, closed, &used, 0.35 * s),
+            closed,
+        })
+        .collect();
+    let chained: usize = curves.iter().map(|c| c.points.len()).sum();
+    if curves.is_empty() || (chained as f64) < 0.8 * points.len() as f64 {
+        return None;
+    }
+    Some(curves)
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// The direction of the line the points within `r` of `p` spread along, if
+/// they do (principal axis; second eigenvalue small against the first).
+fn line_direction(tree: &KdTree, points: &[DVec3], p: DVec3, r: f64) -> Option<DVec3> {
+    let nb = tree.within(p, r);
+    if nb.len() < 3 {
+        return None;
+    }
+    let c = nb.iter().map(|n| points[n.index]).sum::<DVec3>() / nb.len() as f64;
+    let mut m = [[0.0; 3]; 3];
+    for n in &nb {
+        let d = points[n.index] - c;
+        for (i, row) in m.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v += d[i] * d[j];
+            }
+        }
+    }
+    let (values, vectors) = symmetric_eigen3(m);
+    (values[1] < LINE_RATIO * values[2]).then_some(vectors[2])
+}
+
+/// Per point its (up to two) mutual neighbours along its line: the nearest
+/// point ahead and the nearest behind within `reach`, on a line of similar
+/// direction.
+fn mutual_links(
+    tree: &KdTree,
+    points: &[DVec3],
+    tangents: &[Option<DVec3>],
+    reach: f64,
+) -> Vec<Vec<usize>> {
+    let candidate = |i: usize| -> [Option<usize>; 2] {
+        let Some(t) = tangents[i] else {
+            return [None, None];
+        };
+        let mut best = [(f64::INFINITY, None), (f64::INFINITY, None)];
+        for n in tree.within(points[i], reach) {
+            let Some(tn) = tangents[n.index] else {
+                continue;
+            };
+            if n.index == i || tn.dot(t).abs() < 0.8 {
+                continue;
+            }
+            let d = points[n.index] - points[i];
+            let c = d.dot(t) / d.length();
+            let side = if c >= 0.8 {
+                0
+            } else if c <= -0.8 {
+                1
+            } else {
+                continue;
+            };
+            if n.distance < best[side].0 {
+                best[side] = (n.distance, Some(n.index));
+            }
+        }
+        [best[0].1, best[1].1]
+    };
+    let cand: Vec<[Option<usize>; 2]> = (0..points.len()).map(candidate).collect();
+    (0..points.len())
+        .map(|i| {
+            cand[i]
+                .iter()
+                .flatten()
+                .copied()
+                .filter(|&j| cand[j].contains(&Some(i)))
+                .collect()
+        })
+        .collect()
+}
+
+/// Chains of a graph of degree at most two: open chains from their ends,
+/// then the cycles left (closed = true).
+fn walk_chains(links: &[Vec<usize>]) -> Vec<(Vec<usize>, bool)> {
+    let mut seen = vec![false; links.len()];
+    let mut out = Vec::new();
+    let walk = |start: usize, seen: &mut Vec<bool>| -> (Vec<usize>, bool) {
+        let mut chain = vec![start];
+        seen[start] = true;
+        let mut prev = usize::MAX;
+        let mut cur = start;
+        loop {
+            let next = links[cur].iter().copied().find(|&j| j != prev && !seen[j]);
+            match next {
+                Some(j) => {
+                    seen[j] = true;
+                    chain.push(j);
+                    prev = cur;
+                    cur = j;
+                }
+                None => {
+                    let closed = chain.len() > 2 && links[cur].contains(&start);
+                    return (chain, closed);
+                }
+            }
+        }
+    };
+    for i in 0..links.len() {
+        if !seen[i] && links[i].len() == 1 {
+            out.push(walk(i, &mut seen));
+        }
+    }
+    for i in 0..links.len() {
+        if !seen[i] && links[i].len() == 2 {
+            out.push(walk(i, &mut seen));
+        }
+    }
+    out
+}
+
+/// Joins open chains end to end across the gaps crossings leave: an end
+/// links to the end (of another chain or its own other end) that lies
+/// ahead within `reach`, faces back at it, and is nearest to the path
+/// continued straight on; best pairs first.
+fn join_across_crossings(points: &[DVec3], pieces: &mut Vec<(Vec<usize>, bool)>, reach: f64) {
+    // End id = 2 * piece + (0 start, 1 end).
+    let end_of = |pieces: &[(Vec<usize>, bool)], e: usize| -> (DVec3, DVec3) {
+        let c = &pieces[e / 2].0;
+        let back = 3.min(c.len() - 1);
+        let (p, q) = if e % 2 == 1 {
+            (c[c.len() - 1], c[c.len() - 1 - back])
+        } else {
+            (c[0], c[back])
+        };
+        (points[p], (points[p] - points[q]).normalize_or_zero())
+    };
+    let open: Vec<usize> = (0..pieces.len()).filter(|&i| !pieces[i].1).collect();
+    let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+    for &i in &open {
+        for &j in &open {
+            for (ei, ej) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                let (a, b) = (2 * i + ei, 2 * j + ej);
+                if a >= b {
+                    continue;
+                }
+                let (pa, ua) = end_of(pieces, a);
+                let (pb, ub) = end_of(pieces, b);
+                let d = pb - pa;
+                let len = d.length();
+                if len > reach || len == 0.0 {
+                    continue;
+                }
+                let (ca, cb) = (d.dot(ua) / len, -d.dot(ub) / len);
+                if ca < 0.85 || cb < 0.85 || ua.dot(ub) > -0.7 {
+                    continue;
+                }
+                pairs.push((len * (3.0 - ca - cb), a, b));
+            }
+        }
+    }
+    pairs.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let mut partner = vec![usize::MAX; 2 * pieces.len()];
+    for (_, a, b) in pairs {
+        if partner[a] == usize::MAX && partner[b] == usize::MAX {
+            partner[a] = b;
+            partner[b] = a;
+        }
+    }
+    *pieces = assemble(pieces, &partner);
+}
+
+/// Pieces joined through `partner` (end id → end id) into chains.
+fn assemble(pieces: &[(Vec<usize>, bool)], partner: &[usize]) -> Vec<(Vec<usize>, bool)> {
+    let mut done = vec![false; pieces.len()];
+    let mut out = Vec::new();
+    let follow = |start_end: usize, done: &mut Vec<bool>| -> (Vec<usize>, bool) {
+        // Enter piece via `start_end`, leave by its other end.
+        let mut chain = Vec::new();
+        let mut enter = start_end;
+        loop {
+            let piece = enter / 2;
+            done[piece] = true;
+            let c = &pieces[piece].0;
+            if enter % 2 == 0 {
+                chain.extend_from_slice(c);
+            } else {
+                chain.extend(c.iter().rev());
+            }
+            let leave = enter ^ 1;
+            let next = partner[leave];
+            if next == usize::MAX {
+                return (chain, false);
+            }
+            if next == start_end {
+                return (chain, true);
+            }
+            if done[next / 2] {
+                return (chain, false);
+            }
+            enter = next;
+        }
+    };
+    for (i, p) in pieces.iter().enumerate() {
+        if p.1 {
+            done[i] = true;
+            out.push(p.clone());
+        }
+    }
+    // Open chains from free ends first, then loops of pieces.
+    for e in 0..2 * pieces.len() {
+        if !done[e / 2] && partner[e] == usize::MAX {
+            out.push(follow(e, &mut done));
+        }
+    }
+    for e in (0..2 * pieces.len()).step_by(2) {
+        if !done[e / 2] {
+            out.push(follow(e, &mut done));
+        }
+    }
+    out
+}
+
+/// The chain's positions with the unused points near it put back: each
+/// unused point within `tolerance` of a segment joins it at its place
+/// along the segment. An unused point may join several chains (points at
+/// a crossing lie on both curves).
+fn insert_unused(
+    points: &[DVec3],
+    chain: &[usize],
+    closed: bool,
+    used: &[bool],
+    tolerance: f64,
+) -> Vec<DVec3> {
+    let unused: Vec<DVec3> = (0..points.len())
+        .filter(|&i| !used[i])
+        .map(|i| points[i])
+        .collect();
+    let mut out = Vec::with_capacity(chain.len());
+    let n = chain.len();
+    let segs = if closed { n } else { n - 1 };
+    for i in 0..n {
+        out.push(points[chain[i]]);
+        if i >= segs {
+            continue;
+        }
+        let (a, b) = (points[chain[i]], points[chain[(i + 1) % n]]);
+        let ab = b - a;
+        let len2 = ab.length_squared();
+        if len2 == 0.0 {
+            continue;
+        }
+        let mut inside: Vec<(f64, DVec3)> = unused
+            .iter()
+            .filter_map(|&q| {
+                let t = (q - a).dot(ab) / len2;
+                let foot = a + t * ab;
+                ((0.05..0.95).contains(&t) && q.distance(foot) < tolerance).then_some((t, q))
+            })
+            .collect();
+        inside.sort_by(|x, y| x.0.total_cmp(&y.0));
+        out.extend(inside.into_iter().map(|(_, q)| q));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn circle(center: DVec3, u: DVec3, v: DVec3, r: f64, n: usize) -> Curve {
+        let points = (0..n)
+            .map(|i| {
+                let a = 2.0 * PI * i as f64 / n as f64;
+                center + r * (a.cos() * u + a.sin() * v)
+            })
+            .collect();
+        Curve {
+            points,
+            closed: true,
+        }
+    }
+
+    /// Three orthogonal great circles of the unit sphere.
+    fn great_circles(n: usize) -> Vec<Curve> {
+        let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
+        vec![
+            circle(DVec3::ZERO, x, y, 1.0, n),
+            circle(DVec3::ZERO, y, z, 1.0, n),
+            circle(DVec3::ZERO, z, x, 1.0, n),
+        ]
+    }
+
+    #[test]
+    fn sphere_circles_give_radial_outward_normals() {
+        let net = CurveNetwork::new(great_circles(200));
+        assert_eq!(net.crossings.len(), 6);
+        for (c, normals) in net.curves.iter().zip(&net.normals) {
+            for (p, n) in c.points.iter().zip(normals) {
+                let n = n.expect("every circle crosses another");
+                assert!(n.dot(p.normalize()) > 0.999, "{p} {n}");
+            }
+        }
+    }
+
+    #[test]
+    fn torus_meridians_and_equators_give_the_torus_normal() {
+        // Torus R = 1, r = 0.3 around z: four meridians, outer and inner equator.
+        let (big, small) = (1.0, 0.3);
+        let mut curves = vec![
+            circle(DVec3::ZERO, DVec3::X, DVec3::Y, big + small, 300),
+            circle(DVec3::ZERO, DVec3::X, DVec3::Y, big - small, 200),
+        ];
+        for k in 0..4 {
+            let a = PI * 0.5 * k as f64 + 0.3;
+            let radial = DVec3::new(a.cos(), a.sin(), 0.0);
+            curves.push(circle(big * radial, radial, DVec3::Z, small, 80));
+        }
+        let net = CurveNetwork::new(curves);
+        assert_eq!(net.crossings.len(), 8);
+        for (c, normals) in net.curves.iter().zip(&net.normals) {
+            for (p, n) in c.points.iter().zip(normals) {
+                let ring = big * DVec3::new(p.x, p.y, 0.0).normalize();
+                let truth = (*p - ring).normalize();
+                assert!(n.unwrap().dot(truth) > 0.99, "{p} {n:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn sampled_crossing_circles_chain_into_curves() {
+        let curves = great_circles(150);
+        let points: Vec<DVec3> = curves.iter().flat_map(|c| c.points.clone()).collect();
+        let chained = chain_points(&points).expect("points along curves");
+        assert_eq!(chained.len(), 3, "{:?}", chained.iter().map(|c| c.points.len()).collect::<Vec<_>>());
+        for c in &chained {
+            assert!(c.closed);
+            // Each chain stays on one great circle: its points span a plane
+            // through the centre.
+            let n = crate::normals::plane_normal(&c.points);
+            let off = c.points.iter().map(|p| p.dot(n).abs()).fold(0.0, f64::max);
+            assert!(off < 0.05, "off-plane {off}");
+            assert!(c.points.len() >= 140);
+        }
+    }
+
+    #[test]
+    fn surface_samples_are_not_curves() {
+        let sphere = crate::shapes::icosphere(DVec3::ZERO, 1.0, 3);
+        let points = crate::shapes::sample_surface(&sphere, 2000, 1).positions;
+        assert!(chain_points(&points).is_none());
+    }
+
+    #[test]
+    fn polylines_meeting_end_to_end_are_joined() {
+        let c = circle(DVec3::ZERO, DVec3::X, DVec3::Y, 1.0, 40);
+        let vertices = c.points.clone();
+        // Two halves sharing vertices 0 and 20.
+        let first: Vec<u32> = (0..=20).collect();
+        let second: Vec<u32> = (20..40).chain([0]).collect();
+        let p = Polylines {
+            vertices,
+            lines: vec![first, second],
+        };
+        let curves = curves_from_polylines(&p);
+        assert_eq!(curves.len(), 1);
+        assert!(curves[0].closed);
+        assert_eq!(curves[0].points.len(), 40);
+    }
+}
