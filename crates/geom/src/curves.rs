@@ -110,10 +110,7 @@ const CROSSING_MERGE: f64 = 4.0;
 impl CurveNetwork {
     /// Crossings, normals and their orientation for `curves`.
     pub fn new(curves: Vec<Curve>) -> Self {
-        let curves: Vec<Curve> = curves
-            .into_iter()
-            .filter(|c| c.points.len() >= 2)
-            .collect();
+        let curves: Vec<Curve> = curves.into_iter().filter(|c| c.points.len() >= 2).collect();
         let spacing = median_segment(&curves);
         let mut crossings = find_crossings(&curves, spacing);
         let frames: Vec<Frames> = curves.iter().map(Frames::new).collect();
@@ -673,8 +670,7 @@ fn curve_from_chain(mut v: Vec<DVec3>) -> Curve {
 /// and the turn there is less than 60°.
 fn join_pieces(pieces: &mut Vec<Vec<DVec3>>) {
     loop {
-        let mut ends: std::collections::HashMap<[u64; 3], Vec<(usize, bool)>> =
-            Default::default();
+        let mut ends: std::collections::HashMap<[u64; 3], Vec<(usize, bool)>> = Default::default();
         for (i, p) in pieces.iter().enumerate() {
             if p[0] == p[p.len() - 1] {
                 continue;
@@ -731,15 +727,25 @@ const LINE_RATIO: f64 = 0.04;
 const MIN_CURVE_SHARE: f64 = 0.6;
 /// Chains with fewer points are dropped.
 const MIN_CHAIN: usize = 5;
+/// A trace steps to points within this many spacings ahead...
+const STEP_REACH: f64 = 3.0;
+/// ...and within this angle (cosine) of its current direction.
+const STEP_COS: f64 = 0.75;
+/// A trace that runs onto this many points of other chains in a row is
+/// retracing a curve already found, not crossing it.
+const RETRACE: usize = 4;
+/// A trace that comes back within this many steps of its start has closed.
+const CLOSE_WITHIN: usize = 3;
 
 /// Chains a point set that lies along curves into curves, or `None` when
 /// the points do not look like curves (e.g. they sample a surface).
 ///
-/// Points whose neighbourhood is a line are linked to their nearest
-/// neighbour ahead and behind along the line's direction (links must be
-/// mutual). The chains this gives stop where curves cross; their ends are
-/// joined across crossings to the end that continues them best, and the
-/// points near crossings are put back into the chain they fit.
+/// Each chain is traced from a point on a clean stretch (its neighbourhood
+/// is a line), in both directions, always stepping to the point that best
+/// continues the chain's current direction. Following the direction rather
+/// than the nearest point carries a trace straight through crossings,
+/// where the nearest points may belong to the other curve; points at a
+/// crossing may be used by both curves.
 pub fn chain_points(points: &[DVec3]) -> Option<Vec<Curve>> {
     if points.len() < 4 * MIN_CHAIN {
         return None;
@@ -762,33 +768,168 @@ pub fn chain_points(points: &[DVec3]) -> Option<Vec<Curve>> {
     if (clean as f64) < MIN_CURVE_SHARE * points.len() as f64 {
         return None;
     }
-    let links = mutual_links(&tree, points, &tangents, 4.0 * s);
-    let chains = walk_chains(&links);
-    let mut pieces: Vec<(Vec<usize>, bool)> = chains
-        .into_iter()
-        .filter(|(c, _)| c.len() >= 2)
-        .collect();
-    join_across_crossings(points, &mut pieces, 8.0 * s);
-    let used: Vec<bool> = {
-        let mut u = vec![false; points.len()];
-        for (c, _) in &pieces {
-            c.iter().for_each(|&i| u[i] = true);
-        }
-        u
+    let tracer = Tracer {
+        points,
+        tree: &tree,
+        reach: STEP_REACH * s,
     };
-    let curves: Vec<Curve> = pieces
-        .into_iter()
-        .filter(|(c, _)| c.len() >= MIN_CHAIN)
-        .map(|(c, closed)| Curve {
-            points: insert_unused(points, &c, closed, &used, 0.35 * s),
+    let mut owner = vec![usize::MAX; points.len()];
+    let mut curves = Vec::new();
+    for (start, t) in tangents.iter().enumerate() {
+        let Some(t) = *t else { continue };
+        if owner[start] != usize::MAX {
+            continue;
+        }
+        let (chain, closed) = tracer.trace(start, t, &owner);
+        if chain.len() < MIN_CHAIN {
+            owner[start] = usize::MAX - 1;
+            continue;
+        }
+        for i in tracer.covered(&chain, closed, 0.5 * s) {
+            if owner[i] == usize::MAX {
+                owner[i] = curves.len();
+            }
+        }
+        curves.push(Curve {
+            points: chain.iter().map(|&i| points[i]).collect(),
             closed,
-        })
-        .collect();
-    let chained: usize = curves.iter().map(|c| c.points.len()).sum();
+        });
+    }
+    let chained = owner.iter().filter(|&&o| o < curves.len()).count();
     if curves.is_empty() || (chained as f64) < 0.8 * points.len() as f64 {
         return None;
     }
     Some(curves)
+}
+
+/// Traces chains through a point set.
+struct Tracer<'a> {
+    points: &'a [DVec3],
+    tree: &'a KdTree,
+    reach: f64,
+}
+
+impl Tracer<'_> {
+    /// The chain through `start` (tangent `t`): traced forward, then
+    /// backward. Either trace that comes back to `start` is the curve: the
+    /// other may have turned off at a shallow crossing.
+    fn trace(&self, start: usize, t: DVec3, owner: &[usize]) -> (Vec<usize>, bool) {
+        let (ahead, closed) = self.follow(start, t, owner);
+        if closed {
+            return (ahead, true);
+        }
+        let (mut behind, closed) = self.follow(start, -t, owner);
+        behind.reverse();
+        if closed {
+            return (behind, true);
+        }
+        behind.pop();
+        behind.extend(ahead);
+        (behind, false)
+    }
+
+    /// The chain's points and the points it stepped over (within
+    /// `tolerance` of one of its segments).
+    fn covered(&self, chain: &[usize], closed: bool, tolerance: f64) -> Vec<usize> {
+        let n = chain.len();
+        let segments = if closed { n } else { n - 1 };
+        let mut out = chain.to_vec();
+        for k in 0..segments {
+            let (a, b) = (self.points[chain[k]], self.points[chain[(k + 1) % n]]);
+            let mid = 0.5 * (a + b);
+            for q in self.tree.within(mid, 0.5 * a.distance(b) + tolerance) {
+                if distance_to_segment(self.points[q.index], a, b) < tolerance {
+                    out.push(q.index);
+                }
+            }
+        }
+        out
+    }
+
+    /// Steps from `start` along `t` until no point continues the chain,
+    /// the chain closes (true), or it runs along another chain.
+    fn follow(&self, start: usize, t: DVec3, owner: &[usize]) -> (Vec<usize>, bool) {
+        let mut chain = vec![start];
+        let mut on_chain: std::collections::HashSet<usize> = [start].into();
+        let mut direction = t;
+        let mut foreign = 0;
+        while let Some(next) = self.step(&chain, direction) {
+            if self.closes(&chain, next) {
+                return (chain, true);
+            }
+            if !on_chain.insert(next) {
+                break;
+            }
+            foreign = if owner[next] < usize::MAX - 1 {
+                foreign + 1
+            } else {
+                0
+            };
+            chain.push(next);
+            if foreign >= RETRACE {
+                chain.truncate(chain.len() - foreign);
+                break;
+            }
+            direction = self.direction(&chain).unwrap_or(direction);
+        }
+        (chain, false)
+    }
+
+    /// Whether stepping to `next` closes the chain: the step lands on or
+    /// passes one of its first points (steps may skip points).
+    fn closes(&self, chain: &[usize], next: usize) -> bool {
+        if chain.len() <= 4 * CLOSE_WITHIN {
+            return false;
+        }
+        let (here, there) = (self.points[chain[chain.len() - 1]], self.points[next]);
+        chain[..CLOSE_WITHIN].iter().any(|&i| {
+            let p = self.points[i];
+            i == next || (p - here).dot(there - p) >= 0.0 && p.distance(here) < self.reach
+        })
+    }
+
+    /// The point that best continues `chain` along `direction`: within
+    /// reach and the angle, the one with the smallest distance weighted by
+    /// its turn.
+    fn step(&self, chain: &[usize], direction: DVec3) -> Option<usize> {
+        let here = self.points[*chain.last()?];
+        let recent = &chain[chain.len().saturating_sub(3)..];
+        self.tree
+            .within(here, self.reach)
+            .into_iter()
+            .filter(|n| n.distance > 0.0 && !recent.contains(&n.index))
+            .filter_map(|n| {
+                let cos = (self.points[n.index] - here).dot(direction) / n.distance;
+                (cos >= STEP_COS).then(|| (n.distance * (2.0 - cos).powi(4), n.index))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, i)| i)
+    }
+
+    /// Current direction of a chain: from a few points back to its end,
+    /// turned on by half the turn seen over that stretch (the chord lags
+    /// the tangent on a bend).
+    fn direction(&self, chain: &[usize]) -> Option<DVec3> {
+        let n = chain.len();
+        if n < 3 {
+            let d = self.points[chain[n - 1]] - self.points[chain[0]];
+            return d.try_normalize();
+        }
+        let back = 4.min(n - 1);
+        let (a, m, b) = (
+            self.points[chain[n - 1 - back]],
+            self.points[chain[n - 1 - back / 2]],
+            self.points[chain[n - 1]],
+        );
+        let (first, second) = ((m - a).try_normalize()?, (b - m).try_normalize()?);
+        (second * 1.5 - first * 0.5).try_normalize()
+    }
+}
+
+fn distance_to_segment(q: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let ab = b - a;
+    let t = ((q - a).dot(ab) / ab.length_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+    q.distance(a + t * ab)
 }
 
 fn median(v: &[f64]) -> f64 {
@@ -816,239 +957,6 @@ fn line_direction(tree: &KdTree, points: &[DVec3], p: DVec3, r: f64) -> Option<D
     }
     let (values, vectors) = symmetric_eigen3(m);
     (values[1] < LINE_RATIO * values[2]).then_some(vectors[2])
-}
-
-/// Per point its (up to two) mutual neighbours along its line: the nearest
-/// point ahead and the nearest behind within `reach`, on a line of similar
-/// direction.
-fn mutual_links(
-    tree: &KdTree,
-    points: &[DVec3],
-    tangents: &[Option<DVec3>],
-    reach: f64,
-) -> Vec<Vec<usize>> {
-    let candidate = |i: usize| -> [Option<usize>; 2] {
-        let Some(t) = tangents[i] else {
-            return [None, None];
-        };
-        let mut best = [(f64::INFINITY, None), (f64::INFINITY, None)];
-        for n in tree.within(points[i], reach) {
-            let Some(tn) = tangents[n.index] else {
-                continue;
-            };
-            if n.index == i || tn.dot(t).abs() < 0.8 {
-                continue;
-            }
-            let d = points[n.index] - points[i];
-            let c = d.dot(t) / d.length();
-            let side = if c >= 0.8 {
-                0
-            } else if c <= -0.8 {
-                1
-            } else {
-                continue;
-            };
-            if n.distance < best[side].0 {
-                best[side] = (n.distance, Some(n.index));
-            }
-        }
-        [best[0].1, best[1].1]
-    };
-    let cand: Vec<[Option<usize>; 2]> = (0..points.len()).map(candidate).collect();
-    (0..points.len())
-        .map(|i| {
-            cand[i]
-                .iter()
-                .flatten()
-                .copied()
-                .filter(|&j| cand[j].contains(&Some(i)))
-                .collect()
-        })
-        .collect()
-}
-
-/// Chains of a graph of degree at most two: open chains from their ends,
-/// then the cycles left (closed = true).
-fn walk_chains(links: &[Vec<usize>]) -> Vec<(Vec<usize>, bool)> {
-    let mut seen = vec![false; links.len()];
-    let mut out = Vec::new();
-    let walk = |start: usize, seen: &mut Vec<bool>| -> (Vec<usize>, bool) {
-        let mut chain = vec![start];
-        seen[start] = true;
-        let mut prev = usize::MAX;
-        let mut cur = start;
-        loop {
-            let next = links[cur].iter().copied().find(|&j| j != prev && !seen[j]);
-            match next {
-                Some(j) => {
-                    seen[j] = true;
-                    chain.push(j);
-                    prev = cur;
-                    cur = j;
-                }
-                None => {
-                    let closed = chain.len() > 2 && links[cur].contains(&start);
-                    return (chain, closed);
-                }
-            }
-        }
-    };
-    for i in 0..links.len() {
-        if !seen[i] && links[i].len() == 1 {
-            out.push(walk(i, &mut seen));
-        }
-    }
-    for i in 0..links.len() {
-        if !seen[i] && links[i].len() == 2 {
-            out.push(walk(i, &mut seen));
-        }
-    }
-    out
-}
-
-/// Joins open chains end to end across the gaps crossings leave: an end
-/// links to the end (of another chain or its own other end) that lies
-/// ahead within `reach`, faces back at it, and is nearest to the path
-/// continued straight on; best pairs first.
-fn join_across_crossings(points: &[DVec3], pieces: &mut Vec<(Vec<usize>, bool)>, reach: f64) {
-    // End id = 2 * piece + (0 start, 1 end).
-    let end_of = |pieces: &[(Vec<usize>, bool)], e: usize| -> (DVec3, DVec3) {
-        let c = &pieces[e / 2].0;
-        let back = 3.min(c.len() - 1);
-        let (p, q) = if e % 2 == 1 {
-            (c[c.len() - 1], c[c.len() - 1 - back])
-        } else {
-            (c[0], c[back])
-        };
-        (points[p], (points[p] - points[q]).normalize_or_zero())
-    };
-    let open: Vec<usize> = (0..pieces.len()).filter(|&i| !pieces[i].1).collect();
-    let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
-    for &i in &open {
-        for &j in &open {
-            for (ei, ej) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-                let (a, b) = (2 * i + ei, 2 * j + ej);
-                if a >= b {
-                    continue;
-                }
-                let (pa, ua) = end_of(pieces, a);
-                let (pb, ub) = end_of(pieces, b);
-                let d = pb - pa;
-                let len = d.length();
-                if len > reach || len == 0.0 {
-                    continue;
-                }
-                let (ca, cb) = (d.dot(ua) / len, -d.dot(ub) / len);
-                if ca < 0.85 || cb < 0.85 || ua.dot(ub) > -0.7 {
-                    continue;
-                }
-                pairs.push((len * (3.0 - ca - cb), a, b));
-            }
-        }
-    }
-    pairs.sort_by(|x, y| x.0.total_cmp(&y.0));
-    let mut partner = vec![usize::MAX; 2 * pieces.len()];
-    for (_, a, b) in pairs {
-        if partner[a] == usize::MAX && partner[b] == usize::MAX {
-            partner[a] = b;
-            partner[b] = a;
-        }
-    }
-    *pieces = assemble(pieces, &partner);
-}
-
-/// Pieces joined through `partner` (end id → end id) into chains.
-fn assemble(pieces: &[(Vec<usize>, bool)], partner: &[usize]) -> Vec<(Vec<usize>, bool)> {
-    let mut done = vec![false; pieces.len()];
-    let mut out = Vec::new();
-    let follow = |start_end: usize, done: &mut Vec<bool>| -> (Vec<usize>, bool) {
-        // Enter piece via `start_end`, leave by its other end.
-        let mut chain = Vec::new();
-        let mut enter = start_end;
-        loop {
-            let piece = enter / 2;
-            done[piece] = true;
-            let c = &pieces[piece].0;
-            if enter % 2 == 0 {
-                chain.extend_from_slice(c);
-            } else {
-                chain.extend(c.iter().rev());
-            }
-            let leave = enter ^ 1;
-            let next = partner[leave];
-            if next == usize::MAX {
-                return (chain, false);
-            }
-            if next == start_end {
-                return (chain, true);
-            }
-            if done[next / 2] {
-                return (chain, false);
-            }
-            enter = next;
-        }
-    };
-    for (i, p) in pieces.iter().enumerate() {
-        if p.1 {
-            done[i] = true;
-            out.push(p.clone());
-        }
-    }
-    // Open chains from free ends first, then loops of pieces.
-    for e in 0..2 * pieces.len() {
-        if !done[e / 2] && partner[e] == usize::MAX {
-            out.push(follow(e, &mut done));
-        }
-    }
-    for e in (0..2 * pieces.len()).step_by(2) {
-        if !done[e / 2] {
-            out.push(follow(e, &mut done));
-        }
-    }
-    out
-}
-
-/// The chain's positions with the unused points near it put back: each
-/// unused point within `tolerance` of a segment joins it at its place
-/// along the segment. An unused point may join several chains (points at
-/// a crossing lie on both curves).
-fn insert_unused(
-    points: &[DVec3],
-    chain: &[usize],
-    closed: bool,
-    used: &[bool],
-    tolerance: f64,
-) -> Vec<DVec3> {
-    let unused: Vec<DVec3> = (0..points.len())
-        .filter(|&i| !used[i])
-        .map(|i| points[i])
-        .collect();
-    let mut out = Vec::with_capacity(chain.len());
-    let n = chain.len();
-    let segs = if closed { n } else { n - 1 };
-    for i in 0..n {
-        out.push(points[chain[i]]);
-        if i >= segs {
-            continue;
-        }
-        let (a, b) = (points[chain[i]], points[chain[(i + 1) % n]]);
-        let ab = b - a;
-        let len2 = ab.length_squared();
-        if len2 == 0.0 {
-            continue;
-        }
-        let mut inside: Vec<(f64, DVec3)> = unused
-            .iter()
-            .filter_map(|&q| {
-                let t = (q - a).dot(ab) / len2;
-                let foot = a + t * ab;
-                ((0.05..0.95).contains(&t) && q.distance(foot) < tolerance).then_some((t, q))
-            })
-            .collect();
-        inside.sort_by(|x, y| x.0.total_cmp(&y.0));
-        out.extend(inside.into_iter().map(|(_, q)| q));
-    }
-    out
 }
 
 #[cfg(test)]
@@ -1119,7 +1027,12 @@ mod tests {
         let curves = great_circles(150);
         let points: Vec<DVec3> = curves.iter().flat_map(|c| c.points.clone()).collect();
         let chained = chain_points(&points).expect("points along curves");
-        assert_eq!(chained.len(), 3, "{:?}", chained.iter().map(|c| c.points.len()).collect::<Vec<_>>());
+        assert_eq!(
+            chained.len(),
+            3,
+            "{:?}",
+            chained.iter().map(|c| c.points.len()).collect::<Vec<_>>()
+        );
         for c in &chained {
             assert!(c.closed);
             // Each chain stays on one great circle: its points span a plane

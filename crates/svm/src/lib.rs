@@ -10,13 +10,19 @@
 //! - [`selection::select_parameters`] picks the regularization by validation;
 //! - [`model::SvmModel`] evaluates f, ∇f and curvature, drops fine levels,
 //!   saves and loads models;
-//! - [`mesh::mesh_model`] extracts the zero set by surface-following
-//!   marching cubes;
+//! - [`hermite::HermiteFit`] interpolates sparse samples with normals
+//!   (curve networks) by a global triharmonic Hermite fit;
+//! - [`curve_network::reconstruct_from_curves`] spans a curve network
+//!   with a Hermite fit of the normals the curves imply;
+//! - [`mesh::mesh_model`] extracts the zero set of either by
+//!   surface-following marching cubes;
 //! - [`warp::fit_warp`] computes a dense deformation field between two
 //!   fitted shapes (morphing).
 
 pub mod cells;
+pub mod curve_network;
 pub mod error;
+pub mod hermite;
 pub mod kernel;
 pub mod mesh;
 pub mod model;

@@ -48,11 +48,32 @@ pub struct MeshReport {
     pub nodes_evaluated: usize,
 }
 
+/// An implicit function the mesher can follow: negative inside, and near
+/// its zero set close to a signed distance (growth stops a cell diagonal
+/// away from the surface).
+pub trait Implicit: Sync {
+    /// f at `points`; `groups` partition the indices into compact clusters
+    /// (one per grid block) for implementations that gather per cluster.
+    fn values_grouped(&self, points: &[DVec3], groups: &[Vec<u32>]) -> Vec<f64>;
+    /// ∇f at `points` (the mesh's vertex normals).
+    fn gradients(&self, points: &[DVec3]) -> Vec<DVec3>;
+}
+
+impl Implicit for SvmModel {
+    fn values_grouped(&self, points: &[DVec3], groups: &[Vec<u32>]) -> Vec<f64> {
+        SvmModel::values_grouped(self, points, groups)
+    }
+
+    fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
+        SvmModel::gradients(self, points)
+    }
+}
+
 /// Extract the zero set of `model` around `seeds` (usually the input
 /// points) inside `bounds` enlarged by the margin. Vertex normals are the
 /// normalized gradient of f (outward).
 pub fn mesh_model(
-    model: &SvmModel,
+    model: &(impl Implicit + ?Sized),
     seeds: &[DVec3],
     bounds: Aabb,
     opts: &MeshOptions,
@@ -100,7 +121,11 @@ fn pack(c: [usize; 3]) -> u64 {
 }
 
 /// Evaluate f on the nodes of every block reached by the growth.
-fn follow_surface(model: &SvmModel, seeds: &[DVec3], spec: &GridSpec<3>) -> Result<Band> {
+fn follow_surface(
+    model: &(impl Implicit + ?Sized),
+    seeds: &[DVec3],
+    spec: &GridSpec<3>,
+) -> Result<Band> {
     if spec.dims.iter().any(|&n| n >= 1 << 21) {
         return Err(SvmError::InvalidParameter {
             name: "resolution",
@@ -178,7 +203,7 @@ fn corners(c: [usize; 3]) -> impl Iterator<Item = [usize; 3]> {
 
 /// Evaluate the not yet known nodes of `blocks`, one group per block.
 fn evaluate_blocks(
-    model: &SvmModel,
+    model: &(impl Implicit + ?Sized),
     spec: &GridSpec<3>,
     blocks: &[[usize; 3]],
     values: &mut FastMap<f64>,

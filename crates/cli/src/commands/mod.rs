@@ -8,6 +8,7 @@ pub mod info;
 pub mod morph;
 pub mod normals;
 pub mod reconstruct;
+pub mod reconstruct_curves;
 pub mod reconstruct_svm;
 pub mod render;
 pub mod shell;

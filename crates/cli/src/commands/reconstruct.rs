@@ -2,6 +2,7 @@
 //! curves and triangle patches. Level-set method by default (no normals
 //! needed); `--method svm` fits an SVM implicit surface to oriented points.
 
+use crate::commands::reconstruct_curves;
 use crate::commands::reconstruct_svm::{self, SvmArgs};
 use crate::context::Context;
 use anyhow::Context as _;
@@ -66,6 +67,10 @@ pub struct Args {
     /// instead of interpolating between the slices' 2D reconstructions.
     #[arg(long)]
     pub no_slices: bool,
+    /// Treat crossing curves like any data (level set or SVM) instead of
+    /// spanning them with a Hermite fit of the normals the crossings imply.
+    #[arg(long)]
+    pub no_curve_network: bool,
     /// Also write the signed distance field (.nrrd or .vtk).
     #[arg(long, value_name = "F.nrrd")]
     pub field: Option<PathBuf>,
@@ -81,10 +86,14 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     let geometry = io::read(&args.input)?;
+    let network = (!args.no_curve_network)
+        .then(|| reconstruct_curves::detect(&geometry))
+        .flatten();
     let spinner = ctx.spinner("reconstructing");
-    let result = match args.method {
-        Method::Levelset => run_levelset(&args, &geometry, ctx),
-        Method::Svm => run_svm(&args, &geometry, ctx),
+    let result = match (network, args.method) {
+        (Some(network), _) => reconstruct_curves::run(&args, &network, ctx),
+        (None, Method::Levelset) => run_levelset(&args, &geometry, ctx),
+        (None, Method::Svm) => run_svm(&args, &geometry, ctx),
     };
     spinner.finish_and_clear();
     result

@@ -1,0 +1,104 @@
+//! A closed surface spanning a network of curves: the curves' implied
+//! normals (from [`surfrecon_geom::curves`]) become Hermite samples, a
+//! [`HermiteFit`] interpolates them, and its zero set is meshed.
+
+use crate::error::Result;
+use crate::hermite::{HermiteFit, HermiteSample, MAX_SAMPLES};
+use crate::mesh::{mesh_model, MeshOptions};
+use glam::DVec3;
+use surfrecon_geom::curves::CurveNetwork;
+use surfrecon_geom::{Aabb, TriMesh};
+
+/// How to span a network.
+#[derive(Clone, Copy, Debug)]
+pub struct CurveFitOptions {
+    /// Mesh cells along the longest axis [default: from the curve spacing].
+    pub resolution: Option<usize>,
+    /// Give the normals this much slack (normalized units; see
+    /// [`HermiteFit::fit`]).
+    pub smoothing: f64,
+}
+
+impl Default for CurveFitOptions {
+    fn default() -> Self {
+        CurveFitOptions {
+            resolution: None,
+            smoothing: 1e-4,
+        }
+    }
+}
+
+/// What the fit used.
+#[derive(Clone, Debug)]
+pub struct CurveFitReport {
+    pub curves: usize,
+    pub crossings: usize,
+    /// Curves with implied normals (those crossing another).
+    pub curves_with_normals: usize,
+    /// Samples in the fit, and how many of them carry a normal.
+    pub samples: usize,
+    pub samples_with_normals: usize,
+    /// Arc length between samples.
+    pub sample_step: f64,
+    pub resolution: usize,
+}
+
+/// Finest resolution picked automatically: the mesh need not be finer
+/// than about a curve spacing.
+const AUTO_RESOLUTION: (usize, usize) = (64, 256);
+
+/// Fits and meshes the surface the network spans.
+pub fn reconstruct_from_curves(
+    network: &CurveNetwork,
+    options: &CurveFitOptions,
+) -> Result<(TriMesh, CurveFitReport)> {
+    let (samples, step) = hermite_samples(network);
+    let fit = HermiteFit::fit(&samples, options.smoothing)?;
+    let positions: Vec<DVec3> = samples.iter().map(|s| s.position).collect();
+    let bounds = Aabb::from_points(&positions);
+    let resolution = options
+        .resolution
+        .unwrap_or_else(|| auto_resolution(bounds.diagonal(), network.spacing));
+    let mesh_options = MeshOptions {
+        resolution,
+        margin: 0.1,
+    };
+    let (mesh, _) = mesh_model(&fit, &positions, bounds, &mesh_options)?;
+    let report = CurveFitReport {
+        curves: network.curves.len(),
+        crossings: network.crossings.len(),
+        curves_with_normals: network.crossed_curves(),
+        samples: samples.len(),
+        samples_with_normals: samples.iter().filter(|s| s.normal.is_some()).count(),
+        sample_step: step,
+        resolution,
+    };
+    Ok((mesh, report))
+}
+
+/// Samples every curve spacing along the curves, or farther apart when
+/// that would exceed [`MAX_SAMPLES`]; with the step used.
+fn hermite_samples(network: &CurveNetwork) -> (Vec<HermiteSample>, f64) {
+    let length: f64 = network.curves.iter().map(|c| c.length()).sum();
+    let mut step = network.spacing.max(length / MAX_SAMPLES as f64);
+    loop {
+        let samples: Vec<HermiteSample> = network
+            .samples(step)
+            .into_iter()
+            .map(|(position, normal)| HermiteSample { position, normal })
+            .collect();
+        if samples.len() <= MAX_SAMPLES {
+            return (samples, step);
+        }
+        step *= 1.1;
+    }
+}
+
+fn auto_resolution(diagonal: f64, spacing: f64) -> usize {
+    let cells = if spacing > 0.0 {
+        diagonal / spacing
+    } else {
+        0.0
+    };
+    (cells.round() as usize).clamp(AUTO_RESOLUTION.0, AUTO_RESOLUTION.1)
+}
