@@ -146,7 +146,8 @@ impl CurveNetwork {
             .count()
     }
 
-    /// Samples every `step` of arc length (and at every crossing), with the
+    /// Samples every `step` of arc length (and at every crossing, which
+    /// come first, in the order of [`CurveNetwork::crossings`]), with the
     /// normal where the curve has one. Samples closer than half a step to
     /// an earlier one are left out (the fit needs distinct points).
     pub fn samples(&self, step: f64) -> Vec<(DVec3, Option<DVec3>)> {
