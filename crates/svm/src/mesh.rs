@@ -94,7 +94,8 @@ pub fn mesh_model(
         nodes_evaluated: values.nodes.len(),
     };
     let background = 2.0 * spec.spacing;
-    let grid = BlockGrid::from_nodes(spec, background, values.nodes)?;
+    let nodes = outside_on_the_rim(values.nodes, spec.dims, background);
+    let grid = BlockGrid::from_nodes(spec, background, nodes)?;
     let mut mesh = marching_cubes_sparse(&grid, 0.0);
     mesh.normals = Some(
         model
@@ -104,6 +105,41 @@ pub fn mesh_model(
             .collect(),
     );
     Ok((mesh, report))
+}
+
+/// `nodes` with every node on the grid's outer faces outside (evaluated
+/// ones clamped, the others added): a zero set that runs out of the grid
+/// is then closed along its faces, never left open, even where the block
+/// grid's tiles beyond the evaluated band are taken to be inside.
+fn outside_on_the_rim(
+    mut nodes: Vec<([usize; 3], f64)>,
+    dims: [usize; 3],
+    outside: f64,
+) -> Vec<([usize; 3], f64)> {
+    let on_rim = |n: [usize; 3]| (0..3).any(|a| n[a] == 0 || n[a] + 1 == dims[a]);
+    let known: FastSet = nodes.iter().map(|(n, _)| pack(*n)).collect();
+    for (n, v) in &mut nodes {
+        if on_rim(*n) {
+            *v = v.max(outside);
+        }
+    }
+    for a in 0..3 {
+        let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+        for side in [0, dims[a] - 1] {
+            for i in 0..dims[b] {
+                for j in 0..dims[c] {
+                    let mut n = [0; 3];
+                    (n[a], n[b], n[c]) = (side, i, j);
+                    if !known.contains(&pack(n)) {
+                        nodes.push((n, outside));
+                    }
+                }
+            }
+        }
+    }
+    nodes.sort_unstable_by_key(|(n, _)| *n);
+    nodes.dedup_by_key(|(n, _)| *n);
+    nodes
 }
 
 struct Band {
