@@ -143,3 +143,57 @@ fn bad_input_and_parameters_fail_with_one_clear_line() {
     assert!(err.contains("p") && err.contains("≥ 1"), "{err}");
     assert!(!output.exists(), "a failed run must not leave an output");
 }
+
+/// Points along crossing cross-sections of a torus (shipped sample) take
+/// the curve-network path and give one closed piece of genus 1 that
+/// passes through the curves.
+#[test]
+fn crossing_curves_give_one_closed_torus() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/curves/torus_crosscut.xyz");
+    let output = dir.path().join("torus.ply");
+    let summary = json_of(&surfrecon(&[
+        "reconstruct",
+        "--json",
+        path_str(&input),
+        "-o",
+        path_str(&output),
+    ]));
+    assert_eq!(summary["method"], "curve-network");
+    assert_eq!(summary["curve_network"]["curves"], 9);
+    let mesh = surfrecon_geom::io::read(&output).unwrap().to_mesh();
+    let topo = topology(&mesh);
+    assert!(
+        topo.watertight && topo.edge_manifold && topo.vertex_manifold,
+        "{topo:?}"
+    );
+    assert_eq!((topo.components, topo.euler), (1, 0), "{topo:?}");
+    // Near the torus (R = 0.75, r = 0.25 about z; diagonal 2.9) everywhere,
+    // closer on average.
+    let off: Vec<f64> = mesh
+        .vertices
+        .iter()
+        .map(|v| {
+            let ring = 0.75 * surfrecon_geom::DVec3::new(v.x, v.y, 0.0).normalize();
+            (v.distance(ring) - 0.25).abs()
+        })
+        .collect();
+    let worst = off.iter().copied().fold(0.0, f64::max);
+    let mean = off.iter().sum::<f64>() / off.len() as f64;
+    assert!(
+        worst < 0.04 && mean < 0.006,
+        "off the torus: max {worst}, mean {mean}"
+    );
+    // Opting out gives the level-set path.
+    let plain = json_of(&surfrecon(&[
+        "reconstruct",
+        "--json",
+        "--no-curve-network",
+        "--resolution",
+        "48",
+        path_str(&input),
+        "-o",
+        path_str(&output),
+    ]));
+    assert_eq!(plain["method"], "levelset");
+}

@@ -1,0 +1,123 @@
+//! Closed surfaces spanning sparse curve networks (Hermite fit of the
+//! normals implied at the crossings): the shape between the curves, its
+//! topology, and every curve point on the surface.
+
+use std::f64::consts::PI;
+use surfrecon_geom::curves::{chain_points, Curve, CurveNetwork};
+use surfrecon_geom::metrics::{closest_point_on_triangle, topology};
+use surfrecon_geom::{DVec3, TriMesh};
+use surfrecon_svm::curve_network::{reconstruct_from_curves, CurveFitOptions};
+
+fn circle(center: DVec3, u: DVec3, v: DVec3, r: f64, n: usize) -> Curve {
+    let points = (0..n)
+        .map(|i| {
+            let a = 2.0 * PI * i as f64 / n as f64;
+            center + r * (a.cos() * u + a.sin() * v)
+        })
+        .collect();
+    Curve {
+        points,
+        closed: true,
+    }
+}
+
+/// Distance from `p` to the nearest triangle of `mesh` (brute force).
+fn distance_to_mesh(mesh: &TriMesh, p: DVec3) -> f64 {
+    mesh.triangles
+        .iter()
+        .map(|t| {
+            let corners = t.map(|i| mesh.vertices[i as usize]);
+            p.distance(closest_point_on_triangle(p, corners))
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn reconstruct(curves: Vec<Curve>) -> TriMesh {
+    let network = CurveNetwork::new(curves);
+    let options = CurveFitOptions {
+        resolution: Some(80),
+        ..Default::default()
+    };
+    reconstruct_from_curves(&network, &options).expect("fit").0
+}
+
+#[test]
+fn sphere_from_three_great_circles_and_two_latitudes() {
+    let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
+    let o = DVec3::new(1.0, -2.0, 0.5);
+    let lat = 0.5f64; // ±30°
+    let curves = vec![
+        circle(o, x, y, 1.0, 180),
+        circle(o, y, z, 1.0, 180),
+        circle(o, z, x, 1.0, 180),
+        circle(o + lat.sin() * z, x, y, lat.cos(), 160),
+        circle(o - lat.sin() * z, x, y, lat.cos(), 160),
+    ];
+    let mesh = reconstruct(curves.clone());
+    let topo = topology(&mesh);
+    assert!(
+        topo.watertight && topo.edge_manifold && topo.vertex_manifold,
+        "{topo:?}"
+    );
+    assert_eq!((topo.components, topo.euler), (1, 2), "{topo:?}");
+    for v in &mesh.vertices {
+        let r = v.distance(o);
+        assert!((r - 1.0).abs() < 0.02, "radius {r} at {v}");
+    }
+    for p in curves.iter().flat_map(|c| c.points.iter().step_by(10)) {
+        assert!(
+            distance_to_mesh(&mesh, *p) < 0.01,
+            "curve point {p} not reached"
+        );
+    }
+}
+
+/// Torus R = 1, r = 0.35 around z: four meridians and the outer, inner,
+/// top and bottom parallels; given as points along the curves, unordered.
+#[test]
+fn torus_from_eight_cross_section_circles_has_genus_one() {
+    let (big, small) = (1.0, 0.35);
+    let mut curves = vec![
+        circle(DVec3::ZERO, DVec3::X, DVec3::Y, big + small, 300),
+        circle(DVec3::ZERO, DVec3::X, DVec3::Y, big - small, 200),
+        circle(small * DVec3::Z, DVec3::X, DVec3::Y, big, 250),
+        circle(-small * DVec3::Z, DVec3::X, DVec3::Y, big, 250),
+    ];
+    for k in 0..4 {
+        let a = 0.5 * PI * k as f64 + 0.4;
+        let radial = DVec3::new(a.cos(), a.sin(), 0.0);
+        curves.push(circle(big * radial, radial, DVec3::Z, small, 70));
+    }
+    let mut points: Vec<DVec3> = curves.iter().flat_map(|c| c.points.clone()).collect();
+    // Unordered, as a scanner or a segmentation would give them.
+    points.sort_by(|a, b| {
+        (a.x * 7.3 + a.y * 3.1)
+            .sin()
+            .total_cmp(&(b.x * 7.3 + b.y * 3.1).sin())
+    });
+    let chained = chain_points(&points).expect("points along curves");
+    assert_eq!(chained.len(), 8);
+    let mesh = reconstruct(chained);
+    let topo = topology(&mesh);
+    assert!(
+        topo.watertight && topo.edge_manifold && topo.vertex_manifold,
+        "{topo:?}"
+    );
+    assert_eq!((topo.components, topo.euler), (1, 0), "{topo:?}");
+    let torus_distance = |p: DVec3| {
+        let ring = big * DVec3::new(p.x, p.y, 0.0).normalize();
+        (p.distance(ring) - small).abs()
+    };
+    let worst = mesh
+        .vertices
+        .iter()
+        .map(|v| torus_distance(*v))
+        .fold(0.0, f64::max);
+    assert!(worst < 0.05 * small, "vertex {worst} off the torus");
+    for p in points.iter().step_by(20) {
+        assert!(
+            distance_to_mesh(&mesh, *p) < 0.01,
+            "curve point {p} not reached"
+        );
+    }
+}
