@@ -192,3 +192,60 @@ fn normals_command_rejects_bad_input() {
     assert_eq!(out.status.code(), Some(1));
     assert!(!output.exists());
 }
+
+/// `--data`: the distance from every datum to the mesh, alone or beside
+/// the reference scores; a point set cannot be measured against.
+#[test]
+fn eval_data_reports_how_closely_the_data_is_reached() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = write_sphere(dir.path(), "mesh.ply", 1.0);
+    // Points on the sphere's vertices plus one 0.05 outside (diagonal of
+    // the data ≈ 2√3, so 0.05 is ≈ 1.4% of it).
+    let sphere = icosphere(DVec3::ZERO, 1.0, 4);
+    let mut points: Vec<DVec3> = sphere.vertices.iter().step_by(5).copied().collect();
+    points.push(1.05 * sphere.vertices[3]);
+    let data = dir.path().join("data.xyz");
+    let cloud = PointCloud {
+        positions: points.clone(),
+        ..Default::default()
+    };
+    io::write(&data, &Geometry::from_points(cloud)).unwrap();
+    let v = json_of(&surfrecon(&[
+        "eval",
+        path_str(&mesh),
+        "--data",
+        path_str(&data),
+        "--json",
+    ]));
+    let fit = &v["data_fit"];
+    assert_eq!(fit["points"], points.len());
+    let diagonal = fit["diagonal"].as_f64().unwrap();
+    let max = fit["max"].as_f64().unwrap() * diagonal;
+    assert!((max - 0.05).abs() < 1e-4, "{fit}");
+    let share = (points.len() - 1) as f64 / points.len() as f64;
+    assert!(
+        (fit["within_1pct"].as_f64().unwrap() - share).abs() < 1e-12,
+        "{fit}"
+    );
+    assert!(v.get("chamfer_l1").is_none());
+    // With a reference too: both reports.
+    let both = json_of(&surfrecon(&[
+        "eval",
+        path_str(&mesh),
+        "-r",
+        path_str(&mesh),
+        "--data",
+        path_str(&data),
+        "--json",
+    ]));
+    assert!(both["chamfer_l1"].as_f64().is_some() && both["data_fit"]["points"] == points.len());
+    // Text table.
+    let out = surfrecon(&["eval", path_str(&mesh), "--data", path_str(&data)]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("data within 1%"));
+    // Neither option, or a point set as the candidate: one clear error.
+    let none = surfrecon(&["eval", path_str(&mesh)]);
+    assert!(!none.status.success());
+    let points_only = surfrecon(&["eval", path_str(&data), "--data", path_str(&data)]);
+    assert!(!points_only.status.success());
+    assert!(String::from_utf8_lossy(&points_only.stderr).contains("holds no triangles"));
+}

@@ -161,6 +161,13 @@ fn crossing_curves_give_one_closed_torus() {
     ]));
     assert_eq!(summary["method"], "curve-network");
     assert_eq!(summary["curve_network"]["curves"], 9);
+    // Every curve point on the surface (within 0.25% of the diagonal).
+    assert_eq!(summary["data_fit"]["points"], 1000);
+    assert_eq!(
+        summary["data_fit"]["within_0_25pct"], 1.0,
+        "{}",
+        summary["data_fit"]
+    );
     let mesh = surfrecon_geom::io::read(&output).unwrap().to_mesh();
     let topo = topology(&mesh);
     assert!(

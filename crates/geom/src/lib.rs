@@ -12,11 +12,13 @@
 //! - [`normals`]: plane-fit estimation and globally consistent orientation.
 //! - [`fairing`]: smooth (bi-Laplacian) fills for unsupported mesh parts.
 //! - [`metrics`]: Chamfer, Hausdorff, F-score, normal consistency, topology.
+//! - [`data_fit`]: how closely a mesh reaches the data it was built from.
 //! - [`render`]: PNG previews of meshes and point clouds.
 //! - [`shapes`]: analytic test shapes and uniform surface sampling.
 
 pub mod aabb;
 pub mod curves;
+pub mod data_fit;
 pub mod error;
 pub mod fairing;
 pub mod geometry;

@@ -1,9 +1,12 @@
-//! `surfrecon eval MESH --reference REF`: score a reconstruction against a
-//! reference surface (distances, F-scores, normal consistency, topology).
+//! `surfrecon eval MESH --reference REF --data DATA`: score a reconstruction
+//! against a reference surface (distances, F-scores, normal consistency,
+//! topology) and/or against the data it was built from (how closely every
+//! datum is reached).
 
 use crate::context::Context;
 use anyhow::{bail, Context as _};
 use std::path::{Path, PathBuf};
+use surfrecon_geom::data_fit::{self, DataFit};
 use surfrecon_geom::io;
 use surfrecon_geom::metrics::{self, EvalOptions, EvalReport, Surface};
 
@@ -12,8 +15,13 @@ pub struct Args {
     /// The reconstruction to score: a mesh (or a point set).
     pub input: PathBuf,
     /// The reference surface: a mesh (or a point set).
-    #[arg(short, long)]
-    pub reference: PathBuf,
+    #[arg(short, long, required_unless_present = "data")]
+    pub reference: Option<PathBuf>,
+    /// The data the reconstruction was built from (any geometry file: its
+    /// points, curve and patch vertices): reports the distance from every
+    /// datum to the mesh.
+    #[arg(long)]
+    pub data: Option<PathBuf>,
     /// Points sampled uniformly from each mesh (point sets are used whole).
     #[arg(long, default_value_t = 100_000)]
     pub samples: usize,
@@ -27,27 +35,66 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         bail!("--samples must be at least 1");
     }
     let candidate = read_surface(&args.input)?;
-    let reference = read_surface(&args.reference)?;
     let spinner = ctx.spinner("measuring distances");
+    let report = match &args.reference {
+        Some(reference) => Some(score_against(&args, &candidate, reference)?),
+        None => None,
+    };
+    let fit = match &args.data {
+        Some(data) => Some(fit_to_data(&args.input, &candidate, data)?),
+        None => None,
+    };
+    spinner.finish_and_clear();
+    if ctx.json {
+        let mut value = match &report {
+            Some(r) => serde_json::to_value(r)?,
+            None => serde_json::json!({}),
+        };
+        if let Some(fit) = &fit {
+            value["data_fit"] = serde_json::to_value(fit)?;
+        }
+        ctx.emit_json(&value);
+    } else if !ctx.quiet {
+        if let (Some(r), Some(reference)) = (&report, &args.reference) {
+            print!("{}", table(&args.input, reference, r));
+        }
+        if let Some(fit) = &fit {
+            print!("{}", data_fit_table(fit));
+        }
+    }
+    ctx.detail(format!("done in {:.2} s", ctx.elapsed()));
+    Ok(())
+}
+
+fn score_against(args: &Args, candidate: &Surface, reference: &Path) -> anyhow::Result<EvalReport> {
     let options = EvalOptions {
         samples: args.samples,
         seed: args.seed,
     };
-    let report = metrics::evaluate(&candidate, &reference, &options).with_context(|| {
+    metrics::evaluate(candidate, &read_surface(reference)?, &options).with_context(|| {
         format!(
             "cannot compare {} with {}",
             args.input.display(),
-            args.reference.display()
+            reference.display()
         )
-    })?;
-    spinner.finish_and_clear();
-    if ctx.json {
-        ctx.emit_json(&serde_json::to_value(&report)?);
-    } else if !ctx.quiet {
-        print!("{}", table(&args, &report));
-    }
-    ctx.detail(format!("done in {:.2} s", ctx.elapsed()));
-    Ok(())
+    })
+}
+
+fn fit_to_data(input: &Path, candidate: &Surface, data: &Path) -> anyhow::Result<DataFit> {
+    let Surface::Mesh(mesh) = candidate else {
+        bail!(
+            "--data needs a mesh to measure against; {} holds no triangles",
+            input.display()
+        );
+    };
+    let geometry = io::read(data)?;
+    data_fit::data_fit(mesh, &geometry.points.positions).with_context(|| {
+        format!(
+            "cannot measure {} against {}",
+            data.display(),
+            input.display()
+        )
+    })
 }
 
 fn read_surface(path: &Path) -> anyhow::Result<Surface> {
@@ -64,10 +111,10 @@ fn yes_no(b: bool) -> &'static str {
 }
 
 /// The human-readable report: one metric per line, name then value.
-fn table(args: &Args, r: &EvalReport) -> String {
+fn table(input: &Path, reference: &Path, r: &EvalReport) -> String {
     let mut rows: Vec<(String, String)> = vec![
-        ("candidate".into(), args.input.display().to_string()),
-        ("reference".into(), args.reference.display().to_string()),
+        ("candidate".into(), input.display().to_string()),
+        ("reference".into(), reference.display().to_string()),
         (
             "samples".into(),
             format!(
@@ -142,6 +189,31 @@ fn table(args: &Args, r: &EvalReport) -> String {
     } else {
         rows.push(("topology".into(), "n/a (candidate is a point set)".into()));
     }
+    aligned(&rows)
+}
+
+/// The data-fit block: distances in % of the data's diagonal.
+fn data_fit_table(f: &DataFit) -> String {
+    let pct = |x: f64| format!("{:.2}%", 100.0 * x);
+    let rows: Vec<(String, String)> = vec![
+        ("data points".into(), f.points.to_string()),
+        ("data diagonal".into(), format!("{:.6e}", f.diagonal)),
+        (
+            "data: mean distance".into(),
+            format!("{:.4}% of the diagonal", 100.0 * f.mean),
+        ),
+        (
+            "data: max distance".into(),
+            format!("{:.4}% of the diagonal at {:?}", 100.0 * f.max, f.farthest),
+        ),
+        ("data within 0.25%".into(), pct(f.within_0_25pct)),
+        ("data within 0.5%".into(), pct(f.within_0_5pct)),
+        ("data within 1%".into(), pct(f.within_1pct)),
+    ];
+    aligned(&rows)
+}
+
+fn aligned(rows: &[(String, String)]) -> String {
     let width = rows.iter().map(|(k, _)| k.len()).max().unwrap_or(0);
     rows.iter()
         .map(|(k, v)| format!("{k:<width$}  {v}\n"))

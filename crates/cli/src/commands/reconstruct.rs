@@ -8,7 +8,8 @@ use crate::context::Context;
 use anyhow::Context as _;
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use surfrecon_geom::{io, Geometry};
+use surfrecon_geom::data_fit::data_fit;
+use surfrecon_geom::{io, Geometry, TriMesh};
 use surfrecon_levelset::{reconstruct_2d, reconstruct_3d, Input, ReconstructParams, Report};
 
 /// Reconstruction method.
@@ -91,7 +92,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         .flatten();
     let spinner = ctx.spinner("reconstructing");
     let result = match (network, args.method) {
-        (Some(network), _) => reconstruct_curves::run(&args, &network, ctx),
+        (Some(network), _) => reconstruct_curves::run(&args, &geometry, &network, ctx),
         (None, Method::Levelset) => run_levelset(&args, &geometry, ctx),
         (None, Method::Svm) => run_svm(&args, &geometry, ctx),
     };
@@ -110,6 +111,7 @@ fn run_svm(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
         }
     };
     let (vertices, triangles) = (mesh.vertices.len(), mesh.triangles.len());
+    let fit = data_fit_json(ctx, &mesh, geometry);
     io::write(&args.output, &Geometry::from_mesh(mesh))
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     ctx.say(format!(
@@ -123,6 +125,7 @@ fn run_svm(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
         "output": args.output,
         "output_counts": {"vertices": vertices, "triangles": triangles},
         "svm": summary,
+        "data_fit": fit,
     }));
     Ok(())
 }
@@ -164,22 +167,28 @@ fn run_levelset(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Resu
         );
     }
     let spinner = ctx.spinner("reconstructing");
-    let (output, report, counts) = if two_d {
+    let (output, report, counts, fit) = if two_d {
         let r = reconstruct_2d(&input, &params(args)).context("level-set reconstruction failed")?;
         write_field_outputs(args, || r.dense_field())?;
         let counts = json!({"vertices": r.curves.vertices.len(), "curves": r.curves.lines.len()});
-        (Geometry::from_polylines(r.curves), r.report, counts)
+        (
+            Geometry::from_polylines(r.curves),
+            r.report,
+            counts,
+            serde_json::Value::Null,
+        )
     } else {
         let r = reconstruct_3d(&input, &params(args)).context("level-set reconstruction failed")?;
         write_field_outputs(args, || r.dense_field())?;
         let counts =
             json!({"vertices": r.mesh.vertices.len(), "triangles": r.mesh.triangles.len()});
-        (Geometry::from_mesh(r.mesh), r.report, counts)
+        let fit = data_fit_json(ctx, &r.mesh, geometry);
+        (Geometry::from_mesh(r.mesh), r.report, counts, fit)
     };
     spinner.finish_and_clear();
     io::write(&args.output, &output)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
-    summarize(args, &input, &report, counts, two_d, ctx);
+    summarize(args, &input, &report, (counts, fit), two_d, ctx);
     Ok(())
 }
 
@@ -230,7 +239,7 @@ fn summarize(
     args: &Args,
     input: &Input,
     report: &Report,
-    counts: serde_json::Value,
+    (counts, fit): (serde_json::Value, serde_json::Value),
     two_d: bool,
     ctx: &Context,
 ) {
@@ -295,5 +304,18 @@ fn summarize(
         "timings": stages,
         "seconds_total": total,
         "output_counts": counts,
+        "data_fit": fit,
     }));
+}
+
+/// With `--json`: how closely `mesh` reaches every input datum (points,
+/// curve and patch vertices); null otherwise (it costs a pass over the data).
+pub fn data_fit_json(ctx: &Context, mesh: &TriMesh, geometry: &Geometry) -> serde_json::Value {
+    if !ctx.json {
+        return serde_json::Value::Null;
+    }
+    match data_fit(mesh, &geometry.points.positions) {
+        Ok(fit) => serde_json::to_value(fit).unwrap_or_default(),
+        Err(e) => json!({"error": e.to_string()}),
+    }
 }

@@ -4,7 +4,7 @@
 //! normals the crossings imply, not from a level set, whose weighted-area
 //! flow would shrink the film between sparse curves into tubes around them.
 
-use crate::commands::reconstruct::Args;
+use crate::commands::reconstruct::{data_fit_json, Args};
 use crate::context::Context;
 use anyhow::Context as _;
 use serde_json::json;
@@ -35,7 +35,12 @@ pub fn detect(geometry: &Geometry) -> Option<CurveNetwork> {
     (network.crossed_curves() >= MIN_CROSSED_CURVES).then_some(network)
 }
 
-pub fn run(args: &Args, network: &CurveNetwork, ctx: &Context) -> anyhow::Result<()> {
+pub fn run(
+    args: &Args,
+    geometry: &Geometry,
+    network: &CurveNetwork,
+    ctx: &Context,
+) -> anyhow::Result<()> {
     if args.field.is_some() || args.shell.is_some() || args.two_d {
         anyhow::bail!(
             "--field, --shell and --2d apply to the level-set path, not to curve networks (add --no-curve-network)"
@@ -50,6 +55,7 @@ pub fn run(args: &Args, network: &CurveNetwork, ctx: &Context) -> anyhow::Result
         .context("curve-network reconstruction failed")?;
     let seconds = start.elapsed().as_secs_f64();
     let (vertices, triangles) = (mesh.vertices.len(), mesh.triangles.len());
+    let fit = data_fit_json(ctx, &mesh, geometry);
     io::write(&args.output, &Geometry::from_mesh(mesh))
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     ctx.say(format!(
@@ -75,6 +81,7 @@ pub fn run(args: &Args, network: &CurveNetwork, ctx: &Context) -> anyhow::Result
         },
         "seconds_total": seconds,
         "output_counts": {"vertices": vertices, "triangles": triangles},
+        "data_fit": fit,
     }));
     Ok(())
 }
