@@ -768,6 +768,8 @@ const LINE_RATIO: f64 = 0.04;
 /// Share of points that must be on clean stretches for a point set to be
 /// read as curves.
 const MIN_CURVE_SHARE: f64 = 0.6;
+/// Points looked at before the whole set is.
+const PRECHECK: usize = 2000;
 /// Chains with fewer points are dropped.
 const MIN_CHAIN: usize = 5;
 /// A trace steps to points within this many spacings ahead...
@@ -794,18 +796,26 @@ pub fn chain_points(points: &[DVec3]) -> Option<Vec<Curve>> {
         return None;
     }
     let tree = KdTree::new(points);
-    let spacing: Vec<f64> = points
-        .iter()
-        .map(|p| tree.knn(*p, 3).get(2).map_or(0.0, |n| n.distance))
-        .collect();
-    let s = median(&spacing);
+    let spacing_at = |i: usize| tree.knn(points[i], 3).get(2).map_or(0.0, |n| n.distance);
+    // A surface scan fails the line test on a subset already (so a scan of
+    // millions of points costs little here).
+    let stride = (points.len() / PRECHECK).max(1);
+    let probe: Vec<usize> = (0..points.len()).step_by(stride).collect();
+    let s = median(&probe.iter().map(|&i| spacing_at(i)).collect::<Vec<_>>());
     if s <= 0.0 {
         return None;
     }
-    let tangents: Vec<Option<DVec3>> = points
+    let tangent =
+        |i: usize, sp: f64| line_direction(&tree, points, points[i], LINE_RADIUS * sp.max(0.5 * s));
+    let lines = probe
         .iter()
-        .zip(&spacing)
-        .map(|(p, &sp)| line_direction(&tree, points, *p, LINE_RADIUS * sp.max(0.5 * s)))
+        .filter(|&&i| tangent(i, spacing_at(i)).is_some())
+        .count();
+    if (lines as f64) < MIN_CURVE_SHARE * probe.len() as f64 {
+        return None;
+    }
+    let tangents: Vec<Option<DVec3>> = (0..points.len())
+        .map(|i| tangent(i, spacing_at(i)))
         .collect();
     let clean = tangents.iter().filter(|t| t.is_some()).count();
     if (clean as f64) < MIN_CURVE_SHARE * points.len() as f64 {
