@@ -63,6 +63,10 @@ const SAME_SURFACE: f64 = 0.85;
 /// sides of a thin part, such as an ear) or heavy noise: projecting onto it
 /// would pull both sides onto their middle.
 const ONE_SHEET: f64 = 0.03;
+/// With twice the neighbours, a residual that grows less than this is
+/// noise; more, the shape (measured: noise 1.2–1.45, shape of clean sparse
+/// or curved data 2.2–3.3, on the harness's shapes and the VIPSS kitten).
+const SHAPE_GROWTH: f64 = 1.8;
 /// Projections of noisy data: the second, on the already smoothed points,
 /// averages what the first left (on the bunny with 1% noise: Chamfer −5%).
 const PROJECTION_PASSES: usize = 2;
@@ -290,28 +294,48 @@ fn median(mut values: Vec<f64>) -> f64 {
 }
 
 /// Whether the data are noisy: on an even sample of the points (a few
-/// thousand are plenty for two medians), the median quadric fit residual
-/// is at least [`NOISE_SHARE`] of the median neighbourhood radius. Clean
-/// data are then left as they are, so their sharp corners (which no
-/// quadric fits) stay sharp, and they cost no fit per point.
+/// thousand are plenty for medians), the median quadric fit residual is at
+/// least [`NOISE_SHARE`] of the median neighbourhood radius, and it is
+/// noise that leaves it: with twice the neighbours the residual of noise
+/// stays about the same, while the misfit of shape (curvature changing
+/// across a wide neighbourhood of sparse data) grows with the cube of the
+/// radius ([`SHAPE_GROWTH`]). Clean data are then left as they are, so
+/// their sharp corners (which no quadric fits) and sparse samples stay, and
+/// they cost no fit per point.
 fn is_noisy(points: &[DVec3], tree: &KdTree, dim: usize) -> bool {
+    let Some((residual, radius)) = median_fit(points, tree, dim, NEIGHBOURS) else {
+        return false;
+    };
+    if residual < NOISE_SHARE * radius {
+        return false;
+    }
+    median_fit(points, tree, dim, 2 * NEIGHBOURS)
+        .is_some_and(|(wider, _)| wider < SHAPE_GROWTH * residual)
+}
+
+/// Median residual and radius of quadric fits to `k` neighbours, over an
+/// even sample of the points.
+fn median_fit(points: &[DVec3], tree: &KdTree, dim: usize, k: usize) -> Option<(f64, f64)> {
     let stride = (points.len() / NOISE_SAMPLE).max(1);
     let sample: Vec<Fit> = (0..points.len())
         .into_par_iter()
         .step_by(stride)
         .filter_map(|i| {
-            let found = tree.knn(points[i], NEIGHBOURS + 1);
+            let found = tree.knn(points[i], k + 1);
             let neighbours = found
                 .iter()
                 .filter(|n| n.index != i)
-                .take(NEIGHBOURS)
+                .take(k)
                 .map(|n| points[n.index]);
             project(points[i], neighbours, dim)
         })
         .collect();
+    if sample.is_empty() {
+        return None;
+    }
     let residuals: Vec<f64> = sample.iter().map(|f| f.residual).collect();
     let radii: Vec<f64> = sample.iter().map(|f| f.radius).collect();
-    !residuals.is_empty() && median(residuals) >= NOISE_SHARE * median(radii)
+    Some((median(residuals), median(radii)))
 }
 
 /// How [`project_onto_points`] fits the data around a vertex.

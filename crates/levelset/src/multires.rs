@@ -1,8 +1,9 @@
-//! Multiresolution: the dense distance and the tagging run on a coarser
-//! grid (1/2^dim of the nodes per level), φ is interpolated to each finer
-//! grid, grown back to the points the coarse surface missed
-//! ([`grow_to_points`]), and only the finest level evolves: evolving on a
-//! coarse grid erodes parts thinner than its cells.
+//! Multiresolution: the dense distance, the tagging and a first evolution
+//! run on a coarser grid (1/2^dim of the nodes per level). That evolution
+//! erodes parts thinner than its cells, so the tagged inside is put back
+//! around the points it left outside ([`restore_near_missed`]); φ is then
+//! interpolated to each finer grid, grown to the points still missed
+//! ([`grow_to_points`]), and evolved on the finest.
 
 use crate::band::{inside, is_inner, NarrowBand};
 use crate::error::Result;
@@ -168,12 +169,7 @@ pub fn grow_to_points<const D: usize>(
     let spec = *band.spec();
     let h = spec.spacing;
     let half_width = band.half_width;
-    let position = |p: &DVec3| -> [f64; D] { std::array::from_fn(|a| p[a]) };
-    let missed: Vec<[f64; D]> = points
-        .par_iter()
-        .map(position)
-        .filter(|&p| interpolate_with(&spec, |i| band.phi.get(i), p) > MISSED_CELLS * h)
-        .collect();
+    let missed = points_outside(&band, points, MISSED_CELLS * h);
     if missed.is_empty() {
         return (band, 0);
     }
@@ -193,6 +189,54 @@ pub fn grow_to_points<const D: usize>(
     let mut band = NarrowBand::from_grid(grid, half_width);
     reinitialize(&mut band);
     (band, missed.len())
+}
+
+/// Put back, near the points an evolution left outside (φ above
+/// `cells` cells at the point), the inside of `before` (the surface the
+/// evolution started from, on the same grid): within `radius` of each such
+/// point φ becomes min(φ, φ_before). Returns the band and the count.
+pub fn restore_near_missed<const D: usize>(
+    band: NarrowBand<D>,
+    before: &NarrowBand<D>,
+    points: &[DVec3],
+    cells: f64,
+    radius: f64,
+) -> (NarrowBand<D>, usize) {
+    let spec = *band.spec();
+    let half_width = band.half_width;
+    let missed = points_outside(&band, points, cells * spec.spacing);
+    if missed.is_empty() {
+        return (band, 0);
+    }
+    let mut grid = band.phi;
+    for p in &missed {
+        let Some((lo, hi)) = spec.node_box((*p, *p), radius) else {
+            continue;
+        };
+        for_each_in_box(lo, hi, |&idx| {
+            let old = before.phi.get(idx);
+            if old < grid.get(idx) && is_inner(&spec, idx) {
+                grid.set(idx, old.clamp(-half_width, half_width));
+            }
+        });
+    }
+    let mut band = NarrowBand::from_grid(grid, half_width);
+    reinitialize(&mut band);
+    (band, missed.len())
+}
+
+/// The points where φ (interpolated) exceeds `beyond`.
+fn points_outside<const D: usize>(
+    band: &NarrowBand<D>,
+    points: &[DVec3],
+    beyond: f64,
+) -> Vec<[f64; D]> {
+    let spec = *band.spec();
+    points
+        .par_iter()
+        .map(|p| -> [f64; D] { std::array::from_fn(|a| p[a]) })
+        .filter(|&p| interpolate_with(&spec, |i| band.phi.get(i), p) > beyond)
+        .collect()
 }
 
 #[cfg(test)]
@@ -265,5 +309,39 @@ mod tests {
         assert_eq!(auto_levels(&[100, 80, 60]), 1);
         assert_eq!(auto_levels(&[300, 212, 136]), 2);
         assert_eq!(auto_levels(&[1000, 10]), 3);
+    }
+
+    /// A sphere of radius `r` as a band on a small grid.
+    fn sphere_band(r: f64) -> NarrowBand<3> {
+        let spec = GridSpec::<3> {
+            origin: [-1.0; 3],
+            spacing: 0.05,
+            dims: [41; 3],
+        };
+        let field = Field {
+            spec,
+            values: (0..spec.node_count())
+                .map(|l| DVec3::from_array(spec.position(spec.unlinear(l))).length() - r)
+                .collect(),
+        };
+        NarrowBand::from_field(field, 0.5).unwrap()
+    }
+
+    #[test]
+    fn the_inside_before_comes_back_only_around_missed_points() {
+        // Evolution shrank a sphere of radius 0.7 to 0.5; one point on the
+        // old surface is now missed, one on the new surface is not.
+        let (before, after) = (sphere_band(0.7), sphere_band(0.5));
+        let missed = DVec3::new(0.7, 0.0, 0.0);
+        let reached = DVec3::new(0.0, 0.5, 0.0);
+        let (band, count) = restore_near_missed(after, &before, &[missed, reached], 0.5, 0.2);
+        assert_eq!(count, 1);
+        let phi = |p: DVec3| interpolate_with(band.spec(), |i| band.phi.get(i), p.to_array());
+        // Near the missed point the surface is back at 0.7 ...
+        assert!(phi(DVec3::new(0.65, 0.0, 0.0)) < 0.0);
+        assert!(phi(missed).abs() < 0.05, "{}", phi(missed));
+        // ... elsewhere it stays at 0.5.
+        assert!(phi(DVec3::new(-0.6, 0.0, 0.0)) > 0.05);
+        assert!(phi(DVec3::new(0.0, 0.0, 0.6)) > 0.05);
     }
 }

@@ -8,7 +8,9 @@ use crate::band::{BandDistance, NarrowBand};
 use crate::cleaning::{clean_points, CleaningStats};
 use crate::error::{LevelsetError, Result};
 use crate::flow::{evolve, Anchors, EvolveParams, EvolveStats, Motion};
-use crate::multires::{auto_levels, coarsen, grow_to_points, interpolate, upsample_band};
+use crate::multires::{
+    auto_levels, coarsen, grow_to_points, interpolate, restore_near_missed, upsample_band,
+};
 use crate::refine::{refine_surface, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
 use crate::slices::{detect_slices, interpolate_slices, SliceStack};
@@ -101,7 +103,7 @@ pub struct ReconstructParams {
     /// Narrow band half-width in cells (≥ 2).
     pub band: f64,
     /// Resolution levels (None: automatic, coarse levels for large grids;
-    /// coarse levels only build the initial surface).
+    /// coarse levels build the initial surface, the coarsest also evolves).
     pub levels: Option<usize>,
     /// Convergence: mean zero-set displacement per step near the data,
     /// relative to the largest possible (see [`EvolveParams::tolerance`]).
@@ -170,6 +172,9 @@ pub struct Report {
     /// Points a coarser level left outside its surface, which a finer
     /// level grew the surface back to ([`crate::multires::grow_to_points`]).
     pub grown_to_points: usize,
+    /// Points the coarsest evolution left outside, around which the tagged
+    /// inside was put back ([`crate::multires::restore_near_missed`]).
+    pub restored_near_points: usize,
     /// Band nodes at the end.
     pub band_nodes: usize,
     /// Blocks of 8^D nodes (the sparse grid's blocks) allocated for φ.
@@ -375,9 +380,11 @@ fn evolve_field<const D: usize>(
         coarsest_distance(input, coarsest_spec, levels > 1)
     })?;
     let mut band = initial_band(input, params, sampling, &coarsest_d, report)?;
-    // Coarser levels only tag: evolving there erodes parts thinner than
-    // their cells, which no finer level could grow back. Each finer level
-    // takes the tagged surface and grows it to the points it missed.
+    if levels > 1 {
+        band = evolve_coarsest(input, sampling, band, &coarsest_d, params, report)?;
+    }
+    // Each finer level takes the coarser surface and grows it to the
+    // points it missed.
     for level in (0..levels - 1).rev() {
         let spec = coarsen(&fine, 1 << level);
         band = report.time("upsample", || -> Result<NarrowBand<D>> {
@@ -397,7 +404,7 @@ fn evolve_field<const D: usize>(
             refined_distance(input, fine, coarsest_d, FINE_EXACT_CELLS)
         })?
     };
-    solve_finest(input, sampling, &mut band, &mut d, params, report);
+    solve_level(input, sampling, &mut band, &mut d, params, report);
     report.band_nodes = band.len();
     report.band_blocks = band.block_count();
     report.band_bytes = band.memory_bytes();
@@ -406,6 +413,36 @@ fn evolve_field<const D: usize>(
         .then(|| report.time("full field", || signed_distance_everywhere(&band)));
     Ok((band.phi, field))
 }
+
+/// The coarsest level's evolution, which brings the surface from the
+/// tagged contour down to the data (into creases and concavities a finer
+/// level's convection alone gets stuck over). Parts thinner than a coarse
+/// cell erode there, so around every point it leaves outside (by more than
+/// [`RESTORE_CELLS`]) the tagged inside is put back within ε, for the finer
+/// levels to shape.
+fn evolve_coarsest<const D: usize>(
+    input: &Input,
+    sampling: f64,
+    tagged: NarrowBand<D>,
+    distance: &Arc<Field<D>>,
+    params: &ReconstructParams,
+    report: &mut Report,
+) -> Result<NarrowBand<D>> {
+    let mut band = tagged.clone();
+    let mut d = BandDistance::dense(distance.clone())?;
+    solve_level(input, sampling, &mut band, &mut d, params, report);
+    let epsilon = report.epsilon;
+    let (band, restored) = report.time("restore", || {
+        restore_near_missed(band, &tagged, &input.points, RESTORE_CELLS, epsilon)
+    });
+    report.restored_near_points = restored;
+    Ok(band)
+}
+
+/// Points farther outside the coarse evolved surface than this many coarse
+/// cells get the tagged inside back around them (measured on the spikes
+/// shape: 2 cells leaves the thin cones eroded and spurious handles).
+const RESTORE_CELLS: f64 = 0.5;
 
 /// The coarsest level's unsigned distance on the whole grid. Below finer
 /// levels it only gives them their start: one point per half cell
@@ -432,7 +469,7 @@ const GROW_GAPS: f64 = 0.6;
 /// The finest level's evolution, with the distance computed on the band's
 /// blocks first (the evolution adds blocks as the band moves), so its cost
 /// shows as such; records the distance's size.
-fn solve_finest<const D: usize>(
+fn solve_level<const D: usize>(
     input: &Input,
     sampling: f64,
     band: &mut NarrowBand<D>,
