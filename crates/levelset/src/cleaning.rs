@@ -719,6 +719,26 @@ mod tests {
     }
 
     #[test]
+    fn sparse_clean_samples_of_a_curved_shape_stay_where_they_are() {
+        // 300 exact points on a thin torus: 16 neighbours span a patch the
+        // quadric cannot follow (residual 4 times the noise threshold), but
+        // that misfit grows with the patch, so it is shape, not noise.
+        // (Sparser still, neighbourhoods reach across the tube and the test
+        // can no longer tell.)
+        let torus = surfrecon_geom::shapes::torus(1.0, 0.2, 64, 32);
+        let pts = surfrecon_geom::shapes::sample_surface(&torus, 300, 3).positions;
+        let tree = KdTree::new(&pts);
+        let (residual, radius) = median_fit(&pts, &tree, 3, NEIGHBOURS).unwrap();
+        assert!(
+            residual >= NOISE_SHARE * radius,
+            "the single-scale test would call this noise"
+        );
+        let (cleaned, stats) = clean_points(&pts, 3);
+        assert_eq!(stats.projected, 0);
+        assert_eq!(cleaned, pts);
+    }
+
+    #[test]
     fn clean_data_keep_their_corners() {
         // Points along the edges of a square: no noise, so no projection.
         let pts: Vec<DVec3> = (0..400)

@@ -466,9 +466,9 @@ fn coarsest_distance<const D: usize>(
 const GROW_CELLS: f64 = 1.5;
 const GROW_GAPS: f64 = 0.6;
 
-/// The finest level's evolution, with the distance computed on the band's
-/// blocks first (the evolution adds blocks as the band moves), so its cost
-/// shows as such; records the distance's size.
+/// One level's evolution, anchored to the data, with the distance computed
+/// on the band's blocks first (the evolution adds blocks as the band moves),
+/// so its cost shows as such; records the distance's size.
 fn solve_level<const D: usize>(
     input: &Input,
     sampling: f64,
