@@ -34,6 +34,21 @@ pub struct Curve {
 }
 
 impl Curve {
+    /// A closed circle of `n` vertices: centre + radius (cos t u + sin t v)
+    /// for unit, orthogonal `u`, `v` (test and example networks).
+    pub fn circle(center: DVec3, u: DVec3, v: DVec3, radius: f64, n: usize) -> Self {
+        let points = (0..n)
+            .map(|i| {
+                let t = 2.0 * PI * i as f64 / n as f64;
+                center + radius * (t.cos() * u + t.sin() * v)
+            })
+            .collect();
+        Curve {
+            points,
+            closed: true,
+        }
+    }
+
     /// Number of segments.
     pub fn segment_count(&self) -> usize {
         match (self.closed, self.points.len()) {
@@ -1016,26 +1031,13 @@ fn line_direction(tree: &KdTree, points: &[DVec3], p: DVec3, r: f64) -> Option<D
 mod tests {
     use super::*;
 
-    fn circle(center: DVec3, u: DVec3, v: DVec3, r: f64, n: usize) -> Curve {
-        let points = (0..n)
-            .map(|i| {
-                let a = 2.0 * PI * i as f64 / n as f64;
-                center + r * (a.cos() * u + a.sin() * v)
-            })
-            .collect();
-        Curve {
-            points,
-            closed: true,
-        }
-    }
-
     /// Three orthogonal great circles of the unit sphere.
     fn great_circles(n: usize) -> Vec<Curve> {
         let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
         vec![
-            circle(DVec3::ZERO, x, y, 1.0, n),
-            circle(DVec3::ZERO, y, z, 1.0, n),
-            circle(DVec3::ZERO, z, x, 1.0, n),
+            Curve::circle(DVec3::ZERO, x, y, 1.0, n),
+            Curve::circle(DVec3::ZERO, y, z, 1.0, n),
+            Curve::circle(DVec3::ZERO, z, x, 1.0, n),
         ]
     }
 
@@ -1063,13 +1065,13 @@ mod tests {
         // Torus R = 1, r = 0.3 around z: four meridians, outer and inner equator.
         let (big, small) = (1.0, 0.3);
         let mut curves = vec![
-            circle(DVec3::ZERO, DVec3::X, DVec3::Y, big + small, 300),
-            circle(DVec3::ZERO, DVec3::X, DVec3::Y, big - small, 200),
+            Curve::circle(DVec3::ZERO, DVec3::X, DVec3::Y, big + small, 300),
+            Curve::circle(DVec3::ZERO, DVec3::X, DVec3::Y, big - small, 200),
         ];
         for k in 0..4 {
             let a = PI * 0.5 * k as f64 + 0.3;
             let radial = DVec3::new(a.cos(), a.sin(), 0.0);
-            curves.push(circle(big * radial, radial, DVec3::Z, small, 80));
+            curves.push(Curve::circle(big * radial, radial, DVec3::Z, small, 80));
         }
         let net = CurveNetwork::new(curves);
         assert_eq!(net.crossings.len(), 8);
@@ -1116,7 +1118,7 @@ mod tests {
 
     #[test]
     fn polylines_meeting_end_to_end_are_joined() {
-        let c = circle(DVec3::ZERO, DVec3::X, DVec3::Y, 1.0, 40);
+        let c = Curve::circle(DVec3::ZERO, DVec3::X, DVec3::Y, 1.0, 40);
         let vertices = c.points.clone();
         // Two halves sharing vertices 0 and 20.
         let first: Vec<u32> = (0..=20).collect();

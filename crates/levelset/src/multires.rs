@@ -167,28 +167,11 @@ pub fn grow_to_points<const D: usize>(
     radius: f64,
 ) -> (NarrowBand<D>, usize) {
     let spec = *band.spec();
-    let h = spec.spacing;
-    let half_width = band.half_width;
-    let missed = points_outside(&band, points, MISSED_CELLS * h);
-    if missed.is_empty() {
-        return (band, 0);
-    }
-    let mut grid = band.phi;
-    for p in &missed {
-        let Some((lo, hi)) = spec.node_box((*p, *p), radius) else {
-            continue;
-        };
-        for_each_in_box(lo, hi, |&idx| {
-            let x = spec.position(idx);
-            let dist = (0..D).map(|a| (x[a] - p[a]).powi(2)).sum::<f64>().sqrt() - radius;
-            if dist < grid.get(idx) && is_inner(&spec, idx) {
-                grid.set(idx, dist.clamp(-half_width, half_width));
-            }
-        });
-    }
-    let mut band = NarrowBand::from_grid(grid, half_width);
-    reinitialize(&mut band);
-    (band, missed.len())
+    let beyond = MISSED_CELLS * spec.spacing;
+    lower_around_points_outside(band, points, beyond, radius, |idx, p| {
+        let x = spec.position(idx);
+        (0..D).map(|a| (x[a] - p[a]).powi(2)).sum::<f64>().sqrt() - radius
+    })
 }
 
 /// Put back, near the points an evolution left outside (φ above
@@ -202,9 +185,23 @@ pub fn restore_near_missed<const D: usize>(
     cells: f64,
     radius: f64,
 ) -> (NarrowBand<D>, usize) {
+    let beyond = cells * band.spec().spacing;
+    lower_around_points_outside(band, points, beyond, radius, |idx, _| before.phi.get(idx))
+}
+
+/// Around every point where φ exceeds `beyond`, lowers φ at the inner nodes
+/// within `radius` to `value(node, point)` where that is lower,
+/// then reinitializes. Returns the band and the count of such points.
+fn lower_around_points_outside<const D: usize>(
+    band: NarrowBand<D>,
+    points: &[DVec3],
+    beyond: f64,
+    radius: f64,
+    value: impl Fn([usize; D], [f64; D]) -> f64,
+) -> (NarrowBand<D>, usize) {
     let spec = *band.spec();
     let half_width = band.half_width;
-    let missed = points_outside(&band, points, cells * spec.spacing);
+    let missed = points_outside(&band, points, beyond);
     if missed.is_empty() {
         return (band, 0);
     }
@@ -214,9 +211,9 @@ pub fn restore_near_missed<const D: usize>(
             continue;
         };
         for_each_in_box(lo, hi, |&idx| {
-            let old = before.phi.get(idx);
-            if old < grid.get(idx) && is_inner(&spec, idx) {
-                grid.set(idx, old.clamp(-half_width, half_width));
+            let v = value(idx, *p);
+            if v < grid.get(idx) && is_inner(&spec, idx) {
+                grid.set(idx, v.clamp(-half_width, half_width));
             }
         });
     }

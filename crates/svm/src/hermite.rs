@@ -89,39 +89,38 @@ impl HermiteFit {
     /// f at `x`, in data units (≈ signed distance near the samples).
     pub fn value(&self, x: DVec3) -> f64 {
         let y = (x - self.shift) * self.scale;
-        let mut f = self.constant + self.linear.dot(y);
-        for ((c, a), b) in self
-            .centres
-            .iter()
-            .zip(&self.value_weights)
-            .zip(&self.gradient_weights)
-        {
-            let v = y - *c;
-            let r = v.length();
-            f += r * (a * r * r - 3.0 * b.dot(v));
-        }
+        let f = self
+            .terms(y)
+            .fold(self.constant + self.linear.dot(y), |f, (v, r, a, b)| {
+                f + r * (a * r * r - 3.0 * b.dot(v))
+            });
         f / self.scale
     }
 
     /// ∇f at `x`.
     pub fn gradient(&self, x: DVec3) -> DVec3 {
         let y = (x - self.shift) * self.scale;
-        let mut g = self.linear;
-        for ((c, a), b) in self
-            .centres
+        // ∇φ = 3 r v, Hessian H = 3 (r I + v vᵀ / r) (0 at v = 0).
+        self.terms(y).fold(self.linear, |g, (v, r, a, b)| {
+            let hessian_b = if r > 0.0 {
+                3.0 * (r * b + v * (v.dot(b) / r))
+            } else {
+                DVec3::ZERO
+            };
+            g + 3.0 * a * r * v - hessian_b
+        })
+    }
+
+    /// Per centre, at normalized `y`: (y − centre, its length, a_j, b_j).
+    fn terms(&self, y: DVec3) -> impl Iterator<Item = (DVec3, f64, f64, DVec3)> + '_ {
+        self.centres
             .iter()
             .zip(&self.value_weights)
             .zip(&self.gradient_weights)
-        {
-            let v = y - *c;
-            let r = v.length();
-            // ∇φ = 3 r v, Hessian H = 3 (r I + v vᵀ / r) (0 at v = 0).
-            g += 3.0 * a * r * v;
-            if r > 0.0 {
-                g -= 3.0 * (r * *b + v * (v.dot(*b) / r));
-            }
-        }
-        g
+            .map(move |((c, a), b)| {
+                let v = y - *c;
+                (v, v.length(), *a, *b)
+            })
     }
 
     /// Number of samples (kernel centres).

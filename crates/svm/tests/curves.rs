@@ -8,19 +8,6 @@ use surfrecon_geom::metrics::{closest_point_on_triangle, topology};
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_svm::curve_network::{reconstruct_from_curves, CurveFitOptions};
 
-fn circle(center: DVec3, u: DVec3, v: DVec3, r: f64, n: usize) -> Curve {
-    let points = (0..n)
-        .map(|i| {
-            let a = 2.0 * PI * i as f64 / n as f64;
-            center + r * (a.cos() * u + a.sin() * v)
-        })
-        .collect();
-    Curve {
-        points,
-        closed: true,
-    }
-}
-
 /// Distance from `p` to the nearest triangle of `mesh` (brute force).
 fn distance_to_mesh(mesh: &TriMesh, p: DVec3) -> f64 {
     mesh.triangles
@@ -47,11 +34,11 @@ fn sphere_from_three_great_circles_and_two_latitudes() {
     let o = DVec3::new(1.0, -2.0, 0.5);
     let lat = 0.5f64; // ±30°
     let curves = vec![
-        circle(o, x, y, 1.0, 180),
-        circle(o, y, z, 1.0, 180),
-        circle(o, z, x, 1.0, 180),
-        circle(o + lat.sin() * z, x, y, lat.cos(), 160),
-        circle(o - lat.sin() * z, x, y, lat.cos(), 160),
+        Curve::circle(o, x, y, 1.0, 180),
+        Curve::circle(o, y, z, 1.0, 180),
+        Curve::circle(o, z, x, 1.0, 180),
+        Curve::circle(o + lat.sin() * z, x, y, lat.cos(), 160),
+        Curve::circle(o - lat.sin() * z, x, y, lat.cos(), 160),
     ];
     let mesh = reconstruct(curves.clone());
     let topo = topology(&mesh);
@@ -78,15 +65,15 @@ fn sphere_from_three_great_circles_and_two_latitudes() {
 fn torus_from_eight_cross_section_circles_has_genus_one() {
     let (big, small) = (1.0, 0.35);
     let mut curves = vec![
-        circle(DVec3::ZERO, DVec3::X, DVec3::Y, big + small, 300),
-        circle(DVec3::ZERO, DVec3::X, DVec3::Y, big - small, 200),
-        circle(small * DVec3::Z, DVec3::X, DVec3::Y, big, 250),
-        circle(-small * DVec3::Z, DVec3::X, DVec3::Y, big, 250),
+        Curve::circle(DVec3::ZERO, DVec3::X, DVec3::Y, big + small, 300),
+        Curve::circle(DVec3::ZERO, DVec3::X, DVec3::Y, big - small, 200),
+        Curve::circle(small * DVec3::Z, DVec3::X, DVec3::Y, big, 250),
+        Curve::circle(-small * DVec3::Z, DVec3::X, DVec3::Y, big, 250),
     ];
     for k in 0..4 {
         let a = 0.5 * PI * k as f64 + 0.4;
         let radial = DVec3::new(a.cos(), a.sin(), 0.0);
-        curves.push(circle(big * radial, radial, DVec3::Z, small, 70));
+        curves.push(Curve::circle(big * radial, radial, DVec3::Z, small, 70));
     }
     let mut points: Vec<DVec3> = curves.iter().flat_map(|c| c.points.clone()).collect();
     // Unordered, as a scanner or a segmentation would give them.
