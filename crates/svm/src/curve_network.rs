@@ -6,7 +6,7 @@ use crate::error::{Result, SvmError};
 use crate::hermite::{HermiteFit, HermiteSample, MAX_SAMPLES};
 use crate::mesh::{mesh_model, MeshOptions};
 use glam::DVec3;
-use surfrecon_geom::curves::CurveNetwork;
+use surfrecon_geom::curves::{CurveNetwork, MAX_TURN};
 use surfrecon_geom::{Aabb, TriMesh};
 
 /// How to span a network.
@@ -87,7 +87,7 @@ fn hermite_samples(network: &CurveNetwork) -> Result<(Vec<HermiteSample>, f64)> 
     let mut step = network.spacing.max(length / MAX_SAMPLES as f64);
     for _ in 0..100 {
         let samples: Vec<HermiteSample> = network
-            .samples(step)
+            .samples(step, MAX_TURN)
             .into_iter()
             .map(|(position, normal)| HermiteSample { position, normal })
             .collect();
