@@ -204,3 +204,33 @@ fn crossing_curves_give_one_closed_torus() {
     ]));
     assert_eq!(plain["method"], "levelset");
 }
+
+/// Contours on parallel slices stay on the contour-slice path even where
+/// two contours of one slice cross each other (no network crossing: the
+/// surface normal there is not the plane's).
+#[test]
+fn crossing_contours_within_slices_stay_a_slice_stack() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("stack.xyz");
+    let output = dir.path().join("stack.ply");
+    let mut text = String::new();
+    for k in 0..6 {
+        let z = 0.2 * k as f64;
+        for centre in [-0.3, 0.3] {
+            for i in 0..160 {
+                let a = i as f64 / 160.0 * std::f64::consts::TAU;
+                text.push_str(&format!("{} {} {z}\n", centre + 0.5 * a.cos(), 0.5 * a.sin()));
+            }
+        }
+    }
+    std::fs::write(&input, text).unwrap();
+    let summary = json_of(&surfrecon(&[
+        "reconstruct",
+        "--json",
+        path_str(&input),
+        "-o",
+        path_str(&output),
+    ]));
+    assert_eq!(summary["method"], "levelset");
+    assert_eq!(summary["slices"]["count"], 6, "{}", summary["slices"]);
+}

@@ -11,6 +11,8 @@ use serde_json::json;
 use std::time::Instant;
 use surfrecon_geom::curves::{chain_points, curves_from_polylines, CurveNetwork};
 use surfrecon_geom::{io, Geometry, Polylines};
+use surfrecon_levelset::slices::detect_slices;
+use surfrecon_levelset::Input;
 use surfrecon_svm::curve_network::{reconstruct_from_curves, CurveFitOptions};
 
 /// A network needs this many curves with implied normals (parallel
@@ -18,9 +20,11 @@ use surfrecon_svm::curve_network::{reconstruct_from_curves, CurveFitOptions};
 const MIN_CROSSED_CURVES: usize = 2;
 
 /// The input as a crossing curve network, if it is one: only curves (or
-/// points along curves), no triangles, and curves that cross.
+/// points along curves), no triangles, not a stack of parallel contour
+/// slices (contours within one plane may touch, which is no crossing), and
+/// curves that cross.
 pub fn detect(geometry: &Geometry) -> Option<CurveNetwork> {
-    if !geometry.triangles.is_empty() {
+    if !geometry.triangles.is_empty() || detect_slices(&Input::from_geometry(geometry)).is_some() {
         return None;
     }
     let curves = if geometry.lines.is_empty() {
