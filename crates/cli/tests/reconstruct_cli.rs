@@ -219,7 +219,11 @@ fn crossing_contours_within_slices_stay_a_slice_stack() {
         for centre in [-0.3, 0.3] {
             for i in 0..160 {
                 let a = i as f64 / 160.0 * std::f64::consts::TAU;
-                text.push_str(&format!("{} {} {z}\n", centre + 0.5 * a.cos(), 0.5 * a.sin()));
+                text.push_str(&format!(
+                    "{} {} {z}\n",
+                    centre + 0.5 * a.cos(),
+                    0.5 * a.sin()
+                ));
             }
         }
     }

@@ -639,6 +639,40 @@ fn segment_closest(a0: DVec3, a1: DVec3, b0: DVec3, b1: DVec3) -> (f64, f64) {
 /// Places where two curves (or two far-apart parts of one) pass within
 /// [`CROSSING_TOLERANCE`] spacings at a clear angle; one crossing per pair
 /// of curves and place, the closest approach.
+/// The plane a curve lies in (unit normal n, offset n·p).
+#[derive(Clone, Copy, Debug)]
+struct Plane {
+    normal: DVec3,
+    offset: f64,
+}
+
+impl Plane {
+    /// The curve's plane, if every vertex is within a quarter spacing of it.
+    fn of(c: &Curve, spacing: f64) -> Option<Self> {
+        if c.points.len() < 3 {
+            return None;
+        }
+        let normal = crate::normals::plane_normal(&c.points).try_normalize()?;
+        let centre = c.points.iter().sum::<DVec3>() / c.points.len() as f64;
+        let flat = c
+            .points
+            .iter()
+            .all(|p| (*p - centre).dot(normal).abs() <= 0.25 * spacing);
+        flat.then(|| Plane {
+            normal,
+            offset: normal.dot(centre),
+        })
+    }
+
+    fn same(a: Option<Self>, b: Option<Self>, spacing: f64) -> bool {
+        let (Some(a), Some(b)) = (a, b) else {
+            return false;
+        };
+        let cos = a.normal.dot(b.normal);
+        cos.abs() > 0.999 && (a.offset - cos.signum() * b.offset).abs() < spacing
+    }
+}
+
 fn find_crossings(curves: &[Curve], spacing: f64) -> Vec<Crossing> {
     if spacing <= 0.0 {
         return Vec::new();
@@ -657,6 +691,7 @@ fn find_crossings(curves: &[Curve], spacing: f64) -> Vec<Crossing> {
     }
     let tree = KdTree::new(&mids);
     let tol = CROSSING_TOLERANCE * spacing;
+    let planes: Vec<Option<Plane>> = curves.iter().map(|c| Plane::of(c, spacing)).collect();
     // (distance, crossing)
     let mut found: Vec<(f64, Crossing)> = Vec::new();
     for (si, &(ka, ia)) in segs.iter().enumerate() {
@@ -664,6 +699,12 @@ fn find_crossings(curves: &[Curve], spacing: f64) -> Vec<Crossing> {
         for nb in tree.within(mids[si], longest + tol) {
             let (kb, ib) = segs[nb.index];
             if (kb, ib) <= (ka, ia) {
+                continue;
+            }
+            // Two curves in one plane (contours of one slice, a planar
+            // curve with itself) meet without fixing a surface normal:
+            // their tangents only give the plane's.
+            if Plane::same(planes[ka], planes[kb], spacing) {
                 continue;
             }
             let (b0, b1) = curves[kb].segment(ib);
@@ -1123,6 +1164,26 @@ mod tests {
             assert!(off < 0.05, "off-plane {off}");
             assert!(c.points.len() >= 140);
         }
+    }
+
+    #[test]
+    fn curves_crossing_within_one_plane_fix_no_normal() {
+        let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
+        // Two overlapping circles in the plane z = 0.3: no crossing.
+        let flat = CurveNetwork::new(vec![
+            Curve::circle(DVec3::new(-0.3, 0.0, 0.3), x, y, 0.5, 120),
+            Curve::circle(DVec3::new(0.3, 0.0, 0.3), x, y, 0.5, 120),
+        ]);
+        assert!(flat.crossings.is_empty());
+        assert_eq!(flat.crossed_curves(), 0);
+        // The first with a circle in the plane y = 0 through its point
+        // (0.2, 0, 0.3): one crossing, normal ±z.
+        let across = CurveNetwork::new(vec![
+            Curve::circle(DVec3::new(-0.3, 0.0, 0.3), x, y, 0.5, 120),
+            Curve::circle(DVec3::new(0.2, 0.0, 0.8), x, z, 0.5, 120),
+        ]);
+        assert_eq!(across.crossings.len(), 1);
+        assert!(across.crossings[0].normal.dot(z).abs() > 0.99);
     }
 
     #[test]
