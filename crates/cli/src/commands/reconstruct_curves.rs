@@ -14,10 +14,15 @@ use surfrecon_geom::{io, Geometry, Polylines};
 use surfrecon_levelset::slices::detect_slices;
 use surfrecon_levelset::Input;
 use surfrecon_svm::curve_network::{reconstruct_from_curves, CurveFitOptions};
+use surfrecon_svm::hermite::MAX_SAMPLES;
 
 /// A network needs this many curves with implied normals (parallel
 /// contour stacks have none and keep the level-set path).
 const MIN_CROSSED_CURVES: usize = 2;
+/// Denser networks (a wireframe mesh, where every vertex is a crossing)
+/// exceed the Hermite fit's dense system and are treated as data like any
+/// other: at that density the level set no longer collapses between them.
+const MAX_CROSSINGS: usize = MAX_SAMPLES / 2;
 
 /// The input as a crossing curve network, if it is one: only curves (or
 /// points along curves), no triangles, not a stack of parallel contour
@@ -36,7 +41,8 @@ pub fn detect(geometry: &Geometry) -> Option<CurveNetwork> {
         })
     };
     let network = CurveNetwork::new(curves);
-    (network.crossed_curves() >= MIN_CROSSED_CURVES).then_some(network)
+    let fits = network.crossings.len() <= MAX_CROSSINGS;
+    (fits && network.crossed_curves() >= MIN_CROSSED_CURVES).then_some(network)
 }
 
 pub fn run(
