@@ -232,6 +232,18 @@ fn noise_fields_with_values_at_iso_stay_manifold() {
         assert!(!mesh.triangles.is_empty());
         let topo = closed_manifold(&mesh);
         assert_eq!(topo.euler % 2, 0);
+        assert_weld_safe(&mesh, spec.spacing);
+    }
+}
+
+/// No two vertices of a triangle closer than 1e-3 of a cell (vertices on
+/// nodes at iso are kept off them), so welding close vertices with any
+/// tolerance below that changes nothing.
+fn assert_weld_safe(mesh: &TriMesh, h: f64) {
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+        let shortest = a.distance(b).min(b.distance(c)).min(c.distance(a));
+        assert!(shortest >= 0.9e-3 * h, "edge of {shortest} (h = {h})");
     }
 }
 
