@@ -105,43 +105,61 @@ const NORMAL_NEIGHBOURS: usize = 12;
 /// of a part thinner than a cell the gradient says nothing.
 const MIN_ORIENTATION_COSINE: f64 = 0.5;
 
-/// Oriented tangent planes of the points, for the side test.
-pub struct TangentSides {
+/// The points' tangent planes (12-neighbour plane fits) and a search tree
+/// over the points: computed once, shared by every level's
+/// [`TangentSides`].
+pub struct PointPlanes {
     points: Vec<DVec3>,
-    /// Unit normals of the plane fits, and +1 / −1 where that normal /
-    /// its opposite points outward, 0 where it is unknown.
+    /// Unit normals of the plane fits (unoriented).
     planes: Vec<DVec3>,
+    tree: KdTree,
+}
+
+impl PointPlanes {
+    /// `None` without points or in 2D (a plane fit there gives the plane's
+    /// normal).
+    pub fn new(points: &[DVec3], dim: usize) -> Option<Self> {
+        if dim != 3 || points.is_empty() {
+            return None;
+        }
+        Some(PointPlanes {
+            points: points.to_vec(),
+            planes: estimate_normals(points, NORMAL_NEIGHBOURS),
+            tree: KdTree::new(points),
+        })
+    }
+}
+
+/// Oriented tangent planes of the points, for the side test.
+pub struct TangentSides<'a> {
+    fits: &'a PointPlanes,
+    /// +1 / −1 where a plane's normal / its opposite points outward, 0
+    /// where it is unknown.
     orientation: Vec<f64>,
     h: f64,
-    tree: KdTree,
     /// Nodes farther than this from every point are not tested, nor
     /// nodes farther than `beside` from the nearest point's normal line.
     reach: f64,
     beside: f64,
 }
 
-impl TangentSides {
-    /// Plane-fit normals of `points`, oriented along the gradient of the
-    /// current level set `band` (outward, φ negative inside). 3D only (a
-    /// plane fit in 2D gives the plane's normal): `None` in 2D or without
-    /// points.
+impl<'a> TangentSides<'a> {
+    /// The planes of `fits`, oriented along the gradient of the current
+    /// level set `band` (outward, φ negative inside).
     pub fn new<const D: usize>(
-        points: &[DVec3],
+        fits: &'a PointPlanes,
         band: &NarrowBand<D>,
         reach: f64,
         beside: f64,
-    ) -> Option<Self> {
-        if D != 3 || points.is_empty() {
-            return None;
-        }
+    ) -> Self {
         let spec = *band.spec();
         let h = spec.spacing;
         let phi =
             |p: DVec3| interpolate_with(&spec, |i| band.phi.get(i), std::array::from_fn(|a| p[a]));
-        let planes = estimate_normals(points, NORMAL_NEIGHBOURS);
-        let orientation: Vec<f64> = planes
+        let orientation: Vec<f64> = fits
+            .planes
             .par_iter()
-            .zip(points)
+            .zip(&fits.points)
             .map(|(&n, &p)| {
                 let grad = DVec3::from_array(std::array::from_fn(|a| {
                     let step =
@@ -156,22 +174,20 @@ impl TangentSides {
                 }
             })
             .collect();
-        Some(TangentSides {
-            points: points.to_vec(),
-            planes,
+        TangentSides {
+            fits,
             orientation,
             h,
-            tree: KdTree::new(points),
             reach,
             beside,
-        })
+        }
     }
 
     /// Whether a node at `position` may move to side `to_inside`: always
     /// beyond the reach or where the nearest point's normal is unknown;
     /// otherwise only to the side of that point's tangent plane it lies on.
     pub fn allows(&self, position: DVec3, to_inside: bool) -> bool {
-        let Some(near) = self.tree.nearest(position) else {
+        let Some(near) = self.fits.tree.nearest(position) else {
             return true;
         };
         if near.distance > self.reach {
@@ -180,8 +196,8 @@ impl TangentSides {
         if !to_inside && self.between_faces(position, near.index) {
             return false;
         }
-        let plane = self.planes[near.index];
-        let v = position - self.points[near.index];
+        let plane = self.fits.planes[near.index];
+        let v = position - self.fits.points[near.index];
         let offset = v.dot(plane) * self.orientation[near.index];
         // Beside the data (over a hole, past a rim) the tangent plane says
         // nothing about sides.
@@ -201,13 +217,13 @@ impl TangentSides {
     /// a part thinner than two cells, where the faces' orientations cannot
     /// be told apart and the part must keep its row of inside nodes.
     fn between_faces(&self, position: DVec3, nearest: usize) -> bool {
-        let plane = self.planes[nearest];
+        let plane = self.fits.planes[nearest];
         let (mut below, mut above) = (false, false);
-        for q in self.tree.knn(position, SANDWICH_NEIGHBOURS) {
+        for q in self.fits.tree.knn(position, SANDWICH_NEIGHBOURS) {
             if q.distance > self.h {
                 break;
             }
-            let s = (self.points[q.index] - position).dot(plane);
+            let s = (self.fits.points[q.index] - position).dot(plane);
             below |= s < -SANDWICH_MARGIN * self.h;
             above |= s > SANDWICH_MARGIN * self.h;
         }

@@ -238,7 +238,7 @@ fn step<const D: usize>(
 pub struct Anchors<'a, const D: usize> {
     pub cells: Option<&'a DataCells<D>>,
     /// 3D only.
-    pub sides: Option<&'a TangentSides>,
+    pub sides: Option<&'a TangentSides<'a>>,
 }
 
 impl<const D: usize> Default for Anchors<'_, D> {

@@ -3,7 +3,7 @@
 //! fine) → mesh or curves → in 3D, refinement. Stacks of contour slices
 //! take the [`crate::slices`] path instead.
 
-use crate::anchors::{DataCells, TangentSides};
+use crate::anchors::{DataCells, PointPlanes, TangentSides};
 use crate::band::{BandDistance, NarrowBand};
 use crate::cleaning::{clean_points, CleaningStats};
 use crate::error::{LevelsetError, Result};
@@ -380,8 +380,18 @@ fn evolve_field<const D: usize>(
         coarsest_distance(input, coarsest_spec, levels > 1)
     })?;
     let mut band = initial_band(input, params, sampling, &coarsest_d, report)?;
+    // The points' tangent planes, for every level's anchors.
+    let fits = report.time("anchors", || PointPlanes::new(&input.points, D));
     if levels > 1 {
-        band = evolve_coarsest(input, sampling, band, &coarsest_d, params, report)?;
+        band = evolve_coarsest(
+            input,
+            sampling,
+            band,
+            &coarsest_d,
+            params,
+            fits.as_ref(),
+            report,
+        )?;
     }
     // Each finer level takes the coarser surface and grows it to the
     // points it missed.
@@ -404,7 +414,15 @@ fn evolve_field<const D: usize>(
             refined_distance(input, fine, coarsest_d, FINE_EXACT_CELLS)
         })?
     };
-    solve_level(input, sampling, &mut band, &mut d, params, report);
+    solve_level(
+        input,
+        sampling,
+        &mut band,
+        &mut d,
+        params,
+        fits.as_ref(),
+        report,
+    );
     report.band_nodes = band.len();
     report.band_blocks = band.block_count();
     report.band_bytes = band.memory_bytes();
@@ -426,11 +444,12 @@ fn evolve_coarsest<const D: usize>(
     tagged: NarrowBand<D>,
     distance: &Arc<Field<D>>,
     params: &ReconstructParams,
+    fits: Option<&PointPlanes>,
     report: &mut Report,
 ) -> Result<NarrowBand<D>> {
     let mut band = tagged.clone();
     let mut d = BandDistance::dense(distance.clone())?;
-    solve_level(input, sampling, &mut band, &mut d, params, report);
+    solve_level(input, sampling, &mut band, &mut d, params, fits, report);
     let epsilon = report.epsilon;
     let (band, restored) = report.time("restore", || {
         restore_near_missed(band, &tagged, &input.points, RESTORE_CELLS, epsilon)
@@ -475,14 +494,16 @@ fn solve_level<const D: usize>(
     band: &mut NarrowBand<D>,
     d: &mut BandDistance<D>,
     params: &ReconstructParams,
+    fits: Option<&PointPlanes>,
     report: &mut Report,
 ) {
     report.time("distance", || d.cover(band));
     let h = band.spec().spacing;
     let (cells, sides) = report.time("anchors", || {
+        let (reach, beside) = (2.0 * h.max(sampling), h.max(sampling));
         (
             DataCells::new(*band.spec(), input.all_vertices()),
-            TangentSides::new(&input.points, band, 2.0 * h.max(sampling), h.max(sampling)),
+            fits.map(|f| TangentSides::new(f, band, reach, beside)),
         )
     });
     let anchors = Anchors {
