@@ -68,9 +68,10 @@ pub(crate) fn edge_vertex<S: Samples3>(
     (DVec3::from_array(p), g.normalize_or_zero())
 }
 
-/// Where along an edge with end values `a`, `b` the field crosses `iso`.
+/// Where along an edge with end values `a`, `b` the field crosses `iso`
+/// (kept a little off the ends, see `MIN_EDGE_FRACTION`).
 #[inline]
-pub(crate) fn crossing_fraction(a: f64, b: f64, iso: f64) -> f64 {
+pub fn crossing_fraction(a: f64, b: f64, iso: f64) -> f64 {
     let t = (iso - a) / (b - a);
     if t.is_nan() {
         0.5
@@ -79,9 +80,10 @@ pub(crate) fn crossing_fraction(a: f64, b: f64, iso: f64) -> f64 {
     }
 }
 
-/// Corner-sign configuration and ambiguous-face choices of one cell.
+/// Corner-sign configuration and ambiguous-face choices of one cell, with
+/// corners numbered `x + 2y + 4z` (the keys of [`super::tables::cube_table`]).
 #[inline]
-pub(crate) fn cell_case(v: &[f64; 8], iso: f64) -> (u8, u8) {
+pub fn cell_case(v: &[f64; 8], iso: f64) -> (u8, u8) {
     let mut config = 0u8;
     for (c, &x) in v.iter().enumerate() {
         config |= ((x >= iso) as u8) << c;

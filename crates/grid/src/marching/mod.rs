@@ -13,8 +13,8 @@ mod cubes;
 mod squares;
 pub mod tables;
 
-pub use cubes::marching_cubes;
-pub(crate) use cubes::{cell_case, edge_vertex, loop_centre, Samples3};
+pub use cubes::{cell_case, crossing_fraction, marching_cubes};
+pub(crate) use cubes::{edge_vertex, loop_centre, Samples3};
 pub use squares::marching_squares;
 
 #[cfg(test)]

@@ -1,0 +1,65 @@
+//! Fandisk at the paper's resolution: regular field vs unified field,
+//! error in grid units both ways (exact point-to-triangle distances),
+//! construction and extraction time, stored counts.
+//!
+//! cargo bench -p surfrecon-distfield --bench fandisk [-- PATH.off [CELLS]]
+
+use std::time::Instant;
+use surfrecon_distfield::query::{deviation, MeshQuery};
+use surfrecon_distfield::offset::{build_odf, OdfOptions};
+use surfrecon_distfield::unified::{build_udf, UdfOptions};
+use surfrecon_distfield::grid_for;
+use surfrecon_geom::{io, TriMesh};
+use surfrecon_grid::{marching::marching_cubes, sdf::signed_distance, GridSize};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
+    let path = args.first().cloned().unwrap_or_else(|| "../../../shared/data/fandisk/fandisk.off".into());
+    let cells: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(64);
+    let mesh = io::read(std::path::Path::new(&path)).expect("read the mesh").to_mesh();
+    let exact = MeshQuery::new(&mesh).expect("index the mesh");
+    let size = GridSize::Resolution(cells);
+    println!("{path}: {} triangles, {cells} cells on the long axis", mesh.triangles.len());
+    println!("| field | construct s | extract s | max error h | mean error h | stored |");
+    println!("|---|---|---|---|---|---|");
+
+    let t = Instant::now();
+    let spec = grid_for(&mesh, size, 2).unwrap();
+    let field = signed_distance(&mesh, &spec, None).unwrap();
+    let construct = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let regular = marching_cubes(&field, 0.0);
+    row("regular", construct, t.elapsed().as_secs_f64(), &regular, &mesh, &exact, spec.spacing, String::new());
+
+    let (odf, report) = build_odf(&mesh, &OdfOptions { size, ..Default::default() }).unwrap();
+    let t = Instant::now();
+    let (out, _) = odf.extract();
+    let stored = format!(
+        "{} samples moved ({} smoothed) of {} candidates; feature energy {:.1} -> {:.1}",
+        report.moved, report.smoothed, report.candidates, report.energy_before, report.energy_after
+    );
+    row("ODF", report.seconds, t.elapsed().as_secs_f64(), &out, &mesh, &exact, odf.spec.spacing, stored);
+
+    let options = UdfOptions { size, ..Default::default() };
+    let (udf, report) = build_udf(&mesh, &options).unwrap();
+    let t = Instant::now();
+    let (out, extract) = udf.extract();
+    let stored = format!(
+        "{} directed, {} feature points ({} fanned, {} flips), {} boundary / {} feature cells",
+        report.directed, report.feature_points, extract.fans, extract.flips, report.boundary_cells, report.feature_cells
+    );
+    row("UDF", report.seconds, t.elapsed().as_secs_f64(), &out, &mesh, &exact, udf.spec.spacing, stored);
+}
+
+#[allow(clippy::too_many_arguments)]
+fn row(name: &str, construct: f64, extract: f64, out: &TriMesh, mesh: &TriMesh, exact: &MeshQuery, h: f64, stored: String) {
+    let back = MeshQuery::new(out).expect("index the output");
+    let there = deviation(out, exact, 16);
+    let back_dev = deviation(mesh, &back, 16);
+    let max = there.max.max(back_dev.max) / h;
+    let mean = 0.5 * (there.mean + back_dev.mean) / h;
+    println!("| {name} | {construct:.3} | {extract:.3} | {max:.3} | {mean:.4} | {stored} |");
+    if std::env::var_os("WORST").is_some() {
+        println!("  worst output->mesh {:.3} h at {:?}; mesh->output {:.3} h at {:?}", there.max / h, there.worst, back_dev.max / h, back_dev.worst);
+    }
+}

@@ -1,0 +1,260 @@
+//! Unified distance field (UDF): a regular grid of signed distances where a
+//! sample stores extra data only where the plain distances would lose the
+//! shape:
+//! - the exact distances along +x, +y, +z to the surface, where the linear
+//!   interpolation of two samples misplaces an edge crossing by more than
+//!   a threshold (curved or sharp parts);
+//! - one point on a sharp feature (a corner, or a point on a feature edge)
+//!   of a cell the sample is a corner of, which extraction fans around;
+//! - or the sample's own moved position, as in an offset field.
+//!
+//! Every sample keeps its minimum distance, which is what lets the kinds
+//! mix: extraction interpolates it wherever nothing more is stored.
+
+use crate::extract::{corner_nodes, extract, ExtractReport, SampledField};
+use crate::features::{cell_of, cells_with_features, nudge_into, Features};
+use crate::query::MeshQuery;
+use crate::{check_mesh, grid_for, DistFieldError};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::time::Instant;
+use surfrecon_geom::{DVec3, TriMesh};
+use surfrecon_grid::marching::crossing_fraction;
+use surfrecon_grid::sdf::signed_distance;
+use surfrecon_grid::{GridSize, GridSpec};
+
+/// Store directed distances where interpolation errs by more than this
+/// many grid spacings (the paper's 0.1).
+pub const DEFAULT_THRESHOLD: f64 = 0.1;
+
+/// Distances are exact within this many cells of the surface and clamped
+/// beyond (signs stay right everywhere).
+pub(crate) const BAND_CELLS: f64 = 3.0;
+
+/// The extra data one sample may carry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Extra {
+    /// Distances from the sample along +x, +y, +z to the surface; NaN
+    /// where that edge has no crossing.
+    Directed([f64; 3]),
+    /// A point on a sharp feature inside one of the sample's cells (the
+    /// cell containing the point).
+    FeaturePoint(DVec3),
+    /// The sample's own position, moved off its grid node within its cell.
+    Position(DVec3),
+}
+
+/// A unified distance field.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnifiedField {
+    pub spec: GridSpec<3>,
+    /// Signed distance per sample (negative inside), node order.
+    pub values: Vec<f64>,
+    /// Extra data of the samples that need it, by sample index.
+    pub extras: BTreeMap<u32, Extra>,
+}
+
+/// How to build a unified field.
+#[derive(Debug, Clone, Copy)]
+pub struct UdfOptions {
+    pub size: GridSize,
+    /// Cells of padding around the mesh's bounds.
+    pub padding: usize,
+    /// Interpolation error (grid spacings) above which directed distances
+    /// are stored.
+    pub threshold: f64,
+    /// Angle between face normals above which an edge is sharp.
+    pub feature_angle_deg: f64,
+}
+
+impl Default for UdfOptions {
+    fn default() -> Self {
+        Self {
+            size: GridSize::Resolution(64),
+            padding: 2,
+            threshold: DEFAULT_THRESHOLD,
+            feature_angle_deg: crate::features::DEFAULT_FEATURE_ANGLE_DEG,
+        }
+    }
+}
+
+/// What building a unified field stored.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct UdfReport {
+    pub samples: usize,
+    /// Cells the surface passes through.
+    pub boundary_cells: usize,
+    /// Cells a feature edge or corner passes through.
+    pub feature_cells: usize,
+    pub directed: usize,
+    pub feature_points: usize,
+    pub positions: usize,
+    /// Directed distances given up because all corners of a feature cell
+    /// already carried extra data.
+    pub directed_dropped: usize,
+    pub seconds: f64,
+}
+
+/// Build the unified field of a closed, outward-oriented mesh.
+pub fn build_udf(
+    mesh: &TriMesh,
+    options: &UdfOptions,
+) -> Result<(UnifiedField, UdfReport), DistFieldError> {
+    let start = Instant::now();
+    check_mesh(mesh)?;
+    if !(options.threshold >= 0.0) {
+        return Err(DistFieldError::InvalidOption(format!(
+            "the directed-distance threshold must be at least 0, not {}",
+            options.threshold
+        )));
+    }
+    let spec = grid_for(mesh, options.size, options.padding)?;
+    let values = signed_distance(mesh, &spec, Some(BAND_CELLS * spec.spacing))?.values;
+    let query = MeshQuery::new(mesh)?;
+    let mut field = UnifiedField { spec, values, extras: BTreeMap::new() };
+    let mut report = UdfReport { samples: field.values.len(), ..Default::default() };
+    for (node, directed) in directed_distances(&field, &query, options.threshold) {
+        field.extras.insert(node, Extra::Directed(directed));
+        report.directed += 1;
+    }
+    let features = Features::detect(mesh, options.feature_angle_deg);
+    let cells = cells_with_features(mesh, &features, &field.spec, |c| field.crosses(c));
+    report.feature_cells = cells.len();
+    for (cell, f) in &cells {
+        let Some(centroid) = crossing_centroid(&field, &query, *cell) else {
+            continue;
+        };
+        let Some(point) = f.representative(centroid) else {
+            continue;
+        };
+        let point = nudge_into(&field.spec, *cell, point);
+        let corners = corner_nodes(&field.spec, *cell);
+        let free = corners.iter().find(|&&n| !field.extras.contains_key(&(n as u32)));
+        let node = *free.unwrap_or(&corners[0]) as u32;
+        if let Some(Extra::Directed(_)) = field.extras.insert(node, Extra::FeaturePoint(point)) {
+            report.directed -= 1;
+            report.directed_dropped += 1;
+        }
+        report.feature_points += 1;
+    }
+    report.boundary_cells = field.boundary_cells();
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok((field, report))
+}
+
+/// Samples with an edge crossing that interpolation misplaces by more than
+/// `threshold` spacings, with their exact distances along the three axes.
+fn directed_distances(field: &UnifiedField, query: &MeshQuery, threshold: f64) -> Vec<(u32, [f64; 3])> {
+    let spec = &field.spec;
+    let h = spec.spacing;
+    let strides = spec.strides();
+    (0..field.values.len())
+        .into_par_iter()
+        .filter_map(|node| {
+            let idx = spec.unlinear(node);
+            let mut directed = [f64::NAN; 3];
+            let mut needed = false;
+            for axis in (0..3).filter(|&a| idx[a] + 1 < spec.dims[a]) {
+                let (a, b) = (field.values[node], field.values[node + strides[axis]]);
+                if (a >= 0.0) == (b >= 0.0) {
+                    continue;
+                }
+                let origin = DVec3::from_array(spec.position(idx));
+                if let Some(d) = query.hit_along(origin, axis, h) {
+                    directed[axis] = d;
+                    needed |= (d - crossing_fraction(a, b, 0.0) * h).abs() > threshold * h;
+                }
+            }
+            needed.then_some((node as u32, directed))
+        })
+        .collect()
+}
+
+/// The mean of the exact crossings on a cell's sign-changing edges.
+fn crossing_centroid(field: &UnifiedField, query: &MeshQuery, cell: usize) -> Option<DVec3> {
+    let spec = &field.spec;
+    let nodes = corner_nodes(spec, cell);
+    let (mut sum, mut count) = (DVec3::ZERO, 0);
+    for [a, b] in surfrecon_grid::marching::tables::EDGE_CORNERS {
+        let (na, nb) = (nodes[a as usize], nodes[b as usize]);
+        let (va, vb) = (field.values[na], field.values[nb]);
+        if (va >= 0.0) == (vb >= 0.0) {
+            continue;
+        }
+        let axis = (a ^ b).trailing_zeros() as usize;
+        let origin = DVec3::from_array(spec.position(spec.unlinear(na)));
+        let d = query
+            .hit_along(origin, axis, spec.spacing)
+            .unwrap_or_else(|| crossing_fraction(va, vb, 0.0) * spec.spacing);
+        let mut p = origin;
+        p[axis] += d;
+        sum += p;
+        count += 1;
+    }
+    (count > 0).then(|| sum / count as f64)
+}
+
+impl UnifiedField {
+    /// Whether the surface crosses `cell` (its corners' signs differ).
+    pub fn crosses(&self, cell: usize) -> bool {
+        let inside = corner_nodes(&self.spec, cell).map(|c| self.values[c] < 0.0);
+        inside.iter().any(|&s| s) && inside.iter().any(|&s| !s)
+    }
+
+    /// Cells the surface passes through.
+    pub fn boundary_cells(&self) -> usize {
+        let [nx, ny, nz] = self.spec.dims;
+        (0..nz - 1)
+            .into_par_iter()
+            .map(|k| {
+                let cells = (0..ny - 1).flat_map(|j| (0..nx - 1).map(move |i| [i, j, k]));
+                cells.filter(|&idx| self.crosses(self.spec.linear(idx))).count()
+            })
+            .sum()
+    }
+
+    /// Feature points by the cell that contains them.
+    pub fn feature_points(&self) -> BTreeMap<usize, DVec3> {
+        self.extras
+            .values()
+            .filter_map(|e| match *e {
+                Extra::FeaturePoint(p) => cell_of(&self.spec, p).map(|c| (c, p)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The surface: marching cubes with the stored crossings, positions
+    /// and feature fans.
+    pub fn extract(&self) -> (TriMesh, ExtractReport) {
+        extract(self, &self.feature_points())
+    }
+}
+
+impl SampledField for UnifiedField {
+    fn spec(&self) -> &GridSpec<3> {
+        &self.spec
+    }
+    fn value(&self, node: usize) -> f64 {
+        self.values[node]
+    }
+    fn position(&self, node: usize) -> DVec3 {
+        match self.extras.get(&(node as u32)) {
+            Some(Extra::Position(p)) => *p,
+            _ => DVec3::from_array(self.spec.position(self.spec.unlinear(node))),
+        }
+    }
+    fn crossing(&self, node: usize, axis: usize) -> Option<DVec3> {
+        let Some(Extra::Directed(d)) = self.extras.get(&(node as u32)) else {
+            return None;
+        };
+        // Directed distances were measured between grid nodes.
+        let other = (node + self.spec.strides()[axis]) as u32;
+        if !d[axis].is_finite() || matches!(self.extras.get(&other), Some(Extra::Position(_))) {
+            return None;
+        }
+        let mut p = self.position(node);
+        p[axis] += d[axis];
+        Some(p)
+    }
+}

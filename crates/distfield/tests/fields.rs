@@ -1,0 +1,84 @@
+//! Distance fields that keep corners: exact corner positions against the
+//! regular field, closed manifold output, file round trips.
+
+use surfrecon_distfield::query::{deviation, MeshQuery};
+use surfrecon_distfield::unified::{build_udf, UdfOptions};
+use surfrecon_distfield::grid_for;
+use surfrecon_geom::metrics::topology;
+use surfrecon_geom::shapes::cuboid;
+use surfrecon_geom::{DVec3, TriMesh};
+use surfrecon_grid::{marching::marching_cubes, sdf::signed_distance, GridSize};
+
+/// Rotation by Euler angles (radians) about x, then y, then z.
+fn rotate(mesh: &TriMesh, angles: [f64; 3]) -> TriMesh {
+    let r = glam::DMat3::from_rotation_z(angles[2])
+        * glam::DMat3::from_rotation_y(angles[1])
+        * glam::DMat3::from_rotation_x(angles[0]);
+    TriMesh {
+        vertices: mesh.vertices.iter().map(|&v| r * v).collect(),
+        ..mesh.clone()
+    }
+}
+
+fn octahedron() -> TriMesh {
+    let vertices = vec![
+        DVec3::X,
+        DVec3::NEG_X,
+        DVec3::Y,
+        DVec3::NEG_Y,
+        DVec3::Z,
+        DVec3::NEG_Z,
+    ];
+    let mut triangles = Vec::new();
+    for &(x, y) in &[(0u32, 2u32), (2, 1), (1, 3), (3, 0)] {
+        triangles.push([x, y, 4]);
+        triangles.push([y, x, 5]);
+    }
+    TriMesh { vertices, triangles, normals: None }
+}
+
+fn rotated_cube() -> TriMesh {
+    rotate(&cuboid(DVec3::splat(-0.5), DVec3::splat(0.5)), [0.3, 0.5, 0.7])
+}
+
+/// Distance from each corner of `shape` (its vertices) to `surface`.
+fn corner_errors(shape: &TriMesh, surface: &TriMesh) -> Vec<f64> {
+    let q = MeshQuery::new(surface).unwrap();
+    shape.vertices.iter().map(|&v| q.signed_distance(v).abs()).collect()
+}
+
+fn assert_closed_manifold(mesh: &TriMesh, euler: i64) {
+    let t = topology(mesh);
+    assert!(t.watertight && t.vertex_manifold, "{t:?}");
+    assert_eq!((t.components, t.euler), (1, euler), "{t:?}");
+}
+
+fn check_corners_kept(shape: TriMesh, cells: usize) {
+    let size = GridSize::Resolution(cells);
+    let (udf, report) = build_udf(&shape, &UdfOptions { size, ..Default::default() }).unwrap();
+    let h = udf.spec.spacing;
+    let (mesh, extract) = udf.extract();
+    assert_closed_manifold(&mesh, 2);
+    let kept = corner_errors(&shape, &mesh);
+    let regular_field = signed_distance(&shape, &grid_for(&shape, size, 2).unwrap(), None).unwrap();
+    let regular = corner_errors(&shape, &marching_cubes(&regular_field, 0.0));
+    eprintln!("{report:?} {extract:?}\nudf corners {kept:?}\nregular {regular:?} (h {h})");
+    assert!(kept.iter().all(|&d| d < 0.02 * h), "udf corners {kept:?}, h {h}");
+    assert!(regular.iter().any(|&d| d > 0.2 * h), "the regular field cuts corners: {regular:?}");
+    // Everywhere, not only at the corners, the surface stays close.
+    let exact = MeshQuery::new(&shape).unwrap();
+    let out = MeshQuery::new(&mesh).unwrap();
+    let there = deviation(&mesh, &exact, 9).max;
+    let back = deviation(&shape, &out, 9).max;
+    assert!(there.max(back) < 0.15 * h, "max error {there} / {back}, h {h}");
+}
+
+#[test]
+fn udf_keeps_every_corner_of_a_rotated_cube() {
+    check_corners_kept(rotated_cube(), 20);
+}
+
+#[test]
+fn udf_keeps_every_corner_of_an_octahedron() {
+    check_corners_kept(rotate(&octahedron(), [0.2, 0.1, 0.4]), 20);
+}
