@@ -31,7 +31,12 @@ fn main() {
     let regular = marching_cubes(&field, 0.0);
     row("regular", construct, t.elapsed().as_secs_f64(), &regular, &mesh, &exact, spec.spacing, String::new());
 
-    let (odf, report) = build_odf(&mesh, &OdfOptions { size, ..Default::default() }).unwrap();
+    let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|s| s.parse().ok()).unwrap_or(d);
+    let mut odf_options = OdfOptions { size, ..Default::default() };
+    odf_options.weights.spring = env("ODF_SPRING", odf_options.weights.spring);
+    odf_options.weights.ortho = env("ODF_ORTHO", odf_options.weights.ortho);
+    odf_options.iterations = env("ODF_ITERATIONS", odf_options.iterations as f64) as usize;
+    let (odf, report) = build_odf(&mesh, &odf_options).unwrap();
     let t = Instant::now();
     let (out, _) = odf.extract();
     let stored = format!(
@@ -45,14 +50,18 @@ fn main() {
     let t = Instant::now();
     let (out, extract) = udf.extract();
     let stored = format!(
-        "{} directed, {} feature points ({} fanned, {} flips), {} boundary / {} feature cells",
-        report.directed, report.feature_points, extract.fans, extract.flips, report.boundary_cells, report.feature_cells
+        "{} directed, {} feature points ({} fanned, {} flips), {} moved samples, {} boundary / {} feature cells",
+        report.directed, report.feature_points, extract.fans, extract.flips, report.positions, report.boundary_cells, report.feature_cells
     );
     row("UDF", report.seconds, t.elapsed().as_secs_f64(), &out, &mesh, &exact, udf.spec.spacing, stored);
 }
 
 #[allow(clippy::too_many_arguments)]
 fn row(name: &str, construct: f64, extract: f64, out: &TriMesh, mesh: &TriMesh, exact: &MeshQuery, h: f64, stored: String) {
+    if let Some(dir) = std::env::var_os("DUMP") {
+        let path = std::path::Path::new(&dir).join(format!("fandisk_{}.ply", name.to_lowercase()));
+        io::write(&path, &surfrecon_geom::Geometry::from_mesh(out.clone())).expect("write the mesh");
+    }
     let back = MeshQuery::new(out).expect("index the output");
     let there = deviation(out, exact, 16);
     let back_dev = deviation(mesh, &back, 16);

@@ -21,8 +21,8 @@ use surfrecon_grid::GridSpec;
 /// Smallest cosine between a fan triangle and the table triangle whose
 /// boundary edge it takes. At a sharp ridge the table triangle cuts across
 /// while the fan follows the two faces, so large turns are normal (on
-/// fandisk, requiring less than 90° refused a fifth of the fans and kept
-/// a max error of 0.9 h; 120° keeps 0.54 h); a fan turned further has its
+/// fandisk, requiring less than 90° refused a fifth of the fans and kept a
+/// max error of 0.9 h; 120° keeps 0.54 h); a fan turned further has its
 /// feature point behind the patch and would fold over.
 const FAN_MIN_COS: f64 = -0.5;
 
@@ -154,19 +154,35 @@ fn edge_vertices(field: &impl SampledField, cells: &[(usize, u8, u8)]) -> (Vec<u
         .collect();
     keys.par_sort_unstable();
     keys.dedup();
-    let strides = spec.strides();
-    let vertices = keys
-        .par_iter()
-        .map(|&key| {
-            let (node, axis) = ((key / 3) as usize, (key % 3) as usize);
-            field.crossing(node, axis).unwrap_or_else(|| {
-                let other = node + strides[axis];
-                let t = crossing_fraction(field.value(node), field.value(other), 0.0);
-                field.position(node).lerp(field.position(other), t)
-            })
-        })
-        .collect();
+    let vertices = keys.par_iter().map(|&key| edge_point(field, key)).collect();
     (keys, vertices)
+}
+
+/// The crossing on edge `key`: stored, or interpolated between the two
+/// samples' positions.
+fn edge_point(field: &impl SampledField, key: u64) -> DVec3 {
+    let (node, axis) = ((key / 3) as usize, (key % 3) as usize);
+    field.crossing(node, axis).unwrap_or_else(|| {
+        let other = node + field.spec().strides()[axis];
+        let t = crossing_fraction(field.value(node), field.value(other), 0.0);
+        field.position(node).lerp(field.position(other), t)
+    })
+}
+
+/// Whether extraction would fan `cell`'s patch around `point` (see
+/// [`Patch::fan`]): lets construction pick feature points that work.
+pub(crate) fn fan_fits(field: &impl SampledField, cell: usize, point: DVec3) -> bool {
+    let spec = field.spec();
+    let values = corner_nodes(spec, cell).map(|n| field.value(n));
+    let (config, bits) = cell_case(&values, 0.0);
+    if config == 0 || config == 255 {
+        return false;
+    }
+    let mut keys: Vec<u64> = (0..12).map(|e| cell_edge_key(spec, cell, e)).collect();
+    keys.sort_unstable();
+    let vertices: Vec<DVec3> = keys.iter().map(|&k| edge_point(field, k)).collect();
+    let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
+    patch.fan(point, &vertices, spec.spacing).fanned == Some(true)
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Hash, Debug)]
@@ -222,8 +238,8 @@ fn table_patch(
 
 impl Patch {
     /// The patch as a fan around `feature`, when its boundary is one loop
-    /// and no fan triangle turns against the triangle it replaces
-    /// (`fanned` says whether it was).
+    /// and no fan triangle turns further than [`FAN_MIN_COS`] from the
+    /// table triangle it replaces (`fanned` says whether it was).
     fn fan(self, feature: DVec3, vertices: &[DVec3], h: f64) -> Patch {
         let position = |v: Vertex| match v {
             Vertex::Edge(i) => vertices[i as usize],
@@ -234,29 +250,25 @@ impl Patch {
             .iter()
             .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
             .collect();
-        let mut boundary = Vec::new();
-        for t in &self.triangles {
-            let normal = triangle_normal(t.map(position));
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                if !directed.contains(&(b, a)) {
-                    boundary.push((a, b, normal));
-                }
-            }
-        }
+        // Boundary edges with the normal of the table triangle they are in.
+        let boundary: Vec<(Vertex, Vertex, DVec3)> = self
+            .triangles
+            .iter()
+            .flat_map(|t| {
+                let normal = triangle_normal(t.map(position)).normalize_or_zero();
+                (0..3).map(move |k| (t[k], t[(k + 1) % 3], normal))
+            })
+            .filter(|&(a, b, _)| !directed.contains(&(b, a)))
+            .collect();
         let min_area2 = (1e-8 * h * h).powi(2);
         let folds = boundary.iter().any(|&(a, b, n)| {
-            let fan_normal = triangle_normal([position(a), position(b), feature]);
-            fan_normal.length_squared() < min_area2
-                || fan_normal.normalize().dot(n.normalize_or_zero()) < FAN_MIN_COS
+            let fan = triangle_normal([position(a), position(b), feature]);
+            fan.length_squared() < min_area2 || fan.normalize().dot(n) < FAN_MIN_COS
         });
         if folds || !is_one_loop(&boundary) {
             return Patch { fanned: Some(false), ..self };
         }
-        let triangles = boundary
-            .iter()
-            .map(|&(a, b, _)| [a, b, Vertex::Extra(0)])
-            .collect();
+        let triangles = boundary.iter().map(|&(a, b, _)| [a, b, Vertex::Extra(0)]).collect();
         Patch { triangles, extra: vec![feature], fanned: Some(true) }
     }
 }

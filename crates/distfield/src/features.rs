@@ -73,25 +73,34 @@ pub struct CellFeatures {
 }
 
 impl CellFeatures {
-    /// The one point that stands for the features of this cell: a corner,
-    /// else the bend or the point on a piece nearest `centroid` (the mean
-    /// of the cell's surface crossings: Ju et al.'s mass point, whose
+    /// Points that could stand for the features of this cell, best first:
+    /// its corners, then its bends, then points along its feature edge
+    /// pieces, nearest first to the projection of `centroid` (the mean of
+    /// the cell's surface crossings: Ju et al.'s mass point, whose
     /// projection minimizes the crossings' quadric along a straight edge).
-    pub fn representative(&self, centroid: DVec3) -> Option<DVec3> {
-        if let Some(&c) = self.corners.first() {
-            return Some(c);
+    pub fn candidates(&self, centroid: DVec3) -> Vec<DVec3> {
+        let mut along: Vec<(f64, DVec3)> = Vec::new();
+        for &[a, b] in &self.pieces {
+            let best = closest_on_segment(centroid, a, b);
+            along.push((0.0, best));
+            for k in 0..=PIECE_SAMPLES {
+                let p = a.lerp(b, k as f64 / PIECE_SAMPLES as f64);
+                along.push((p.distance(best), p));
+            }
         }
-        let on_pieces = self
-            .pieces
+        along.sort_by(|x, y| x.0.total_cmp(&y.0));
+        self.corners
             .iter()
-            .map(|&[a, b]| closest_on_segment(centroid, a, b));
-        self.bends
-            .iter()
+            .chain(&self.bends)
             .copied()
-            .chain(on_pieces)
-            .min_by(|p, q| p.distance_squared(centroid).total_cmp(&q.distance_squared(centroid)))
+            .chain(along.into_iter().map(|(_, p)| p))
+            .collect()
     }
 }
+
+/// Points tried along each feature edge piece (besides the projection of
+/// the crossings' mean) when looking for a feature point that fans well.
+const PIECE_SAMPLES: usize = 8;
 
 /// The features of `mesh` binned into the cells of `spec` (keyed by the
 /// linear index of each cell's lowest node). A corner or bend on a cell

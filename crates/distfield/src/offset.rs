@@ -18,7 +18,7 @@
 //! does not depend on the thread count.
 
 use crate::extract::{corner_nodes, extract, ExtractReport, SampledField};
-use crate::features::{cells_with_features, CellFeatures, Features};
+use crate::features::{cells_with_features, closest_on_segment, CellFeatures, Features};
 use crate::query::MeshQuery;
 use crate::unified::BAND_CELLS;
 use crate::{check_mesh, grid_for, DistFieldError};
@@ -27,7 +27,9 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::time::Instant;
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::tables::EDGE_CORNERS;
-use surfrecon_grid::marching::crossing_fraction;
+use surfrecon_geom::metrics::closest_point_on_triangle;
+use surfrecon_grid::marching::tables::cube_table;
+use surfrecon_grid::marching::{cell_case, crossing_fraction};
 use surfrecon_grid::sdf::signed_distance;
 use surfrecon_grid::{GridSize, GridSpec};
 
@@ -108,7 +110,7 @@ pub fn build_odf(mesh: &TriMesh, options: &OdfOptions) -> Result<(OffsetField, O
     let features = Features::detect(mesh, options.feature_angle_deg);
     let cells = cells_with_features(mesh, &features, &spec, |_| true);
     let mut field = OffsetField { spec, values, moved: BTreeMap::new() };
-    let search = Search { spec: &spec, query: &query, cells: &cells, weights: w };
+    let search = Search::new(mesh, &spec, &query, &cells, w);
     let candidates = search.candidates();
     let mut report = OdfReport {
         samples: field.values.len(),
@@ -163,17 +165,112 @@ pub(crate) fn node_position(spec: &GridSpec<3>, node: usize) -> DVec3 {
 /// Smallest triple product of a cell corner's edges, in h³, for a cell to
 /// count as convex (regular cells have 1).
 const MIN_CORNER_VOLUME: f64 = 0.1;
-/// Energy of a feature element whose cell has no crossing yet, plus its
-/// squared distance (h²) to the nearest sample, which draws a sample onto
-/// it until the surface crosses the cell.
+/// Most a probe adds to the energy (h²); a probe in a cell with no
+/// crossing yet adds this plus its squared distance to the nearest
+/// sample, which draws a sample onto it until the surface crosses the cell.
 const UNREACHED: f64 = 1.0;
 
 /// The energy minimization over a field's samples.
 pub(crate) struct Search<'a> {
-    pub spec: &'a GridSpec<3>,
-    pub query: &'a MeshQuery,
-    pub cells: &'a BTreeMap<usize, CellFeatures>,
-    pub weights: Weights,
+    spec: &'a GridSpec<3>,
+    query: &'a MeshQuery,
+    cells: &'a BTreeMap<usize, CellFeatures>,
+    /// Per feature cell, what its patch should match.
+    targets: BTreeMap<usize, Target>,
+    weights: Weights,
+}
+
+/// What a feature cell's patch should match: points it should pass
+/// through and the source triangles near the cell.
+struct Target {
+    probes: Vec<DVec3>,
+    surface: Vec<[DVec3; 3]>,
+}
+
+/// Squared distance from `p` to the nearest of `triangles`.
+fn distance2_to(p: DVec3, triangles: &[[DVec3; 3]]) -> f64 {
+    triangles
+        .iter()
+        .map(|&t| p.distance_squared(closest_point_on_triangle(p, t)))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The source triangles within half a spacing of each feature cell (as
+/// far as a patch can reach).
+fn triangles_near_cells(mesh: &TriMesh, spec: &GridSpec<3>, cells: &BTreeMap<usize, CellFeatures>) -> BTreeMap<usize, Vec<[DVec3; 3]>> {
+    let mut near: BTreeMap<usize, Vec<[DVec3; 3]>> = BTreeMap::new();
+    for t in 0..mesh.triangles.len() {
+        let corners = mesh.corners(t);
+        let lo = corners.iter().fold(DVec3::INFINITY, |a, &b| a.min(b)) - 0.5 * spec.spacing;
+        let hi = corners.iter().fold(DVec3::NEG_INFINITY, |a, &b| a.max(b)) + 0.5 * spec.spacing;
+        let (glo, ghi) = (spec.to_grid(lo.to_array()), spec.to_grid(hi.to_array()));
+        let range = |a: usize| {
+            let from = glo[a].floor().max(0.0) as usize;
+            let to = (ghi[a].floor().max(0.0) as usize).min(spec.dims[a].saturating_sub(2));
+            from..=to
+        };
+        for k in range(2) {
+            for j in range(1) {
+                for i in range(0) {
+                    let cell = spec.linear([i, j, k]);
+                    if cells.contains_key(&cell) {
+                        near.entry(cell).or_default().push(corners);
+                    }
+                }
+            }
+        }
+    }
+    near
+}
+
+/// The triangles marching cubes makes in a cell with these corner
+/// positions and values.
+fn cell_triangles(corners: &[(DVec3, f64); 8]) -> Vec<[DVec3; 3]> {
+    let values = corners.map(|(_, v)| v);
+    let (config, bits) = cell_case(&values, 0.0);
+    if config == 0 || config == 255 {
+        return Vec::new();
+    }
+    let crossing = |e: u8| {
+        let [a, b] = EDGE_CORNERS[e as usize];
+        let ((pa, va), (pb, vb)) = (corners[a as usize], corners[b as usize]);
+        pa.lerp(pb, crossing_fraction(va, vb, 0.0))
+    };
+    let table = cube_table();
+    let centres: Vec<DVec3> = table
+        .loop_centres(config, bits)
+        .iter()
+        .map(|lp| lp.iter().map(|&e| crossing(e)).sum::<DVec3>() / lp.len() as f64)
+        .collect();
+    table
+        .triangles(config, bits)
+        .iter()
+        .map(|t| t.map(|e| if e < 12 { crossing(e) } else { centres[e as usize - 12] }))
+        .collect()
+}
+
+/// Points a feature cell's patch should pass through: its corners and
+/// bends, the ends and middles of its feature edge pieces, and where the
+/// true surface crosses the cell's edges and twelve lines through it.
+fn cell_probes(spec: &GridSpec<3>, query: &MeshQuery, cell: usize, f: &CellFeatures) -> Vec<DVec3> {
+    let mut probes: Vec<DVec3> = f.corners.iter().chain(&f.bends).copied().collect();
+    probes.extend(f.pieces.iter().flat_map(|&[a, b]| [a, (a + b) * 0.5, b]));
+    let h = spec.spacing;
+    let lo = node_position(spec, cell);
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for (s, t) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (1.0 / 3.0, 1.0 / 3.0), (2.0 / 3.0, 1.0 / 3.0), (1.0 / 3.0, 2.0 / 3.0), (2.0 / 3.0, 2.0 / 3.0)] {
+            let mut origin = lo;
+            origin[u] += s * h;
+            origin[v] += t * h;
+            if let Some(d) = query.hit_along(origin, axis, h) {
+                let mut p = origin;
+                p[axis] += d;
+                probes.push(p);
+            }
+        }
+    }
+    probes
 }
 
 /// Read and write access to samples that may move.
@@ -200,7 +297,25 @@ impl Movable for OffsetField {
     }
 }
 
-impl Search<'_> {
+impl<'a> Search<'a> {
+    pub fn new(
+        mesh: &TriMesh,
+        spec: &'a GridSpec<3>,
+        query: &'a MeshQuery,
+        cells: &'a BTreeMap<usize, CellFeatures>,
+        weights: Weights,
+    ) -> Self {
+        let mut near = triangles_near_cells(mesh, spec, cells);
+        let targets = cells
+            .iter()
+            .map(|(&c, f)| {
+                let surface = near.remove(&c).unwrap_or_default();
+                (c, Target { probes: cell_probes(spec, query, c, f), surface })
+            })
+            .collect();
+        Self { spec, query, cells, targets, weights }
+    }
+
     /// The samples at the corners of feature cells, sorted.
     pub fn candidates(&self) -> Vec<usize> {
         let set: BTreeSet<usize> = self.cells.keys().flat_map(|&c| corner_nodes(self.spec, c)).collect();
@@ -238,7 +353,7 @@ impl Search<'_> {
                 here + d
             })
             .collect();
-        tries.extend(self.feature_points_near(node));
+        tries.extend(self.feature_points_near(node, here));
         let home = node_position(self.spec, node);
         let reach = 0.5 * self.spec.spacing * (1.0 - 1e-9);
         tries
@@ -254,29 +369,20 @@ impl Search<'_> {
             .map(|(p, v, _)| (node, p, v))
     }
 
-    /// Corners and bends in the cells around `node`.
-    fn feature_points_near(&self, node: usize) -> Vec<DVec3> {
+    /// Corners and bends in the cells around `node`, and the points of
+    /// their feature edges nearest `here`: places a sample may jump to.
+    fn feature_points_near(&self, node: usize, here: DVec3) -> Vec<DVec3> {
         self.cells_around(node)
             .filter_map(|c| self.cells.get(&c))
-            .flat_map(|f| f.corners.iter().chain(&f.bends).copied())
+            .flat_map(|f| {
+                let on_pieces = f.pieces.iter().map(move |&[a, b]| closest_on_segment(here, a, b));
+                f.corners.iter().chain(&f.bends).copied().chain(on_pieces)
+            })
             .collect()
     }
 
-    /// The (up to eight) cells that have `node` as a corner.
     fn cells_around(&self, node: usize) -> impl Iterator<Item = usize> + '_ {
-        let idx = self.spec.unlinear(node);
-        (0..8).filter_map(move |c: usize| {
-            let mut cell = idx;
-            for a in 0..3 {
-                if (c >> a) & 1 == 1 {
-                    cell[a] = cell[a].checked_sub(1)?;
-                }
-                if cell[a] + 1 >= self.spec.dims[a] {
-                    return None;
-                }
-            }
-            Some(self.spec.linear(cell))
-        })
+        cells_around(self.spec, node)
     }
 
     /// Energy terms that change when `node` moves to `p` with value `v`.
@@ -331,49 +437,31 @@ impl Search<'_> {
         })
     }
 
-    /// E_dist of one cell, in h²: per feature element, the squared
-    /// distance to the nearest crossing of the cell.
+    /// E_dist of one cell, in h², both ways: the squared distances from
+    /// the cell's probes (feature points, points of the true surface) to
+    /// the triangles marching cubes makes in it, and from those triangles'
+    /// corners and centres back to the true surface, each capped at
+    /// [`UNREACHED`].
     fn cell_energy(&self, cell: usize, at: &impl Fn(usize) -> (DVec3, f64)) -> f64 {
-        let Some(features) = self.cells.get(&cell) else {
+        let Some(target) = self.targets.get(&cell) else {
             return 0.0;
         };
         let corners = corner_nodes(self.spec, cell).map(at);
-        let crossings: Vec<DVec3> = EDGE_CORNERS
-            .iter()
-            .filter_map(|&[a, b]| {
-                let ((pa, va), (pb, vb)) = (corners[a as usize], corners[b as usize]);
-                ((va >= 0.0) != (vb >= 0.0)).then(|| pa.lerp(pb, crossing_fraction(va, vb, 0.0)))
-            })
-            .collect();
+        let patch = cell_triangles(&corners);
         let h2 = self.spec.spacing * self.spec.spacing;
-        let nearest = |d2: &dyn Fn(DVec3) -> f64| -> f64 {
-            if crossings.is_empty() {
-                UNREACHED + corners.iter().map(|&(p, _)| d2(p)).fold(f64::INFINITY, f64::min) / h2
-            } else {
-                crossings.iter().map(|&x| d2(x)).fold(f64::INFINITY, f64::min) / h2
-            }
-        };
-        let points = features.corners.iter().chain(&features.bends);
-        let e_points: f64 = points.map(|&f| nearest(&|x| x.distance_squared(f))).sum();
-        let e_pieces: f64 = features
-            .pieces
-            .iter()
-            .map(|&[a, b]| nearest(&|x| x.distance_squared(crate::features::closest_on_segment(x, a, b))))
-            .sum();
-        e_points + e_pieces
+        if patch.is_empty() {
+            // Draw the nearest sample onto the surface.
+            let nearest = |q: DVec3| corners.iter().map(|&(p, _)| p.distance_squared(q)).fold(f64::INFINITY, f64::min);
+            return target.probes.iter().map(|&q| UNREACHED + nearest(q) / h2).sum();
+        }
+        let to_patch = target.probes.iter().map(|&q| distance2_to(q, &patch));
+        let points = patch.iter().flat_map(|t| [t[0], t[1], t[2], (t[0] + t[1] + t[2]) / 3.0]);
+        let to_surface = points.map(|x| distance2_to(x, &target.surface));
+        to_patch.chain(to_surface).map(|d2| (d2 / h2).min(UNREACHED)).sum()
     }
 
-    /// Whether every cell around `node` stays convex with `node` at `p`.
     fn stays_convex(&self, field: &impl Movable, node: usize, p: DVec3) -> bool {
-        let h3 = self.spec.spacing.powi(3);
-        self.cells_around(node).all(|cell| {
-            let pos = corner_nodes(self.spec, cell).map(|n| if n == node { p } else { field.position(n) });
-            (0..8).all(|c: usize| {
-                let e = [1, 2, 4].map(|bit| pos[c ^ bit] - pos[c]);
-                let sign = if c.count_ones() % 2 == 0 { 1.0 } else { -1.0 };
-                sign * e[0].cross(e[1]).dot(e[2]) > MIN_CORNER_VOLUME * h3
-            })
-        })
+        stays_convex(self.spec, node, p, |n| field.position(n))
     }
 
     /// Total E_dist over the feature cells.
@@ -417,6 +505,39 @@ impl Search<'_> {
         }
         count
     }
+}
+
+/// The (up to eight) cells that have `node` as a corner.
+pub(crate) fn cells_around(spec: &GridSpec<3>, node: usize) -> impl Iterator<Item = usize> + '_ {
+    let idx = spec.unlinear(node);
+    (0..8).filter_map(move |c: usize| {
+        let mut cell = idx;
+        for a in 0..3 {
+            if (c >> a) & 1 == 1 {
+                cell[a] = cell[a].checked_sub(1)?;
+            }
+            if cell[a] + 1 >= spec.dims[a] {
+                return None;
+            }
+        }
+        Some(spec.linear(cell))
+    })
+}
+
+/// Whether every cell around `node` stays convex with `node` at `p`: at
+/// each cell corner the three edges keep a positive triple product of at
+/// least [`MIN_CORNER_VOLUME`] h³ (no sample crosses the plane of its
+/// neighbours).
+pub(crate) fn stays_convex(spec: &GridSpec<3>, node: usize, p: DVec3, position: impl Fn(usize) -> DVec3) -> bool {
+    let h3 = spec.spacing.powi(3);
+    cells_around(spec, node).all(|cell| {
+        let pos = corner_nodes(spec, cell).map(|n| if n == node { p } else { position(n) });
+        (0..8).all(|c: usize| {
+            let e = [1, 2, 4].map(|bit| pos[c ^ bit] - pos[c]);
+            let sign = if c.count_ones() % 2 == 0 { 1.0 } else { -1.0 };
+            sign * e[0].cross(e[1]).dot(e[2]) > MIN_CORNER_VOLUME * h3
+        })
+    })
 }
 
 /// Parity class (0..8) of a node's index: nodes of one class share no cell.

@@ -11,8 +11,9 @@
 //! Every sample keeps its minimum distance, which is what lets the kinds
 //! mix: extraction interpolates it wherever nothing more is stored.
 
-use crate::extract::{corner_nodes, extract, ExtractReport, SampledField};
-use crate::features::{cell_of, cells_with_features, nudge_into, Features};
+use crate::extract::{corner_nodes, extract, fan_fits, ExtractReport, SampledField};
+use crate::features::{cell_of, cells_with_features, closest_on_segment, nudge_into, CellFeatures, Features};
+use crate::offset::{node_position, stays_convex};
 use crate::query::MeshQuery;
 use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
@@ -118,16 +119,22 @@ pub fn build_udf(
         report.directed += 1;
     }
     let features = Features::detect(mesh, options.feature_angle_deg);
-    let cells = cells_with_features(mesh, &features, &field.spec, |c| field.crosses(c));
+    let corners: Vec<DVec3> = features.corners.iter().map(|&v| mesh.vertices[v as usize]).collect();
+    let snapped = snap_corners(&mut field, &corners);
+    let mut cells = cells_with_features(mesh, &features, &field.spec, |c| field.crosses(c));
+    for f in cells.values_mut() {
+        f.corners.retain(|p| !snapped.contains(p));
+        f.bends.retain(|p| !snapped.contains(p));
+    }
     report.feature_cells = cells.len();
     for (cell, f) in &cells {
         let Some(centroid) = crossing_centroid(&field, &query, *cell) else {
             continue;
         };
-        let Some(point) = f.representative(centroid) else {
+        let candidates = f.candidates(centroid).into_iter().map(|p| nudge_into(&field.spec, *cell, p));
+        let Some(point) = candidates.clone().find(|&p| fan_fits(&field, *cell, p)).or_else(|| candidates.clone().next()) else {
             continue;
         };
-        let point = nudge_into(&field.spec, *cell, point);
         let corners = corner_nodes(&field.spec, *cell);
         let free = corners.iter().find(|&&n| !field.extras.contains_key(&(n as u32)));
         let node = *free.unwrap_or(&corners[0]) as u32;
@@ -137,9 +144,85 @@ pub fn build_udf(
         }
         report.feature_points += 1;
     }
+    report.positions = snapped.len() + snap_unreached(&mut field, &cells);
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
+}
+
+/// Put the nearest sample exactly on each corner (when that keeps its
+/// cells convex and the sample carries nothing else but directed
+/// distances), so marching cubes reaches the corner from every cell
+/// around it; a fan around one cell's feature point often folds at a
+/// pointed corner. The sample's distance is 0, signed against most of its
+/// neighbours so that the edges to them cross the surface at the corner.
+/// Returns the corners taken.
+fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
+    let spec = field.spec;
+    let mut snapped = Vec::new();
+    for &q in corners {
+        let g = spec.to_grid(q.to_array());
+        let idx: [usize; 3] = std::array::from_fn(|a| g[a].round().max(0.0) as usize);
+        if (0..3).any(|a| idx[a] == 0 || idx[a] + 1 >= spec.dims[a]) {
+            continue;
+        }
+        let n = spec.linear(idx);
+        if field.extras.get(&(n as u32)).is_some_and(|e| !matches!(e, Extra::Directed(_)))
+            || !stays_convex(&spec, n, q, |m| field.position(m))
+        {
+            continue;
+        }
+        let strides = spec.strides();
+        let outside_neighbours = (0..3)
+            .flat_map(|a| [n - strides[a], n + strides[a]])
+            .filter(|&m| field.values[m] >= 0.0)
+            .count();
+        field.values[n] = if outside_neighbours > 3 { -1e-9 * spec.spacing } else { 0.0 };
+        field.extras.insert(n as u32, Extra::Position(q));
+        snapped.push(q);
+    }
+    snapped
+}
+
+/// Feature cells the surface enters without changing the sign of any
+/// sample (a tip or ridge poking in between them) are lost to plain
+/// interpolation. For each, the sample nearest one of its feature points
+/// moves onto that point (within its box, keeping its cells convex), with
+/// distance 0 signed against the cell's other samples, so the surface
+/// crosses the cell there. Returns the number of samples moved.
+fn snap_unreached(field: &mut UnifiedField, cells: &BTreeMap<usize, CellFeatures>) -> usize {
+    let spec = field.spec;
+    let reach = 0.5 * spec.spacing * (1.0 - 1e-9);
+    let mut moved = 0;
+    for (&cell, f) in cells {
+        if field.crosses(cell) {
+            continue;
+        }
+        let nodes = corner_nodes(&spec, cell);
+        let mut best: Option<(f64, usize, DVec3)> = None;
+        for &n in &nodes {
+            if field.extras.get(&(n as u32)).is_some_and(|e| !matches!(e, Extra::Directed(_))) {
+                continue;
+            }
+            let home = node_position(&spec, n);
+            let on_pieces = f.pieces.iter().map(|&[a, b]| closest_on_segment(home, a, b));
+            for q in f.corners.iter().chain(&f.bends).copied().chain(on_pieces) {
+                let d = (q - home).abs().max_element();
+                if d <= reach && best.is_none_or(|b| d < b.0) {
+                    best = Some((d, n, q));
+                }
+            }
+        }
+        let Some((_, n, q)) = best else { continue };
+        if !stays_convex(&spec, n, q, |m| field.position(m)) {
+            continue;
+        }
+        let outside = field.values[nodes[0]] >= 0.0;
+        field.values[n] = if outside { -1e-9 * spec.spacing } else { 0.0 };
+        field.extras.insert(n as u32, Extra::Position(q));
+        moved += 1;
+    }
+    moved
 }
 
 /// Samples with an edge crossing that interpolation misplaces by more than
