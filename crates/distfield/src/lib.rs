@@ -20,6 +20,7 @@ pub mod error;
 pub mod extract;
 pub mod offset;
 pub mod features;
+pub mod format;
 pub mod query;
 pub mod unified;
 

@@ -35,8 +35,8 @@ pub(crate) const BAND_CELLS: f64 = 3.0;
 /// The extra data one sample may carry.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Extra {
-    /// Distances from the sample along +x, +y, +z to the surface; NaN
-    /// where that edge has no crossing.
+    /// Distances from the sample along +x, +y, +z to the surface;
+    /// infinite where that edge has no stored crossing.
     Directed([f64; 3]),
     /// A point on a sharp feature inside one of the sample's cells (the
     /// cell containing the point).
@@ -235,7 +235,7 @@ fn directed_distances(field: &UnifiedField, query: &MeshQuery, threshold: f64) -
         .into_par_iter()
         .filter_map(|node| {
             let idx = spec.unlinear(node);
-            let mut directed = [f64::NAN; 3];
+            let mut directed = [f64::INFINITY; 3];
             let mut needed = false;
             for axis in (0..3).filter(|&a| idx[a] + 1 < spec.dims[a]) {
                 let (a, b) = (field.values[node], field.values[node + strides[axis]]);

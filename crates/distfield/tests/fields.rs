@@ -92,3 +92,55 @@ fn udf_keeps_every_corner_of_a_rotated_cube() {
 fn udf_keeps_every_corner_of_an_octahedron() {
     check_corners_kept(rotate(&octahedron(), [0.2, 0.1, 0.4]), 20);
 }
+
+#[test]
+fn field_files_round_trip_exactly_and_refuse_truncation() {
+    use surfrecon_distfield::format::{read_odf, read_udf, write_odf, write_udf};
+    use surfrecon_distfield::offset::{build_odf, OdfOptions};
+    let shape = rotated_cube();
+    let size = GridSize::Resolution(12);
+    let dir = tempfile::tempdir().unwrap();
+    let (udf, _) = build_udf(&shape, &UdfOptions { size, ..Default::default() }).unwrap();
+    let (odf, _) = build_odf(&shape, &OdfOptions { size, ..Default::default() }).unwrap();
+    assert!(!udf.extras.is_empty() && !odf.moved.is_empty());
+    let (udf_path, odf_path) = (dir.path().join("c.udf"), dir.path().join("c.odf"));
+    write_udf(&udf_path, &udf).unwrap();
+    write_odf(&odf_path, &odf).unwrap();
+    assert_eq!(read_udf(&udf_path).unwrap(), udf);
+    assert_eq!(read_odf(&odf_path).unwrap(), odf);
+    // Reading one kind as the other, or any truncated file, is an error.
+    assert!(read_udf(&odf_path).unwrap_err().to_string().contains("not a surfrecon"));
+    for path in [&udf_path, &odf_path] {
+        let bytes = std::fs::read(path).unwrap();
+        let cut = dir.path().join("cut");
+        for len in [0, 7, 30, 60, bytes.len() / 2, bytes.len() - 1] {
+            std::fs::write(&cut, &bytes[..len]).unwrap();
+            let err = if path == &udf_path { read_udf(&cut).err() } else { read_odf(&cut).err() };
+            let message = err.expect("a truncated file is refused").to_string();
+            assert!(message.contains("cut:"), "{message}");
+        }
+    }
+}
+
+#[test]
+fn odf_moves_samples_onto_the_features_and_lowers_the_error() {
+    use surfrecon_distfield::offset::{build_odf, OdfOptions};
+    let shape = rotated_cube();
+    let size = GridSize::Resolution(20);
+    let (odf, report) = build_odf(&shape, &OdfOptions { size, ..Default::default() }).unwrap();
+    let h = odf.spec.spacing;
+    assert!(report.energy_after < 0.5 * report.energy_before, "{report:?}");
+    let (mesh, _) = odf.extract();
+    assert_closed_manifold(&mesh, 2);
+    let regular_field = signed_distance(&shape, &grid_for(&shape, size, 2).unwrap(), None).unwrap();
+    let regular = marching_cubes(&regular_field, 0.0);
+    let exact = MeshQuery::new(&shape).unwrap();
+    let error = |m: &TriMesh| {
+        let there = deviation(m, &exact, 9);
+        let back = deviation(&shape, &MeshQuery::new(m).unwrap(), 9);
+        (there.max.max(back.max), 0.5 * (there.mean + back.mean))
+    };
+    let ((max, mean), (regular_max, regular_mean)) = (error(&mesh), error(&regular));
+    eprintln!("odf {report:?}\nmax / mean error: odf {max} / {mean}, regular {regular_max} / {regular_mean}, h {h}");
+    assert!(max < regular_max && mean < 0.5 * regular_mean);
+}

@@ -1,0 +1,284 @@
+//! The `.odf` and `.udf` files: compact, exact, little-endian binary.
+//!
+//! Both start with the same header:
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 8 | magic: `SRODF\0\0\x01` or `SRUDF\0\0\x01` (format version 1) |
+//! | 3 × 4 | samples along x, y, z (u32) |
+//! | 3 × 8 | origin: position of sample (0, 0, 0) (f64) |
+//! | 8 | spacing h (f64) |
+//! | n × 8 | signed distance per sample, x fastest, then y, then z (f64) |
+//!
+//! `.odf` then stores only the samples that moved off their grid nodes:
+//! a count m (u64) and m records of (sample index u32, position 3 × f64),
+//! in increasing index order; every other sample sits on its node.
+//!
+//! `.udf` then stores a 2-bit tag per sample, four to a byte, sample i in
+//! bits 2(i mod 4) of byte i/4: 0 = distance only, 1 = directed distances,
+//! 2 = a feature point, 3 = the sample's moved position. Then, for each
+//! tagged sample in index order, three f64: the distances along +x, +y, +z
+//! to the surface (+∞ where that edge has none stored), the feature point,
+//! or the position. Untagged samples (almost all) cost nothing beyond
+//! their distance and 2 bits.
+
+use crate::offset::{node_position, OffsetField};
+use crate::unified::{Extra, UnifiedField};
+use crate::DistFieldError;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::Path;
+use surfrecon_geom::DVec3;
+use surfrecon_grid::GridSpec;
+
+const ODF_MAGIC: &[u8; 8] = b"SRODF\0\0\x01";
+const UDF_MAGIC: &[u8; 8] = b"SRUDF\0\0\x01";
+const HEADER_BYTES: usize = 8 + 12 + 24 + 8;
+
+/// Which of the two field kinds a file holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FieldKind {
+    Offset,
+    Unified,
+}
+
+/// The kind a file's magic bytes announce, if it is one of ours.
+pub fn sniff(path: &Path) -> Result<Option<FieldKind>, DistFieldError> {
+    let mut magic = [0u8; 8];
+    let mut f = std::fs::File::open(path).map_err(|error| io_error(path, error))?;
+    match std::io::Read::read_exact(&mut f, &mut magic) {
+        Ok(()) if &magic == ODF_MAGIC => Ok(Some(FieldKind::Offset)),
+        Ok(()) if &magic == UDF_MAGIC => Ok(Some(FieldKind::Unified)),
+        _ => Ok(None),
+    }
+}
+
+pub fn write_odf(path: &Path, field: &OffsetField) -> Result<(), DistFieldError> {
+    write_file(path, |w| {
+        write_header(w, ODF_MAGIC, &field.spec, &field.values)?;
+        w.write_all(&(field.moved.len() as u64).to_le_bytes())?;
+        for (&i, p) in &field.moved {
+            w.write_all(&i.to_le_bytes())?;
+            write_vec(w, *p)?;
+        }
+        Ok(())
+    })
+}
+
+pub fn write_udf(path: &Path, field: &UnifiedField) -> Result<(), DistFieldError> {
+    write_file(path, |w| {
+        write_header(w, UDF_MAGIC, &field.spec, &field.values)?;
+        let mut tags = vec![0u8; field.values.len().div_ceil(4)];
+        for (&i, e) in &field.extras {
+            let i = i as usize;
+            tags[i / 4] |= tag_of(e) << (2 * (i % 4));
+        }
+        w.write_all(&tags)?;
+        for e in field.extras.values() {
+            let v = match *e {
+                Extra::Directed(d) => DVec3::from_array(d),
+                Extra::FeaturePoint(p) | Extra::Position(p) => p,
+            };
+            write_vec(w, v)?;
+        }
+        Ok(())
+    })
+}
+
+pub fn read_odf(path: &Path) -> Result<OffsetField, DistFieldError> {
+    let bytes = std::fs::read(path).map_err(|error| io_error(path, error))?;
+    let mut r = Reader { bytes: &bytes, at: 0, path };
+    let (spec, values) = r.header(ODF_MAGIC, "offset distance field (.odf)")?;
+    let m = r.u64("the count of moved samples")? as usize;
+    if m > values.len() || r.remaining() != m * 28 {
+        return Err(r.bad(format!(
+            "{m} moved samples announced but {} bytes follow (28 per sample expected)",
+            r.remaining()
+        )));
+    }
+    let mut moved = BTreeMap::new();
+    let mut last = None;
+    for _ in 0..m {
+        let i = r.u32("a sample index")?;
+        let p = r.vec("a sample position")?;
+        if (i as usize) >= values.len() || last.is_some_and(|l| i <= l) {
+            return Err(r.bad(format!("moved sample index {i} is out of range or out of order")));
+        }
+        check_in_cell(&r, &spec, i as usize, p)?;
+        moved.insert(i, p);
+        last = Some(i);
+    }
+    Ok(OffsetField { spec, values, moved })
+}
+
+pub fn read_udf(path: &Path) -> Result<UnifiedField, DistFieldError> {
+    let bytes = std::fs::read(path).map_err(|error| io_error(path, error))?;
+    let mut r = Reader { bytes: &bytes, at: 0, path };
+    let (spec, values) = r.header(UDF_MAGIC, "unified distance field (.udf)")?;
+    let n = values.len();
+    let tags = r.take(n.div_ceil(4), "the sample tags")?.to_vec();
+    let tag = |i: usize| (tags[i / 4] >> (2 * (i % 4))) & 3;
+    let tagged: Vec<usize> = (0..n).filter(|&i| tag(i) != 0).collect();
+    if r.remaining() != tagged.len() * 24 {
+        return Err(r.bad(format!(
+            "{} tagged samples need {} bytes of extra data but {} follow",
+            tagged.len(),
+            tagged.len() * 24,
+            r.remaining()
+        )));
+    }
+    let mut extras = BTreeMap::new();
+    for i in tagged {
+        let v = r.vec("extra sample data")?;
+        let extra = match tag(i) {
+            1 => {
+                if v.to_array().iter().any(|&d| !(d >= 0.0 && d <= spec.spacing || d == f64::INFINITY)) {
+                    return Err(r.bad(format!("sample {i}: directed distances {v} must lie within one spacing")));
+                }
+                Extra::Directed(v.to_array())
+            }
+            2 => Extra::FeaturePoint(check_finite(&r, i, v)?),
+            _ => {
+                check_in_cell(&r, &spec, i, v)?;
+                Extra::Position(v)
+            }
+        };
+        extras.insert(i as u32, extra);
+    }
+    Ok(UnifiedField { spec, values, extras })
+}
+
+fn tag_of(e: &Extra) -> u8 {
+    match e {
+        Extra::Directed(_) => 1,
+        Extra::FeaturePoint(_) => 2,
+        Extra::Position(_) => 3,
+    }
+}
+
+fn write_file(path: &Path, fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<(), DistFieldError> {
+    surfrecon_geom::io::write_atomic(path, fill).map_err(|e| match e {
+        surfrecon_geom::GeomError::Io { path, error } => DistFieldError::Io { path, error },
+        other => DistFieldError::BadFile { path: path.to_path_buf(), message: other.to_string() },
+    })
+}
+
+fn write_header(w: &mut dyn Write, magic: &[u8; 8], spec: &GridSpec<3>, values: &[f64]) -> std::io::Result<()> {
+    w.write_all(magic)?;
+    for d in spec.dims {
+        w.write_all(&(d as u32).to_le_bytes())?;
+    }
+    write_vec(w, DVec3::from_array(spec.origin))?;
+    w.write_all(&spec.spacing.to_le_bytes())?;
+    for v in values {
+        w.write_all(&v.to_le_bytes())?;
+    }
+    Ok(())
+}
+
+fn write_vec(w: &mut dyn Write, v: DVec3) -> std::io::Result<()> {
+    for x in v.to_array() {
+        w.write_all(&x.to_le_bytes())?;
+    }
+    Ok(())
+}
+
+fn io_error(path: &Path, error: std::io::Error) -> DistFieldError {
+    DistFieldError::Io { path: path.to_path_buf(), error }
+}
+
+fn check_finite(r: &Reader, i: usize, p: DVec3) -> Result<DVec3, DistFieldError> {
+    if p.is_finite() {
+        Ok(p)
+    } else {
+        Err(r.bad(format!("sample {i}: non-finite point {p}")))
+    }
+}
+
+/// A moved sample must stay within half a spacing of its node.
+fn check_in_cell(r: &Reader, spec: &GridSpec<3>, i: usize, p: DVec3) -> Result<(), DistFieldError> {
+    let off = (p - node_position(spec, i)).abs().max_element();
+    if off.is_finite() && off <= 0.5 * spec.spacing {
+        Ok(())
+    } else {
+        Err(r.bad(format!("sample {i} is placed at {p}, outside its cell")))
+    }
+}
+
+/// A cursor over a field file's bytes that names what it is reading
+/// when the file ends early.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    path: &'a Path,
+}
+
+impl Reader<'_> {
+    fn bad(&self, message: String) -> DistFieldError {
+        DistFieldError::BadFile { path: self.path.to_path_buf(), message }
+    }
+
+    fn remaining(&self) -> usize {
+        self.bytes.len() - self.at
+    }
+
+    fn take(&mut self, n: usize, what: &str) -> Result<&[u8], DistFieldError> {
+        if self.remaining() < n {
+            return Err(self.bad(format!(
+                "truncated: {what} needs {n} bytes at offset {} but only {} remain",
+                self.at,
+                self.remaining()
+            )));
+        }
+        self.at += n;
+        Ok(&self.bytes[self.at - n..self.at])
+    }
+
+    fn u32(&mut self, what: &str) -> Result<u32, DistFieldError> {
+        Ok(u32::from_le_bytes(self.take(4, what)?.try_into().expect("4 bytes")))
+    }
+
+    fn u64(&mut self, what: &str) -> Result<u64, DistFieldError> {
+        Ok(u64::from_le_bytes(self.take(8, what)?.try_into().expect("8 bytes")))
+    }
+
+    fn f64(&mut self, what: &str) -> Result<f64, DistFieldError> {
+        Ok(f64::from_le_bytes(self.take(8, what)?.try_into().expect("8 bytes")))
+    }
+
+    fn vec(&mut self, what: &str) -> Result<DVec3, DistFieldError> {
+        Ok(DVec3::new(self.f64(what)?, self.f64(what)?, self.f64(what)?))
+    }
+
+    fn header(&mut self, magic: &[u8; 8], kind: &str) -> Result<(GridSpec<3>, Vec<f64>), DistFieldError> {
+        if self.bytes.len() < 8 || &self.bytes[..8] != magic {
+            return Err(self.bad(format!("not a surfrecon {kind} file (wrong magic bytes)")));
+        }
+        self.at = 8;
+        let dims = [self.u32("the grid size")?, self.u32("the grid size")?, self.u32("the grid size")?].map(|d| d as usize);
+        let origin = self.vec("the grid origin")?.to_array();
+        let spacing = self.f64("the grid spacing")?;
+        if dims.iter().any(|&d| d < 2) || !(spacing.is_finite() && spacing > 0.0) || origin.iter().any(|o| !o.is_finite()) {
+            return Err(self.bad(format!("bad grid: {dims:?} samples, spacing {spacing}, origin {origin:?}")));
+        }
+        let n = dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d));
+        let n = match n {
+            Some(n) if n.checked_mul(8).is_some_and(|b| b <= self.remaining()) => n,
+            _ => {
+                return Err(self.bad(format!(
+                    "truncated: a {}×{}×{} grid needs more than the {} bytes after the {HEADER_BYTES}-byte header",
+                    dims[0],
+                    dims[1],
+                    dims[2],
+                    self.remaining()
+                )))
+            }
+        };
+        let raw = self.take(n * 8, "the distances")?;
+        let values: Vec<f64> = raw.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes"))).collect();
+        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+            return Err(self.bad(format!("sample {i} has a non-finite distance")));
+        }
+        Ok((GridSpec { origin, spacing, dims }, values))
+    }
+}
