@@ -22,6 +22,7 @@ pub mod offset;
 pub mod features;
 pub mod format;
 pub mod query;
+pub mod sculpt;
 pub mod unified;
 
 pub use error::DistFieldError;

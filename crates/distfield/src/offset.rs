@@ -508,7 +508,7 @@ impl<'a> Search<'a> {
 }
 
 /// The (up to eight) cells that have `node` as a corner.
-pub(crate) fn cells_around(spec: &GridSpec<3>, node: usize) -> impl Iterator<Item = usize> + '_ {
+pub fn cells_around(spec: &GridSpec<3>, node: usize) -> impl Iterator<Item = usize> + '_ {
     let idx = spec.unlinear(node);
     (0..8).filter_map(move |c: usize| {
         let mut cell = idx;

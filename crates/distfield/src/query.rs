@@ -40,6 +40,12 @@ impl MeshQuery {
         }
     }
 
+    /// The closest point of the surface to `p`.
+    pub fn closest_point(&self, p: DVec3) -> DVec3 {
+        let q = self.mesh.project_local_point(to_parry(p), false).point;
+        DVec3::new(q.x, q.y, q.z)
+    }
+
     /// Distance from `p` along `+axis` to the first surface point, if one
     /// lies within `max`.
     pub fn hit_along(&self, p: DVec3, axis: usize, max: f64) -> Option<f64> {

@@ -155,7 +155,8 @@ pub fn build_udf(
 /// distances), so marching cubes reaches the corner from every cell
 /// around it; a fan around one cell's feature point often folds at a
 /// pointed corner. The sample's distance is 0, signed against most of its
-/// neighbours so that the edges to them cross the surface at the corner.
+/// neighbours so that the edges to them cross the surface at the corner,
+/// but on the side of at least one of them, so it never becomes an island.
 /// Returns the corners taken.
 fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
     let spec = field.spec;
@@ -172,12 +173,18 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
         {
             continue;
         }
+        if q == node_position(&spec, n) {
+            // Already exact: the sample sits on the corner.
+            snapped.push(q);
+            continue;
+        }
         let strides = spec.strides();
-        let outside_neighbours = (0..3)
-            .flat_map(|a| [n - strides[a], n + strides[a]])
-            .filter(|&m| field.values[m] >= 0.0)
-            .count();
-        field.values[n] = if outside_neighbours > 3 { -1e-9 * spec.spacing } else { 0.0 };
+        let neighbours = (0..3).flat_map(|a| [n - strides[a], n + strides[a]]).map(|m| field.values[m]);
+        let inside = neighbours.filter(|&v| v < 0.0).count();
+        // Marching cubes counts 0 as outside. Against the majority, but
+        // never against all six (that would be an island).
+        let sample_inside = inside == 6 || (inside > 0 && inside < 3);
+        field.values[n] = if sample_inside { -1e-9 * spec.spacing } else { 0.0 };
         field.extras.insert(n as u32, Extra::Position(q));
         snapped.push(q);
     }

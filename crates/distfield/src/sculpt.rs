@@ -1,0 +1,388 @@
+//! CSG sculpting: union, subtraction or intersection of a field with a
+//! tool (sphere, box, capped cylinder, or any closed surface), sample by
+//! sample (min/max of the two signed distances).
+//!
+//! Min/max alone would round the new edges where the tool cuts the
+//! object, exactly as a regular grid rounds any edge. So after combining,
+//! each cell the tool changed is revisited with exact geometry: the
+//! object's surface (as the field represents it, i.e. its extracted mesh)
+//! and the tool's. A unified field gets exact directed distances on the
+//! cells' edges where interpolation errs, and a feature point on the new
+//! edge (where the two surfaces meet) in each cell it crosses; an offset
+//! field gets a sample moved onto that edge instead.
+
+use crate::extract::{corner_nodes, fan_fits};
+use crate::features::nudge_into;
+use crate::offset::{node_position, stays_convex, OffsetField};
+use crate::query::MeshQuery;
+use crate::unified::{Extra, UnifiedField};
+use crate::DistFieldError;
+use rayon::prelude::*;
+use std::collections::BTreeSet;
+use surfrecon_geom::DVec3;
+use surfrecon_grid::marching::crossing_fraction;
+use surfrecon_grid::marching::tables::EDGE_CORNERS;
+use surfrecon_grid::{Field3, GridSpec};
+
+/// How a tool combines with the field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Operation {
+    Union,
+    Subtract,
+    Intersect,
+}
+
+impl Operation {
+    /// The combined signed distance (exact on the zero set).
+    pub fn apply(self, object: f64, tool: f64) -> f64 {
+        match self {
+            Operation::Union => object.min(tool),
+            Operation::Subtract => object.max(-tool),
+            Operation::Intersect => object.max(tool),
+        }
+    }
+}
+
+/// A sculpting tool: a solid given by its exact signed distance.
+pub enum Tool {
+    Sphere { centre: DVec3, radius: f64 },
+    Box { min: DVec3, max: DVec3 },
+    /// A cylinder around the segment `a`-`b`, with flat caps.
+    Cylinder { a: DVec3, b: DVec3, radius: f64 },
+    /// A closed, outward-oriented surface (a mesh file, or the surface
+    /// of another field).
+    Surface(MeshQuery),
+}
+
+impl Tool {
+    /// Refuse degenerate tools.
+    pub fn check(&self) -> Result<(), DistFieldError> {
+        let bad = |m: String| Err(DistFieldError::InvalidOption(m));
+        match self {
+            Tool::Sphere { centre, radius } if !(centre.is_finite() && *radius > 0.0 && radius.is_finite()) => {
+                bad(format!("a sphere needs a finite centre and a positive radius, not {centre} / {radius}"))
+            }
+            Tool::Box { min, max } if !(min.is_finite() && max.is_finite() && min.cmplt(*max).all()) => {
+                bad(format!("a box needs finite corners with min < max on every axis, not {min} / {max}"))
+            }
+            Tool::Cylinder { a, b, radius }
+                if !(a.is_finite() && b.is_finite() && a != b && *radius > 0.0 && radius.is_finite()) =>
+            {
+                bad(format!("a cylinder needs two distinct finite end points and a positive radius, not {a} / {b} / {radius}"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Signed distance to the tool's surface, negative inside.
+    pub fn signed_distance(&self, p: DVec3) -> f64 {
+        match self {
+            Tool::Sphere { centre, radius } => p.distance(*centre) - radius,
+            Tool::Box { min, max } => {
+                let q = (p - (*min + *max) * 0.5).abs() - (*max - *min) * 0.5;
+                q.max(DVec3::ZERO).length() + q.max_element().min(0.0)
+            }
+            Tool::Cylinder { a, b, radius } => {
+                let axis = *b - *a;
+                let length = axis.length();
+                let t = (p - *a).dot(axis) / length;
+                let radial = ((p - *a) - axis * (t / length)).length() - radius;
+                let along = (-t).max(t - length);
+                if radial > 0.0 && along > 0.0 {
+                    radial.hypot(along)
+                } else {
+                    radial.max(along)
+                }
+            }
+            Tool::Surface(q) => q.signed_distance(p),
+        }
+    }
+
+    /// The closest point of the tool's surface to `p`.
+    pub fn closest_point(&self, p: DVec3) -> DVec3 {
+        match self {
+            Tool::Surface(q) => q.closest_point(p),
+            Tool::Sphere { centre, radius } => *centre + (p - *centre).normalize_or(DVec3::X) * *radius,
+            // Exact distances: stepping back along the gradient lands on
+            // the surface (a few steps settle edges and corners).
+            _ => (0..4).fold(p, |x, _| x - self.gradient(x) * self.signed_distance(x)),
+        }
+    }
+
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        let e = 1e-7 * (1.0 + p.abs().max_element());
+        let g = DVec3::from_array(std::array::from_fn(|a| {
+            let mut d = DVec3::ZERO;
+            d[a] = e;
+            (self.signed_distance(p + d) - self.signed_distance(p - d)) / (2.0 * e)
+        }));
+        g.normalize_or_zero()
+    }
+}
+
+/// What a sculpting step changed.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SculptReport {
+    /// Samples whose distance now comes from the tool.
+    pub changed: usize,
+    /// Cells the tool changed that the surface crosses.
+    pub cells: usize,
+    /// Points found on the new edges (where object and tool meet).
+    pub edge_points: usize,
+    /// Of those, kept as feature points (UDF) or samples moved onto them (ODF).
+    pub kept: usize,
+    /// Directed distances stored anew (UDF).
+    pub directed: usize,
+    /// Old extra data dropped because the tool changed its cell.
+    pub dropped: usize,
+}
+
+/// Combine a regular field with the tool.
+pub fn sculpt_regular(field: &mut Field3, operation: Operation, tool: &Tool) -> SculptReport {
+    let spec = field.spec;
+    let changed = field
+        .values
+        .par_iter_mut()
+        .enumerate()
+        .map(|(i, v)| {
+            let t = tool.signed_distance(node_position(&spec, i));
+            let new = operation.apply(*v, t);
+            let changed = new != *v;
+            *v = new;
+            changed as usize
+        })
+        .sum();
+    SculptReport { changed, ..Default::default() }
+}
+
+/// The exact combined surface: the object as the field represents it
+/// (its extracted mesh) and the tool.
+struct Combined<'a> {
+    object: MeshQuery,
+    tool: &'a Tool,
+    operation: Operation,
+}
+
+impl Combined<'_> {
+    fn signed_distance(&self, p: DVec3) -> f64 {
+        self.operation.apply(self.object.signed_distance(p), self.tool.signed_distance(p))
+    }
+
+    /// A point on both surfaces near `start` (alternating projections),
+    /// if they meet there.
+    fn edge_point(&self, start: DVec3, tolerance: f64) -> Option<DVec3> {
+        let mut x = start;
+        for _ in 0..32 {
+            x = self.tool.closest_point(self.object.closest_point(x));
+            if self.object.signed_distance(x).abs() < tolerance {
+                return Some(x);
+            }
+        }
+        None
+    }
+}
+
+/// Combine samples with the tool at their positions; returns the samples
+/// that changed (sorted) and updates `values`.
+fn combine(
+    values: &mut [f64],
+    position: impl Fn(usize) -> DVec3 + Sync,
+    operation: Operation,
+    tool: &Tool,
+) -> Vec<usize> {
+    values
+        .par_iter_mut()
+        .enumerate()
+        .filter_map(|(i, v)| {
+            let new = operation.apply(*v, tool.signed_distance(position(i)));
+            let changed = new != *v;
+            *v = new;
+            changed.then_some(i)
+        })
+        .collect()
+}
+
+/// Cells with a changed corner that the (new) surface crosses.
+fn touched_cells(spec: &GridSpec<3>, changed: &[usize], values: &[f64]) -> Vec<usize> {
+    let mut cells = BTreeSet::new();
+    for &n in changed {
+        cells.extend(crate::offset::cells_around(spec, n));
+    }
+    cells
+        .into_iter()
+        .filter(|&c| {
+            let inside = corner_nodes(spec, c).map(|n| values[n] < 0.0);
+            inside.iter().any(|&s| s) && inside.iter().any(|&s| !s)
+        })
+        .collect()
+}
+
+/// A point where object and tool meet in `cell` (its closed box), if
+/// they do, moved just inside it. The search starts from the cell's
+/// centre and, failing that, from its corners.
+fn edge_point_in(spec: &GridSpec<3>, combined: &Combined, cell: usize) -> Option<DVec3> {
+    let h = spec.spacing;
+    let lo = node_position(spec, cell);
+    let starts = std::iter::once(lo + DVec3::splat(0.5 * h))
+        .chain((0..8).map(|c| lo + DVec3::new((c & 1) as f64, ((c >> 1) & 1) as f64, (c >> 2) as f64) * h));
+    starts
+        .filter_map(|start| combined.edge_point(start, 1e-6 * h))
+        .find(|&p| nudge_into(spec, cell, p).distance(p) < 1e-6 * h && combined.tool.signed_distance(p).abs() < 1e-6 * h)
+        .map(|p| nudge_into(spec, cell, p))
+}
+
+/// Sculpt a unified field: combine, then restore exact crossings and put
+/// feature points on the new edges.
+pub fn sculpt_udf(
+    field: &mut UnifiedField,
+    operation: Operation,
+    tool: &Tool,
+    threshold: f64,
+) -> Result<SculptReport, DistFieldError> {
+    let (surface, _) = field.extract();
+    let combined = Combined { object: MeshQuery::new(&surface)?, tool, operation };
+    let spec = field.spec;
+    let h = spec.spacing;
+    let positions: Vec<(usize, DVec3)> = field
+        .extras
+        .iter()
+        .filter_map(|(&i, e)| match e {
+            Extra::Position(p) => Some((i as usize, *p)),
+            _ => None,
+        })
+        .collect();
+    let position = |i: usize| match positions.binary_search_by_key(&i, |x| x.0) {
+        Ok(k) => positions[k].1,
+        Err(_) => node_position(&spec, i),
+    };
+    let changed = combine(&mut field.values, position, operation, tool);
+    let cells = touched_cells(&spec, &changed, &field.values);
+    let mut report = SculptReport { changed: changed.len(), cells: cells.len(), ..Default::default() };
+    // Old directed distances and feature points of changed samples no
+    // longer describe the surface.
+    for &n in &changed {
+        if let Some(e) = field.extras.get(&(n as u32)) {
+            if !matches!(e, Extra::Position(_)) {
+                field.extras.remove(&(n as u32));
+                report.dropped += 1;
+            }
+        }
+    }
+    let stale: Vec<u32> = field
+        .extras
+        .iter()
+        .filter_map(|(&i, e)| match e {
+            Extra::FeaturePoint(p) if combined.signed_distance(*p).abs() > 1e-6 * h => Some(i),
+            _ => None,
+        })
+        .collect();
+    report.dropped += stale.len();
+    for i in stale {
+        field.extras.remove(&i);
+    }
+    // Exact crossings on the edges of the cells the tool changed.
+    let mut edges: BTreeSet<(usize, usize)> = BTreeSet::new();
+    for &c in &cells {
+        let nodes = corner_nodes(&spec, c);
+        for [a, b] in EDGE_CORNERS {
+            edges.insert((nodes[a as usize], (a ^ b).trailing_zeros() as usize));
+        }
+    }
+    let found: Vec<(usize, usize, f64)> = edges
+        .par_iter()
+        .filter_map(|&(n, axis)| {
+            let m = n + spec.strides()[axis];
+            let (a, b) = (field.values[n], field.values[m]);
+            let regular = !field.extras.contains_key(&(n as u32)) || matches!(field.extras[&(n as u32)], Extra::Directed(_));
+            if (a >= 0.0) == (b >= 0.0) || !regular || matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_))) {
+                return None;
+            }
+            let origin = node_position(&spec, n);
+            let d = edge_root(&combined, origin, axis, h)?;
+            ((d - crossing_fraction(a, b, 0.0) * h).abs() > threshold * h).then_some((n, axis, d))
+        })
+        .collect();
+    for (n, axis, d) in found {
+        let entry = field.extras.entry(n as u32).or_insert(Extra::Directed([f64::INFINITY; 3]));
+        if let Extra::Directed(dirs) = entry {
+            if dirs[axis] == f64::INFINITY {
+                report.directed += 1;
+            }
+            dirs[axis] = d;
+        }
+    }
+    // Feature points on the new edges.
+    let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
+    for &c in &cells {
+        if taken.contains(&c) {
+            continue;
+        }
+        let Some(p) = edge_point_in(&spec, &combined, c) else { continue };
+        report.edge_points += 1;
+        let corners = corner_nodes(&spec, c);
+        let free = corners.iter().find(|&&n| !field.extras.contains_key(&(n as u32)));
+        if let (Some(&n), true) = (free, fan_fits(&*field, c, p)) {
+            field.extras.insert(n as u32, Extra::FeaturePoint(p));
+            report.kept += 1;
+        }
+    }
+    Ok(report)
+}
+
+/// Distance along `+axis` from `origin` to the combined surface within
+/// one spacing (bisection on the exact combined distance).
+fn edge_root(combined: &Combined, origin: DVec3, axis: usize, h: f64) -> Option<f64> {
+    let at = |t: f64| {
+        let mut p = origin;
+        p[axis] += t;
+        combined.signed_distance(p)
+    };
+    let (mut lo, mut hi) = (0.0, h);
+    let (flo, fhi) = (at(lo), at(hi));
+    if (flo >= 0.0) == (fhi >= 0.0) {
+        return None;
+    }
+    for _ in 0..48 {
+        let mid = 0.5 * (lo + hi);
+        if (at(mid) >= 0.0) == (flo >= 0.0) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some(0.5 * (lo + hi))
+}
+
+/// Sculpt an offset field: combine at the samples' positions, then move a
+/// sample onto the new edge in each cell it crosses (when legal).
+pub fn sculpt_odf(field: &mut OffsetField, operation: Operation, tool: &Tool) -> Result<SculptReport, DistFieldError> {
+    let (surface, _) = field.extract();
+    let combined = Combined { object: MeshQuery::new(&surface)?, tool, operation };
+    let spec = field.spec;
+    let h = spec.spacing;
+    let moved = field.moved.clone();
+    let position = |i: usize| moved.get(&(i as u32)).copied().unwrap_or_else(|| node_position(&spec, i));
+    let changed = combine(&mut field.values, position, operation, tool);
+    let cells = touched_cells(&spec, &changed, &field.values);
+    let mut report = SculptReport { changed: changed.len(), cells: cells.len(), ..Default::default() };
+    let reach = 0.5 * h * (1.0 - 1e-9);
+    for &c in &cells {
+        let Some(p) = edge_point_in(&spec, &combined, c) else { continue };
+        report.edge_points += 1;
+        let nearest = corner_nodes(&spec, c)
+            .into_iter()
+            .filter(|&n| !field.moved.contains_key(&(n as u32)))
+            .filter(|&n| (p - node_position(&spec, n)).abs().max_element() <= reach)
+            .min_by(|&a, &b| p.distance(node_position(&spec, a)).total_cmp(&p.distance(node_position(&spec, b))));
+        let Some(n) = nearest else { continue };
+        if !stays_convex(&spec, n, p, |m| field.position_of(m)) {
+            continue;
+        }
+        // On the edge the distance is 0; keep the sample's side so the
+        // crossings to its neighbours collapse onto the edge.
+        field.values[n] = if field.values[n] < 0.0 { -1e-9 * h } else { 0.0 };
+        field.moved.insert(n as u32, p);
+        report.kept += 1;
+    }
+    Ok(report)
+}
