@@ -5,7 +5,7 @@
 mod commands;
 mod context;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use context::Context;
 
 #[derive(Parser)]
@@ -40,10 +40,14 @@ enum Command {
     Eval(commands::eval::Args),
     /// Draw a mesh or point cloud to a PNG.
     Render(commands::render::Args),
-    /// Compute a distance field (unsigned, or signed for a closed mesh).
+    /// Compute a distance field (unsigned, signed for a closed mesh, or
+    /// keeping its sharp features: --kind odf|udf).
     Distance(commands::distance::Args),
     /// Extract an isosurface mesh (or 2D curves) from a field.
     Extract(commands::extract::Args),
+    /// Carve, add or intersect shapes on a distance field (CSG), keeping
+    /// the new sharp edges in offset and unified fields.
+    Sculpt(commands::sculpt::Args),
     /// Store a field as a compact thin shell.
     Shell(commands::shell::Args),
     /// Rebuild a full signed distance field from a thin shell.
@@ -55,7 +59,10 @@ enum Command {
 }
 
 fn main() {
-    let cli = Cli::parse();
+    // Sculpting steps apply in command-line order, which only the raw
+    // matches record.
+    let matches = Cli::command().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let ctx = Context::new(cli.quiet, cli.json, cli.verbose);
     let result = match cli.command {
         Command::Convert(a) => commands::convert::run(a, &ctx),
@@ -65,6 +72,10 @@ fn main() {
         Command::Render(a) => commands::render::run(a, &ctx),
         Command::Distance(a) => commands::distance::run(a, &ctx),
         Command::Extract(a) => commands::extract::run(a, &ctx),
+        Command::Sculpt(a) => {
+            let sub = matches.subcommand_matches("sculpt").expect("parsed as sculpt");
+            commands::sculpt::run(a, sub, &ctx)
+        }
         Command::Shell(a) => commands::shell::run(a, &ctx),
         Command::Unshell(a) => commands::unshell::run(a, &ctx),
         Command::Reconstruct(a) => commands::reconstruct::run(a, &ctx),

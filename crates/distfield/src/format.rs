@@ -282,3 +282,88 @@ impl Reader<'_> {
         Ok((GridSpec { origin, spacing, dims }, values))
     }
 }
+
+/// A distance field file of any of the three kinds.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AnyField {
+    /// A regular grid (.nrrd or .vtk), 3D.
+    Regular(surfrecon_grid::Field3),
+    Offset(OffsetField),
+    Unified(UnifiedField),
+}
+
+impl AnyField {
+    /// Read a field, telling the kinds apart by their contents (.odf and
+    /// .udf by magic bytes, anything else as a regular field file).
+    pub fn read(path: &Path) -> Result<Self, DistFieldError> {
+        match sniff(path)? {
+            Some(FieldKind::Offset) => Ok(AnyField::Offset(read_odf(path)?)),
+            Some(FieldKind::Unified) => Ok(AnyField::Unified(read_udf(path)?)),
+            None => match surfrecon_grid::field_io::read_field(path)? {
+                surfrecon_grid::field_io::AnyField::D3(f) => Ok(AnyField::Regular(f)),
+                surfrecon_grid::field_io::AnyField::D2(_) => Err(DistFieldError::BadFile {
+                    path: path.to_path_buf(),
+                    message: "a 2D field has no surface to sculpt or compare; a 3D field is needed".into(),
+                }),
+            },
+        }
+    }
+
+    /// Write in the file's own kind; `.odf`/`.udf` kinds must be written
+    /// to files with those extensions, regular ones to .nrrd or .vtk.
+    pub fn write(&self, path: &Path) -> Result<(), DistFieldError> {
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        let expected = match self {
+            AnyField::Regular(_) => "nrrd or .vtk",
+            AnyField::Offset(_) => "odf",
+            AnyField::Unified(_) => "udf",
+        };
+        let fits = match self {
+            AnyField::Regular(_) => ext == "nrrd" || ext == "vtk",
+            AnyField::Offset(_) => ext == "odf",
+            AnyField::Unified(_) => ext == "udf",
+        };
+        if !fits {
+            return Err(DistFieldError::BadFile {
+                path: path.to_path_buf(),
+                message: format!("this field is written as .{expected}, not .{ext}"),
+            });
+        }
+        match self {
+            AnyField::Regular(f) => Ok(surfrecon_grid::field_io::write_field(path, f)?),
+            AnyField::Offset(f) => write_odf(path, f),
+            AnyField::Unified(f) => write_udf(path, f),
+        }
+    }
+
+    /// The zero set as a closed mesh.
+    pub fn surface(&self) -> surfrecon_geom::TriMesh {
+        match self {
+            AnyField::Regular(f) => surfrecon_grid::marching::marching_cubes(f, 0.0),
+            AnyField::Offset(f) => f.extract().0,
+            AnyField::Unified(f) => f.extract().0,
+        }
+    }
+
+    pub fn spec(&self) -> &GridSpec<3> {
+        match self {
+            AnyField::Regular(f) => &f.spec,
+            AnyField::Offset(f) => &f.spec,
+            AnyField::Unified(f) => &f.spec,
+        }
+    }
+
+    /// Combine with a tool (see [`crate::sculpt`]).
+    pub fn sculpt(
+        &mut self,
+        operation: crate::sculpt::Operation,
+        tool: &crate::sculpt::Tool,
+    ) -> Result<crate::sculpt::SculptReport, DistFieldError> {
+        use crate::sculpt::{sculpt_odf, sculpt_regular, sculpt_udf};
+        match self {
+            AnyField::Regular(f) => Ok(sculpt_regular(f, operation, tool)),
+            AnyField::Offset(f) => sculpt_odf(f, operation, tool),
+            AnyField::Unified(f) => sculpt_udf(f, operation, tool, crate::unified::DEFAULT_THRESHOLD),
+        }
+    }
+}

@@ -360,13 +360,35 @@ impl<'a> Search<'a> {
             .into_iter()
             .filter(|p| (*p - home).abs().max_element() <= reach)
             .filter(|&p| self.stays_convex(field, node, p))
-            .map(|p| {
-                let v = self.query.signed_distance(p);
-                (p, v, self.local_energy(field, node, p, v))
-            })
+            .map(|p| (p, self.query.signed_distance(p)))
+            .filter(|&(_, v)| self.keeps_sides_connected(field, node, v))
+            .map(|(p, v)| (p, v, self.local_energy(field, node, p, v)))
             .filter(|&(_, _, e)| e < current - 1e-12)
             .min_by(|a, b| a.2.total_cmp(&b.2))
             .map(|(p, v, _)| (node, p, v))
+    }
+
+    /// Whether giving `node` the value `v` leaves no sample cut off from
+    /// its side: marching cubes would wrap such an island in a separate
+    /// little closed surface. The sample must keep a neighbour on its new
+    /// side and, if it changes side, each neighbour on its old side must
+    /// keep another neighbour there.
+    fn keeps_sides_connected(&self, field: &impl Movable, node: usize, v: f64) -> bool {
+        let side = |x: f64| x >= 0.0;
+        let neighbours = self.neighbours(node);
+        let here = neighbours.iter().flatten();
+        if !here.clone().any(|&m| side(field.value(m)) == side(v)) {
+            return false;
+        }
+        if side(field.value(node)) == side(v) {
+            return true;
+        }
+        here.filter(|&&m| side(field.value(m)) != side(v)).all(|&m| {
+            self.neighbours(m)
+                .iter()
+                .flatten()
+                .any(|&k| k != node && side(field.value(k)) == side(field.value(m)))
+        })
     }
 
     /// Corners and bends in the cells around `node`, and the points of

@@ -52,10 +52,49 @@ pub struct Args {
     /// Compute a 3D field even when every z is 0.
     #[arg(long = "3d")]
     pub three_d: bool,
+    /// Which field: `regular` (a distance per grid node, .nrrd/.vtk),
+    /// `odf` (offset field: samples moved onto sharp edges and corners,
+    /// .odf) or `udf` (unified field: regular distances plus exact
+    /// crossings and feature points only where needed, .udf). odf and udf
+    /// keep the sharp features of a closed mesh.
+    #[arg(long, value_enum, default_value_t = Kind::Regular)]
+    pub kind: Kind,
+    /// odf/udf: angle in degrees between face normals above which a mesh
+    /// edge counts as sharp.
+    #[arg(long, default_value_t = surfrecon_distfield::features::DEFAULT_FEATURE_ANGLE_DEG)]
+    pub feature_angle: f64,
+    /// udf: store exact crossings where interpolating the distances
+    /// misplaces them by more than this many grid spacings.
+    #[arg(long, default_value_t = surfrecon_distfield::unified::DEFAULT_THRESHOLD)]
+    pub threshold: f64,
+    /// odf: weight of the fidelity energy (distance to the features and
+    /// the surface).
+    #[arg(long, default_value_t = 1.0)]
+    pub lambda_distance: f64,
+    /// odf: weight of the spring energy (grid edges near their length).
+    #[arg(long, default_value_t = 0.1)]
+    pub lambda_spring: f64,
+    /// odf: weight of the orthogonality energy (grid edges perpendicular).
+    #[arg(long, default_value_t = 0.1)]
+    pub lambda_ortho: f64,
+    /// odf: rounds of the sample search; the step halves every round.
+    #[arg(long, default_value_t = 8)]
+    pub iterations: usize,
+}
+
+/// The kinds of field `distance` computes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Kind {
+    Regular,
+    Odf,
+    Udf,
 }
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     let size = grid_size(&args)?;
+    if args.kind != Kind::Regular {
+        return super::feature_field::run(&args, size, ctx);
+    }
     if let Some(w) = args.band {
         if !(w.is_finite() && w > 0.0) {
             bail!("--band must be a positive distance, not {w}");
@@ -91,7 +130,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn grid_size(args: &Args) -> anyhow::Result<GridSize> {
+pub(super) fn grid_size(args: &Args) -> anyhow::Result<GridSize> {
     match (args.resolution, args.spacing) {
         (_, Some(h)) if !(h.is_finite() && h > 0.0) => {
             bail!("--spacing must be a positive number, not {h}")

@@ -11,7 +11,8 @@ use surfrecon_grid::{Field2, Field3};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Field file (.nrrd or .vtk), 2D or 3D.
+    /// Field file: .nrrd or .vtk (2D or 3D), or an offset (.odf) or
+    /// unified (.udf) distance field.
     pub input: PathBuf,
     /// Output: a mesh (.ply, .obj, .off, .stl) for a 3D field, curves
     /// (.obj, written as `l` lines) for a 2D field.
@@ -25,6 +26,9 @@ pub struct Args {
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     if !args.iso.is_finite() {
         bail!("--iso must be a finite number, not {}", args.iso);
+    }
+    if surfrecon_distfield::format::sniff(&args.input)?.is_some() {
+        return feature_surface(&args, ctx);
     }
     let field = read_field(&args.input)?;
     check_crosses(&field, args.iso, &args)?;
@@ -53,10 +57,52 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The surface of an offset or unified field: marching cubes on its
+/// offset grid with its stored crossings and feature fans.
+fn feature_surface(args: &Args, ctx: &Context) -> anyhow::Result<()> {
+    if args.iso != 0.0 {
+        bail!("{}: offset and unified fields store their sharp features for the surface itself (iso 0) only", args.input.display());
+    }
+    let (mesh, report) = match surfrecon_distfield::format::AnyField::read(&args.input)? {
+        surfrecon_distfield::format::AnyField::Offset(f) => f.extract(),
+        surfrecon_distfield::format::AnyField::Unified(f) => f.extract(),
+        surfrecon_distfield::format::AnyField::Regular(_) => unreachable!("sniffed as odf/udf"),
+    };
+    if mesh.triangles.is_empty() {
+        bail!("{}: the field has no surface (it never changes sign)", args.input.display());
+    }
+    let mut summary = mesh_summary(&mesh, ctx);
+    summary["fans"] = report.fans.into();
+    summary["fans_refused"] = report.fans_refused.into();
+    summary["flips"] = report.flips.into();
+    let format = io::Format::from_path(&args.output)?;
+    if !format.stores_triangles() {
+        bail!("{}: format {format} cannot hold a triangle mesh", args.output.display());
+    }
+    io::write(&args.output, &Geometry::from_mesh(mesh)).with_context(|| format!("cannot write {}", args.output.display()))?;
+    ctx.say(format!("wrote {} in {:.2} s", args.output.display(), ctx.elapsed()));
+    ctx.emit_json(&serde_json::json!({
+        "command": "extract",
+        "input": args.input,
+        "output": args.output,
+        "dimension": 3,
+        "iso": 0.0,
+        "result": summary,
+        "seconds": ctx.elapsed(),
+    }));
+    Ok(())
+}
+
 /// Marching cubes; prints and returns the counts and topology.
 fn surface(field: &Field3, iso: f64, ctx: &Context) -> (Geometry, serde_json::Value) {
     let mesh = marching_cubes(field, iso);
-    let topo = metrics::topology(&mesh);
+    let summary = mesh_summary(&mesh, ctx);
+    (Geometry::from_mesh(mesh), summary)
+}
+
+/// Prints and returns a mesh's counts and topology.
+fn mesh_summary(mesh: &surfrecon_geom::TriMesh, ctx: &Context) -> serde_json::Value {
+    let topo = metrics::topology(mesh);
     let shape = if topo.watertight {
         "closed"
     } else {
@@ -68,14 +114,13 @@ fn surface(field: &Field3, iso: f64, ctx: &Context) -> (Geometry, serde_json::Va
         mesh.vertices.len(),
         topo.components
     ));
-    let summary = serde_json::json!({
+    serde_json::json!({
         "vertices": mesh.vertices.len(),
         "triangles": mesh.triangles.len(),
         "watertight": topo.watertight,
         "components": topo.components,
         "euler": topo.euler,
-    });
-    (Geometry::from_mesh(mesh), summary)
+    })
 }
 
 /// Marching squares; prints and returns the curve counts.
