@@ -45,21 +45,25 @@ fn main() {
     );
     row("ODF", report.seconds, t.elapsed().as_secs_f64(), &out, &mesh, &exact, odf.spec.spacing, stored);
 
-    let options = UdfOptions { size, ..Default::default() };
-    let (udf, report) = build_udf(&mesh, &options).unwrap();
-    let t = Instant::now();
-    let (out, extract) = udf.extract();
-    let stored = format!(
-        "{} directed, {} feature points ({} fanned, {} flips), {} moved samples, {} boundary / {} feature cells",
-        report.directed, report.feature_points, extract.fans, extract.flips, report.positions, report.boundary_cells, report.feature_cells
-    );
-    row("UDF", report.seconds, t.elapsed().as_secs_f64(), &out, &mesh, &exact, udf.spec.spacing, stored);
+    for threshold in [0.1, 0.2, 0.3] {
+        let options = UdfOptions { size, threshold, ..Default::default() };
+        let (udf, report) = build_udf(&mesh, &options).unwrap();
+        let t = Instant::now();
+        let (out, extract) = udf.extract();
+        let stored = format!(
+            "{} directed, {} feature points ({} fanned, {} flips), {} moved samples; {} boundary / {} feature cells",
+            report.directed, report.feature_points, extract.fans, extract.flips, report.positions, report.boundary_cells, report.feature_cells
+        );
+        let name = format!("UDF {threshold}");
+        row(&name, report.seconds, t.elapsed().as_secs_f64(), &out, &mesh, &exact, udf.spec.spacing, stored);
+    }
+    println!("| paper (65³, 2.5 GHz Pentium 4): regular / ODF / UDF 0.1 | 11.8 / 57.8 / 12.5 | 1.32 / 1.44 / 1.53 | 0.97 / 0.14 / 0.12 | 0.006 / 0.0022 / 0.0018 | UDF: 8,933 directed, 1,354 feature cells, 15,406 boundary cells |");
 }
 
 #[allow(clippy::too_many_arguments)]
 fn row(name: &str, construct: f64, extract: f64, out: &TriMesh, mesh: &TriMesh, exact: &MeshQuery, h: f64, stored: String) {
     if let Some(dir) = std::env::var_os("DUMP") {
-        let path = std::path::Path::new(&dir).join(format!("fandisk_{}.ply", name.to_lowercase()));
+        let path = std::path::Path::new(&dir).join(format!("fandisk_{}.ply", name.to_lowercase().replace(' ', "_")));
         io::write(&path, &surfrecon_geom::Geometry::from_mesh(out.clone())).expect("write the mesh");
     }
     let back = MeshQuery::new(out).expect("index the output");

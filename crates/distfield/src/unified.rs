@@ -157,6 +157,7 @@ pub fn build_udf(
 /// pointed corner. The sample's distance is 0, signed against most of its
 /// neighbours so that the edges to them cross the surface at the corner,
 /// but on the side of at least one of them, so it never becomes an island.
+/// Corners whose sample has all neighbours on one side are left to fans.
 /// Returns the corners taken.
 fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
     let spec = field.spec;
@@ -180,11 +181,14 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
         }
         let strides = spec.strides();
         let neighbours = (0..3).flat_map(|a| [n - strides[a], n + strides[a]]).map(|m| field.values[m]);
+        // Marching cubes counts 0 as outside. With all six neighbours on
+        // one side no edge would cross at the corner (a tip thinner than a
+        // cell): leave it to a fan.
         let inside = neighbours.filter(|&v| v < 0.0).count();
-        // Marching cubes counts 0 as outside. Against the majority, but
-        // never against all six (that would be an island).
-        let sample_inside = inside == 6 || (inside > 0 && inside < 3);
-        field.values[n] = if sample_inside { -1e-9 * spec.spacing } else { 0.0 };
+        if inside == 0 || inside == 6 {
+            continue;
+        }
+        field.values[n] = if inside < 3 { -1e-9 * spec.spacing } else { 0.0 };
         field.extras.insert(n as u32, Extra::Position(q));
         snapped.push(q);
     }
@@ -224,7 +228,14 @@ fn snap_unreached(field: &mut UnifiedField, cells: &BTreeMap<usize, CellFeatures
         if !stays_convex(&spec, n, q, |m| field.position(m)) {
             continue;
         }
+        // The sample changes side; it needs a neighbour on its new side,
+        // or it would be an island.
         let outside = field.values[nodes[0]] >= 0.0;
+        let strides = spec.strides();
+        let mut neighbours = (0..3).flat_map(|a| [n - strides[a], n + strides[a]]);
+        if !neighbours.any(|m| (field.values[m] >= 0.0) != outside) {
+            continue;
+        }
         field.values[n] = if outside { -1e-9 * spec.spacing } else { 0.0 };
         field.extras.insert(n as u32, Extra::Position(q));
         moved += 1;

@@ -224,3 +224,36 @@ fn drilling_a_box_keeps_the_new_circular_edges() {
     // half a cell (as the unsculpted field does).
     assert!(all < all_regular, "surface {all} h, regular {all_regular} h");
 }
+
+/// Fandisk (../shared/data) at the paper's resolution: the unified and
+/// offset fields are closed single surfaces, far closer to the mesh than
+/// the regular field (figures in BENCHMARKS.md).
+#[test]
+fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
+    use surfrecon_distfield::offset::{build_odf, OdfOptions};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/fandisk/fandisk.off");
+    let shape = surfrecon_geom::io::read(&path)
+        .unwrap_or_else(|e| panic!("the shared fandisk data is needed beside the repository: {e}"))
+        .to_mesh();
+    let size = GridSize::Resolution(64);
+    let exact = MeshQuery::new(&shape).unwrap();
+    let error = |m: &TriMesh| {
+        let there = deviation(m, &exact, 4);
+        let back = deviation(&shape, &MeshQuery::new(m).unwrap(), 4);
+        (there.max.max(back.max), 0.5 * (there.mean + back.mean))
+    };
+    let regular_field = signed_distance(&shape, &grid_for(&shape, size, 2).unwrap(), None).unwrap();
+    let h = regular_field.spec.spacing;
+    let (regular_max, regular_mean) = error(&marching_cubes(&regular_field, 0.0));
+    let (udf, _) = build_udf(&shape, &UdfOptions { size, ..Default::default() }).unwrap();
+    let (udf_mesh, _) = udf.extract();
+    let (odf, _) = build_odf(&shape, &OdfOptions { size, ..Default::default() }).unwrap();
+    let (odf_mesh, _) = odf.extract();
+    for (name, mesh) in [("udf", &udf_mesh), ("odf", &odf_mesh)] {
+        assert_closed_manifold(mesh, 2);
+        let (max, mean) = error(mesh);
+        eprintln!("{name}: max {} h, mean {} h (regular {} / {})", max / h, mean / h, regular_max / h, regular_mean / h);
+        assert!(max < 0.6 * regular_max, "{name} max {max} vs regular {regular_max}");
+        assert!(mean < 0.35 * regular_mean, "{name} mean {mean} vs regular {regular_mean}");
+    }
+}
