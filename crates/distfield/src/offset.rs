@@ -31,6 +31,7 @@ use surfrecon_geom::metrics::closest_point_on_triangle;
 use surfrecon_grid::marching::tables::cube_table;
 use surfrecon_grid::marching::{cell_case, crossing_fraction};
 use surfrecon_grid::sdf::signed_distance;
+use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_grid::{GridSize, GridSpec};
 
 /// The weights of the three energy terms.
@@ -324,8 +325,7 @@ impl<'a> Search<'a> {
 
     /// Samples not on the grid's outer layer (those have incomplete cells).
     fn interior(&self, node: usize) -> bool {
-        let idx = self.spec.unlinear(node);
-        (0..3).all(|a| idx[a] > 0 && idx[a] + 1 < self.spec.dims[a])
+        !on_outer_layer(self.spec, node)
     }
 
     /// One round over the candidates, parity class by parity class.
@@ -360,35 +360,36 @@ impl<'a> Search<'a> {
             .into_iter()
             .filter(|p| (*p - home).abs().max_element() <= reach)
             .filter(|&p| self.stays_convex(field, node, p))
-            .map(|p| (p, self.query.signed_distance(p)))
-            .filter(|&(_, v)| self.keeps_sides_connected(field, node, v))
+            .filter_map(|p| Some((p, self.same_topology(field, node, self.query.signed_distance(p))?)))
             .map(|(p, v)| (p, v, self.local_energy(field, node, p, v)))
             .filter(|&(_, _, e)| e < current - 1e-12)
             .min_by(|a, b| a.2.total_cmp(&b.2))
             .map(|(p, v, _)| (node, p, v))
     }
 
-    /// Whether giving `node` the value `v` leaves no sample cut off from
-    /// its side: marching cubes would wrap such an island in a separate
-    /// little closed surface. The sample must keep a neighbour on its new
-    /// side and, if it changes side, each neighbour on its old side must
-    /// keep another neighbour there.
-    fn keeps_sides_connected(&self, field: &impl Movable, node: usize, v: f64) -> bool {
-        let side = |x: f64| x >= 0.0;
-        let neighbours = self.neighbours(node);
-        let here = neighbours.iter().flatten();
-        if !here.clone().any(|&m| side(field.value(m)) == side(v)) {
-            return false;
-        }
-        if side(field.value(node)) == side(v) {
-            return true;
-        }
-        here.filter(|&&m| side(field.value(m)) != side(v)).all(|&m| {
-            self.neighbours(m)
-                .iter()
-                .flatten()
-                .any(|&k| k != node && side(field.value(k)) == side(field.value(m)))
-        })
+    /// The value `node` takes at a new position where the exact distance
+    /// is `v`, if marching cubes keeps its topology: the sample stays on
+    /// its side (one landing on the surface keeps its old side) and no
+    /// ambiguous face around it changes its decision, so every cell keeps
+    /// its case. (Letting simple points cross, as [`may_take`] allows,
+    /// gave fandisk and a rotated box a spurious handle: the decider's
+    /// connectivity is not digital topology's.)
+    fn same_topology(&self, field: &impl Movable, node: usize, v: f64) -> Option<f64> {
+        let old = field.value(node);
+        let v = if (v < 0.0) == (old < 0.0) {
+            v
+        } else if v.abs() <= 1e-6 * self.spec.spacing {
+            if old < 0.0 { -1e-9 * self.spec.spacing } else { 0.0 }
+        } else {
+            return None;
+        };
+        let decisions = |value: &dyn Fn(usize) -> f64| {
+            self.cells_around(node)
+                .map(|c| cell_case(&corner_nodes(self.spec, c).map(value), 0.0).1)
+                .collect::<Vec<u8>>()
+        };
+        let after = |n: usize| if n == node { v } else { field.value(n) };
+        (decisions(&|n| field.value(n)) == decisions(&after)).then_some(v)
     }
 
     /// Corners and bends in the cells around `node`, and the points of
@@ -560,6 +561,27 @@ pub(crate) fn stays_convex(spec: &GridSpec<3>, node: usize, p: DVec3, position: 
             sign * e[0].cross(e[1]).dot(e[2]) > MIN_CORNER_VOLUME * h3
         })
     })
+}
+
+/// Whether sample `node` may take the value `v`: always when it stays on
+/// its side; across the surface only when it is a simple point (digital
+/// topology), so marching cubes gains no island, tunnel or handle. (Used
+/// where a sample is moved onto the surface on purpose; the energy search
+/// keeps every sample's side.)
+/// `cube` is the neighbourhood of the field's grid; `node` must not lie on
+/// the grid's outer layer.
+pub(crate) fn may_take(cube: &Neighbourhood, node: usize, v: f64, value: impl Fn(usize) -> f64) -> bool {
+    // Which connectivity marching cubes gives each side depends on the
+    // values (the asymptotic decider), so the sample must be simple with
+    // either side taken face-connected.
+    (value(node) < 0.0) == (v < 0.0)
+        || (cube.is_simple(node, |n| value(n) < 0.0) && cube.is_simple(node, |n| value(n) >= 0.0))
+}
+
+/// Whether `node` lies on the grid's outer layer.
+pub(crate) fn on_outer_layer(spec: &GridSpec<3>, node: usize) -> bool {
+    let idx = spec.unlinear(node);
+    (0..3).any(|a| idx[a] == 0 || idx[a] + 1 >= spec.dims[a])
 }
 
 /// Parity class (0..8) of a node's index: nodes of one class share no cell.

@@ -13,7 +13,8 @@
 
 use crate::extract::{corner_nodes, fan_fits};
 use crate::features::nudge_into;
-use crate::offset::{node_position, stays_convex, OffsetField};
+use crate::offset::{may_take, node_position, on_outer_layer, stays_convex, OffsetField};
+use surfrecon_grid::topology::Neighbourhood;
 use crate::query::MeshQuery;
 use crate::unified::{Extra, UnifiedField};
 use crate::DistFieldError;
@@ -366,6 +367,7 @@ pub fn sculpt_odf(field: &mut OffsetField, operation: Operation, tool: &Tool) ->
     let cells = touched_cells(&spec, &changed, &field.values);
     let mut report = SculptReport { changed: changed.len(), cells: cells.len(), ..Default::default() };
     let reach = 0.5 * h * (1.0 - 1e-9);
+    let cube = Neighbourhood::new(&spec.strides());
     for &c in &cells {
         let Some(p) = edge_point_in(&spec, &combined, c) else { continue };
         report.edge_points += 1;
@@ -380,7 +382,11 @@ pub fn sculpt_odf(field: &mut OffsetField, operation: Operation, tool: &Tool) ->
         }
         // On the edge the distance is 0; keep the sample's side so the
         // crossings to its neighbours collapse onto the edge.
-        field.values[n] = if field.values[n] < 0.0 { -1e-9 * h } else { 0.0 };
+        let value = if field.values[n] < 0.0 { -1e-9 * h } else { 0.0 };
+        if on_outer_layer(&spec, n) || !may_take(&cube, n, value, |m| field.values[m]) {
+            continue;
+        }
+        field.values[n] = value;
         field.moved.insert(n as u32, p);
         report.kept += 1;
     }

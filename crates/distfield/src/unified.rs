@@ -13,7 +13,8 @@
 
 use crate::extract::{corner_nodes, extract, fan_fits, ExtractReport, SampledField};
 use crate::features::{cell_of, cells_with_features, closest_on_segment, nudge_into, CellFeatures, Features};
-use crate::offset::{node_position, stays_convex};
+use crate::offset::{may_take, node_position, on_outer_layer, stays_convex};
+use surfrecon_grid::topology::Neighbourhood;
 use crate::query::MeshQuery;
 use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
@@ -127,6 +128,7 @@ pub fn build_udf(
         f.bends.retain(|p| !snapped.contains(p));
     }
     report.feature_cells = cells.len();
+    report.positions = snapped.len() + snap_unreached(&mut field, &cells);
     for (cell, f) in &cells {
         let Some(centroid) = crossing_centroid(&field, &query, *cell) else {
             continue;
@@ -144,7 +146,6 @@ pub fn build_udf(
         }
         report.feature_points += 1;
     }
-    report.positions = snapped.len() + snap_unreached(&mut field, &cells);
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
@@ -161,6 +162,7 @@ pub fn build_udf(
 /// Returns the corners taken.
 fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
     let spec = field.spec;
+    let cube = Neighbourhood::new(&spec.strides());
     let mut snapped = Vec::new();
     for &q in corners {
         let g = spec.to_grid(q.to_array());
@@ -188,7 +190,11 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
         if inside == 0 || inside == 6 {
             continue;
         }
-        field.values[n] = if inside < 3 { -1e-9 * spec.spacing } else { 0.0 };
+        let value = if inside < 3 { -1e-9 * spec.spacing } else { 0.0 };
+        if !may_take(&cube, n, value, |m| field.values[m]) {
+            continue;
+        }
+        field.values[n] = value;
         field.extras.insert(n as u32, Extra::Position(q));
         snapped.push(q);
     }
@@ -203,6 +209,7 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
 /// crosses the cell there. Returns the number of samples moved.
 fn snap_unreached(field: &mut UnifiedField, cells: &BTreeMap<usize, CellFeatures>) -> usize {
     let spec = field.spec;
+    let cube = Neighbourhood::new(&spec.strides());
     let reach = 0.5 * spec.spacing * (1.0 - 1e-9);
     let mut moved = 0;
     for (&cell, f) in cells {
@@ -228,15 +235,12 @@ fn snap_unreached(field: &mut UnifiedField, cells: &BTreeMap<usize, CellFeatures
         if !stays_convex(&spec, n, q, |m| field.position(m)) {
             continue;
         }
-        // The sample changes side; it needs a neighbour on its new side,
-        // or it would be an island.
-        let outside = field.values[nodes[0]] >= 0.0;
-        let strides = spec.strides();
-        let mut neighbours = (0..3).flat_map(|a| [n - strides[a], n + strides[a]]);
-        if !neighbours.any(|m| (field.values[m] >= 0.0) != outside) {
+        // The sample changes side, which must change no topology.
+        let value = if field.values[nodes[0]] >= 0.0 { -1e-9 * spec.spacing } else { 0.0 };
+        if on_outer_layer(&spec, n) || !may_take(&cube, n, value, |m| field.values[m]) {
             continue;
         }
-        field.values[n] = if outside { -1e-9 * spec.spacing } else { 0.0 };
+        field.values[n] = value;
         field.extras.insert(n as u32, Extra::Position(q));
         moved += 1;
     }

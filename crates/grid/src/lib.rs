@@ -5,7 +5,8 @@
 //! Tools over grids (each in its own module): fast-sweeping distance,
 //! unsigned distance to points/segments/triangles, signed distance of a
 //! closed mesh, marching squares/cubes, sparse narrow-band storage, field
-//! files (NRRD, VTK) and thin shells.
+//! files (NRRD, VTK), thin shells, and the simple point test of digital
+//! topology.
 
 pub mod distance;
 pub mod error;
@@ -17,6 +18,7 @@ mod simd;
 pub mod sparse;
 pub mod spec;
 pub mod sweep;
+pub mod topology;
 
 pub use error::GridError;
 pub use spec::{Field, Field2, Field3, GridSize, GridSpec};

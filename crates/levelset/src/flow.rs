@@ -22,7 +22,7 @@ use crate::anchors::{DataCells, TangentSides};
 use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
 use crate::convection::{advection_term, upwind_advection};
 use crate::reinit::reinitialize;
-use crate::topology::Neighbourhood;
+use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_geom::DVec3;
 use surfrecon_grid::sparse::WINDOW;
 

@@ -27,7 +27,6 @@ pub mod refine;
 pub mod reinit;
 pub mod slices;
 pub mod tagging;
-mod topology;
 
 pub use band::NarrowBand;
 pub use error::{LevelsetError, Result};

@@ -18,7 +18,7 @@
 //! The result is the inside/outside labelling whose interface is the
 //! initial surface: roughly a polyhedron with vertices on the data.
 
-use crate::topology::Neighbourhood;
+use surfrecon_grid::topology::Neighbourhood;
 use std::collections::BinaryHeap;
 use surfrecon_grid::Field;
 

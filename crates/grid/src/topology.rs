@@ -1,8 +1,9 @@
-//! Digital topology for the level set: the simple point test that lets
-//! tagging and evolution move the surface node by node without ever
-//! changing its topology (no tunnels punched through gaps in the data, no
-//! components split off or merged), in the spirit of Han, Xu and Prince's
-//! topology-preserving level sets.
+//! Digital topology on grids: the simple point test that lets a node
+//! change side (inside/outside) without changing the topology of the
+//! surface around it (no tunnels punched, no components split off or
+//! merged), in the spirit of Han, Xu and Prince's topology-preserving
+//! level sets. Level-set tagging and evolution move the surface node by
+//! node with it; offset and unified fields move samples with it.
 
 /// The 3^D − 1 neighbours of a node as linear index offsets, with their
 /// adjacency as bit masks, for the simple point test of digital topology:
@@ -10,7 +11,7 @@
 /// exterior fully connected (26 / 8), the pairing under which removing a
 /// node with exactly one inside and one exterior component around it
 /// changes no topology.
-pub(crate) struct Neighbourhood {
+pub struct Neighbourhood {
     /// Linear index offset of each neighbour.
     offsets: Vec<isize>,
     /// Neighbours sharing a face with the centre.
@@ -24,7 +25,7 @@ pub(crate) struct Neighbourhood {
 }
 
 impl Neighbourhood {
-    pub(crate) fn new<const D: usize>(strides: &[usize; D]) -> Self {
+    pub fn new<const D: usize>(strides: &[usize; D]) -> Self {
         let cells: Vec<[i32; D]> = (0..3usize.pow(D as u32))
             .map(|k| std::array::from_fn(|a| (k / 3usize.pow(a as u32) % 3) as i32 - 1))
             .filter(|o: &[i32; D]| o.iter().any(|&c| c != 0))
@@ -71,7 +72,7 @@ impl Neighbourhood {
     /// connected outside component around it (`inside` tells the side of
     /// each node; the node's own side does not matter). Every neighbour of
     /// `l` must be a valid index.
-    pub(crate) fn is_simple(&self, l: usize, inside: impl Fn(usize) -> bool) -> bool {
+    pub fn is_simple(&self, l: usize, inside: impl Fn(usize) -> bool) -> bool {
         let mut inside_mask = 0u32;
         for (i, &o) in self.offsets.iter().enumerate() {
             if inside(l.wrapping_add_signed(o)) {
