@@ -73,7 +73,9 @@ fn main() {
         Command::Distance(a) => commands::distance::run(a, &ctx),
         Command::Extract(a) => commands::extract::run(a, &ctx),
         Command::Sculpt(a) => {
-            let sub = matches.subcommand_matches("sculpt").expect("parsed as sculpt");
+            let sub = matches
+                .subcommand_matches("sculpt")
+                .expect("parsed as sculpt");
             commands::sculpt::run(a, sub, &ctx)
         }
         Command::Shell(a) => commands::shell::run(a, &ctx),

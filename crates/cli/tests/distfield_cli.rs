@@ -21,7 +21,10 @@ fn assert_fails_with(out: &Output, needle: &str) {
 fn write_box(dir: &Path) -> PathBuf {
     let b = cuboid(DVec3::new(-0.5, -0.4, -0.35), DVec3::new(0.5, 0.4, 0.35));
     let r = glam::DMat3::from_rotation_z(0.2) * glam::DMat3::from_rotation_x(0.15);
-    let mesh = TriMesh { vertices: b.vertices.iter().map(|&v| r * v).collect(), ..b };
+    let mesh = TriMesh {
+        vertices: b.vertices.iter().map(|&v| r * v).collect(),
+        ..b
+    };
     let path = dir.join("box.ply");
     io::write(&path, &Geometry::from_mesh(mesh)).unwrap();
     path
@@ -37,7 +40,12 @@ fn corner_miss(shape: &TriMesh, mesh: &TriMesh) -> f64 {
     shape
         .vertices
         .iter()
-        .map(|c| mesh.vertices.iter().map(|v| v.distance(*c)).fold(f64::INFINITY, f64::min))
+        .map(|c| {
+            mesh.vertices
+                .iter()
+                .map(|v| v.distance(*c))
+                .fold(f64::INFINITY, f64::min)
+        })
         .fold(0.0, f64::max)
 }
 
@@ -48,7 +56,17 @@ fn udf_and_odf_files_extract_to_closed_surfaces_with_sharp_corners() {
     let shape = read_mesh(&input);
     for kind in ["udf", "odf"] {
         let field = dir.path().join(format!("box.{kind}"));
-        let out = surfrecon(&["distance", path_str(&input), "-o", path_str(&field), "--kind", kind, "--resolution", "20", "--json"]);
+        let out = surfrecon(&[
+            "distance",
+            path_str(&input),
+            "-o",
+            path_str(&field),
+            "--kind",
+            kind,
+            "--resolution",
+            "20",
+            "--json",
+        ]);
         let v = json_of(&out);
         assert_eq!(v["kind"], kind);
         let h = v["spacing"].as_f64().unwrap();
@@ -56,16 +74,28 @@ fn udf_and_odf_files_extract_to_closed_surfaces_with_sharp_corners() {
         let counts = &v[kind];
         if kind == "udf" {
             assert!(counts["feature_points"].as_u64().unwrap() > 0, "{v}");
-            assert!(counts["sample_positions"].as_u64().unwrap() > 0, "samples on corners: {v}");
+            assert!(
+                counts["sample_positions"].as_u64().unwrap() > 0,
+                "samples on corners: {v}"
+            );
         } else {
             assert!(counts["samples_moved"].as_u64().unwrap() > 0, "{v}");
         }
         let mesh_path = dir.path().join(format!("box_{kind}.ply"));
-        let v = json_of(&surfrecon(&["extract", path_str(&field), "-o", path_str(&mesh_path), "--json"]));
+        let v = json_of(&surfrecon(&[
+            "extract",
+            path_str(&field),
+            "-o",
+            path_str(&mesh_path),
+            "--json",
+        ]));
         assert_eq!(v["result"]["watertight"], true);
         let mesh = read_mesh(&mesh_path);
         let t = topology(&mesh);
-        assert!(t.watertight && t.vertex_manifold && t.components == 1 && t.euler == 2, "{kind}: {t:?}");
+        assert!(
+            t.watertight && t.vertex_manifold && t.components == 1 && t.euler == 2,
+            "{kind}: {t:?}"
+        );
         if kind == "udf" {
             let miss = corner_miss(&shape, &mesh);
             assert!(miss < 0.02 * h, "udf corners within {miss} (h {h})");
@@ -78,35 +108,109 @@ fn sculpting_applies_steps_in_order_and_keeps_the_kind() {
     let dir = tempfile::tempdir().unwrap();
     let input = write_box(dir.path());
     let field = dir.path().join("box.udf");
-    json_of(&surfrecon(&["distance", path_str(&input), "-o", path_str(&field), "--kind", "udf", "--resolution", "20", "--json"]));
+    json_of(&surfrecon(&[
+        "distance",
+        path_str(&input),
+        "-o",
+        path_str(&field),
+        "--kind",
+        "udf",
+        "--resolution",
+        "20",
+        "--json",
+    ]));
     // A sphere added and then carved again leaves the box; carved first
     // and added then, the sphere stays.
     let sphere = "sphere:0.5,0,0,0.25";
     let (a, b) = (dir.path().join("a.udf"), dir.path().join("b.udf"));
-    let v = json_of(&surfrecon(&["sculpt", path_str(&field), "-o", path_str(&a), "--union", sphere, "--subtract", sphere, "--json"]));
+    let v = json_of(&surfrecon(&[
+        "sculpt",
+        path_str(&field),
+        "-o",
+        path_str(&a),
+        "--union",
+        sphere,
+        "--subtract",
+        sphere,
+        "--json",
+    ]));
     assert_eq!(v["steps"][0]["operation"], "union");
     assert_eq!(v["steps"][1]["operation"], "subtract");
-    surfrecon(&["sculpt", path_str(&field), "-o", path_str(&b), "--subtract", sphere, "--union", sphere, "--quiet"]);
+    surfrecon(&[
+        "sculpt",
+        path_str(&field),
+        "-o",
+        path_str(&b),
+        "--subtract",
+        sphere,
+        "--union",
+        sphere,
+        "--quiet",
+    ]);
     let surface = |f: &Path| {
         let out = dir.path().join("s.ply");
-        json_of(&surfrecon(&["extract", path_str(f), "-o", path_str(&out), "--json"]));
+        json_of(&surfrecon(&[
+            "extract",
+            path_str(f),
+            "-o",
+            path_str(&out),
+            "--json",
+        ]));
         read_mesh(&out)
     };
-    let reaches = |m: &TriMesh| m.vertices.iter().map(|v| v.x).fold(f64::NEG_INFINITY, f64::max);
+    let reaches = |m: &TriMesh| {
+        m.vertices
+            .iter()
+            .map(|v| v.x)
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
     let (carved, kept) = (surface(&a), surface(&b));
     // (The box itself reaches x = 0.58.)
-    assert!(reaches(&kept) > 0.74 && reaches(&carved) < 0.6, "{} / {}", reaches(&kept), reaches(&carved));
+    assert!(
+        reaches(&kept) > 0.74 && reaches(&carved) < 0.6,
+        "{} / {}",
+        reaches(&kept),
+        reaches(&carved)
+    );
     // Drilling through keeps one closed piece, now of genus 1.
     let drilled = dir.path().join("drilled.udf");
-    let v = json_of(&surfrecon(&["sculpt", path_str(&field), "-o", path_str(&drilled), "--subtract", "cylinder:0,0,-1,0,0,1,0.2", "--json"]));
-    assert!(v["steps"][0]["edge_points_kept"].as_u64().unwrap() > 10, "{v}");
+    let v = json_of(&surfrecon(&[
+        "sculpt",
+        path_str(&field),
+        "-o",
+        path_str(&drilled),
+        "--subtract",
+        "cylinder:0,0,-1,0,0,1,0.2",
+        "--json",
+    ]));
+    assert!(
+        v["steps"][0]["edge_points_kept"].as_u64().unwrap() > 10,
+        "{v}"
+    );
     let t = topology(&surface(&drilled));
     assert!(t.watertight && t.components == 1 && t.euler == 0, "{t:?}");
     // A regular field stays regular.
     let nrrd = dir.path().join("box.nrrd");
-    surfrecon(&["distance", path_str(&input), "-o", path_str(&nrrd), "--signed", "--resolution", "20", "--quiet"]);
+    surfrecon(&[
+        "distance",
+        path_str(&input),
+        "-o",
+        path_str(&nrrd),
+        "--signed",
+        "--resolution",
+        "20",
+        "--quiet",
+    ]);
     let out = dir.path().join("cut.nrrd");
-    json_of(&surfrecon(&["sculpt", path_str(&nrrd), "-o", path_str(&out), "--subtract", sphere, "--json"]));
+    json_of(&surfrecon(&[
+        "sculpt",
+        path_str(&nrrd),
+        "-o",
+        path_str(&out),
+        "--subtract",
+        sphere,
+        "--json",
+    ]));
     assert!(out.exists());
 }
 
@@ -115,7 +219,17 @@ fn bad_fields_tools_and_meshes_get_one_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let input = write_box(dir.path());
     let field = dir.path().join("box.udf");
-    json_of(&surfrecon(&["distance", path_str(&input), "-o", path_str(&field), "--kind", "udf", "--resolution", "12", "--json"]));
+    json_of(&surfrecon(&[
+        "distance",
+        path_str(&input),
+        "-o",
+        path_str(&field),
+        "--kind",
+        "udf",
+        "--resolution",
+        "12",
+        "--json",
+    ]));
     let out = dir.path().join("out.udf");
     let run = |args: &[&str]| surfrecon(args);
     // Open mesh.
@@ -123,21 +237,102 @@ fn bad_fields_tools_and_meshes_get_one_clear_error() {
     open.triangles.pop();
     let open_path = dir.path().join("open.ply");
     io::write(&open_path, &Geometry::from_mesh(open)).unwrap();
-    assert_fails_with(&run(&["distance", path_str(&open_path), "-o", path_str(&out), "--kind", "udf"]), "not closed");
+    assert_fails_with(
+        &run(&[
+            "distance",
+            path_str(&open_path),
+            "-o",
+            path_str(&out),
+            "--kind",
+            "udf",
+        ]),
+        "not closed",
+    );
     // Wrong output extension.
-    assert_fails_with(&run(&["distance", path_str(&input), "-o", "x.nrrd", "--kind", "udf"]), ".udf file");
+    assert_fails_with(
+        &run(&[
+            "distance",
+            path_str(&input),
+            "-o",
+            "x.nrrd",
+            "--kind",
+            "udf",
+        ]),
+        ".udf file",
+    );
     // Truncated field.
     let bytes = std::fs::read(&field).unwrap();
     let cut = dir.path().join("cut.udf");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
-    assert_fails_with(&run(&["extract", path_str(&cut), "-o", path_str(&dir.path().join("m.ply"))]), "truncated");
+    assert_fails_with(
+        &run(&[
+            "extract",
+            path_str(&cut),
+            "-o",
+            path_str(&dir.path().join("m.ply")),
+        ]),
+        "truncated",
+    );
     // Bad tools.
-    assert_fails_with(&run(&["sculpt", path_str(&field), "-o", path_str(&out), "--subtract", "sphere:0,0,0"]), "sphere:x,y,z,r");
-    assert_fails_with(&run(&["sculpt", path_str(&field), "-o", path_str(&out), "--subtract", "sphere:0,0,0,-1"]), "positive radius");
-    assert_fails_with(&run(&["sculpt", path_str(&field), "-o", path_str(&out), "--subtract", "nothing.ply"]), "no such file");
-    assert_fails_with(&run(&["sculpt", path_str(&field), "-o", path_str(&out), "--subtract", path_str(&open_path)]), "not closed");
-    assert_fails_with(&run(&["sculpt", path_str(&field), "-o", path_str(&out)]), "nothing to do");
+    assert_fails_with(
+        &run(&[
+            "sculpt",
+            path_str(&field),
+            "-o",
+            path_str(&out),
+            "--subtract",
+            "sphere:0,0,0",
+        ]),
+        "sphere:x,y,z,r",
+    );
+    assert_fails_with(
+        &run(&[
+            "sculpt",
+            path_str(&field),
+            "-o",
+            path_str(&out),
+            "--subtract",
+            "sphere:0,0,0,-1",
+        ]),
+        "positive radius",
+    );
+    assert_fails_with(
+        &run(&[
+            "sculpt",
+            path_str(&field),
+            "-o",
+            path_str(&out),
+            "--subtract",
+            "nothing.ply",
+        ]),
+        "no such file",
+    );
+    assert_fails_with(
+        &run(&[
+            "sculpt",
+            path_str(&field),
+            "-o",
+            path_str(&out),
+            "--subtract",
+            path_str(&open_path),
+        ]),
+        "not closed",
+    );
+    assert_fails_with(
+        &run(&["sculpt", path_str(&field), "-o", path_str(&out)]),
+        "nothing to do",
+    );
     // The kind is kept: a .udf cannot be written as .odf.
-    assert_fails_with(&run(&["sculpt", path_str(&field), "-o", "x.odf", "--subtract", "sphere:0,0,0,0.1"]), ".udf");
+    assert_fails_with(
+        &run(&[
+            "sculpt",
+            path_str(&field),
+            "-o",
+            "x.odf",
+            "--subtract",
+            "sphere:0,0,0,0.1",
+        ]),
+        ".udf",
+    );
     assert!(!out.exists(), "no output after a failure");
 }

@@ -5,21 +5,32 @@
 //! cargo bench -p surfrecon-distfield --bench fandisk [-- PATH.off [CELLS]]
 
 use std::time::Instant;
-use surfrecon_distfield::query::{deviation, MeshQuery};
-use surfrecon_distfield::offset::{build_odf, OdfOptions};
-use surfrecon_distfield::unified::{build_udf, UdfOptions};
 use surfrecon_distfield::grid_for;
+use surfrecon_distfield::offset::{build_odf, OdfOptions};
+use surfrecon_distfield::query::{deviation, MeshQuery};
+use surfrecon_distfield::unified::{build_udf, UdfOptions};
 use surfrecon_geom::{io, TriMesh};
 use surfrecon_grid::{marching::marching_cubes, sdf::signed_distance, GridSize};
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
-    let path = args.first().cloned().unwrap_or_else(|| "../../../shared/data/fandisk/fandisk.off".into());
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| a != "--bench")
+        .collect();
+    let path = args
+        .first()
+        .cloned()
+        .unwrap_or_else(|| "../../../shared/data/fandisk/fandisk.off".into());
     let cells: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(64);
-    let mesh = io::read(std::path::Path::new(&path)).expect("read the mesh").to_mesh();
+    let mesh = io::read(std::path::Path::new(&path))
+        .expect("read the mesh")
+        .to_mesh();
     let exact = MeshQuery::new(&mesh).expect("index the mesh");
     let size = GridSize::Resolution(cells);
-    println!("{path}: {} triangles, {cells} cells on the long axis", mesh.triangles.len());
+    println!(
+        "{path}: {} triangles, {cells} cells on the long axis",
+        mesh.triangles.len()
+    );
     println!("| field | construct s | extract s | max error h | mean error h | stored |");
     println!("|---|---|---|---|---|---|");
 
@@ -29,10 +40,27 @@ fn main() {
     let construct = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let regular = marching_cubes(&field, 0.0);
-    row("regular", construct, t.elapsed().as_secs_f64(), &regular, &mesh, &exact, spec.spacing, String::new());
+    row(
+        "regular",
+        construct,
+        t.elapsed().as_secs_f64(),
+        &regular,
+        &mesh,
+        &exact,
+        spec.spacing,
+        String::new(),
+    );
 
-    let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|s| s.parse().ok()).unwrap_or(d);
-    let mut odf_options = OdfOptions { size, ..Default::default() };
+    let env = |k: &str, d: f64| {
+        std::env::var(k)
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(d)
+    };
+    let mut odf_options = OdfOptions {
+        size,
+        ..Default::default()
+    };
     odf_options.weights.spring = env("ODF_SPRING", odf_options.weights.spring);
     odf_options.weights.ortho = env("ODF_ORTHO", odf_options.weights.ortho);
     odf_options.iterations = env("ODF_ITERATIONS", odf_options.iterations as f64) as usize;
@@ -43,10 +71,23 @@ fn main() {
         "{} samples moved ({} smoothed) of {} candidates; feature energy {:.1} -> {:.1}",
         report.moved, report.smoothed, report.candidates, report.energy_before, report.energy_after
     );
-    row("ODF", report.seconds, t.elapsed().as_secs_f64(), &out, &mesh, &exact, odf.spec.spacing, stored);
+    row(
+        "ODF",
+        report.seconds,
+        t.elapsed().as_secs_f64(),
+        &out,
+        &mesh,
+        &exact,
+        odf.spec.spacing,
+        stored,
+    );
 
     for threshold in [0.1, 0.2, 0.3] {
-        let options = UdfOptions { size, threshold, ..Default::default() };
+        let options = UdfOptions {
+            size,
+            threshold,
+            ..Default::default()
+        };
         let (udf, report) = build_udf(&mesh, &options).unwrap();
         let t = Instant::now();
         let (out, extract) = udf.extract();
@@ -55,16 +96,38 @@ fn main() {
             report.directed, report.feature_points, extract.fans, extract.flips, report.positions, report.boundary_cells, report.feature_cells
         );
         let name = format!("UDF {threshold}");
-        row(&name, report.seconds, t.elapsed().as_secs_f64(), &out, &mesh, &exact, udf.spec.spacing, stored);
+        row(
+            &name,
+            report.seconds,
+            t.elapsed().as_secs_f64(),
+            &out,
+            &mesh,
+            &exact,
+            udf.spec.spacing,
+            stored,
+        );
     }
     println!("| paper (65³, 2.5 GHz Pentium 4): regular / ODF / UDF 0.1 | 11.8 / 57.8 / 12.5 | 1.32 / 1.44 / 1.53 | 0.97 / 0.14 / 0.12 | 0.006 / 0.0022 / 0.0018 | UDF: 8,933 directed, 1,354 feature cells, 15,406 boundary cells |");
 }
 
 #[allow(clippy::too_many_arguments)]
-fn row(name: &str, construct: f64, extract: f64, out: &TriMesh, mesh: &TriMesh, exact: &MeshQuery, h: f64, stored: String) {
+fn row(
+    name: &str,
+    construct: f64,
+    extract: f64,
+    out: &TriMesh,
+    mesh: &TriMesh,
+    exact: &MeshQuery,
+    h: f64,
+    stored: String,
+) {
     if let Some(dir) = std::env::var_os("DUMP") {
-        let path = std::path::Path::new(&dir).join(format!("fandisk_{}.ply", name.to_lowercase().replace(' ', "_")));
-        io::write(&path, &surfrecon_geom::Geometry::from_mesh(out.clone())).expect("write the mesh");
+        let path = std::path::Path::new(&dir).join(format!(
+            "fandisk_{}.ply",
+            name.to_lowercase().replace(' ', "_")
+        ));
+        io::write(&path, &surfrecon_geom::Geometry::from_mesh(out.clone()))
+            .expect("write the mesh");
     }
     let back = MeshQuery::new(out).expect("index the output");
     let there = deviation(out, exact, 16);
@@ -73,6 +136,12 @@ fn row(name: &str, construct: f64, extract: f64, out: &TriMesh, mesh: &TriMesh, 
     let mean = 0.5 * (there.mean + back_dev.mean) / h;
     println!("| {name} | {construct:.3} | {extract:.3} | {max:.3} | {mean:.4} | {stored} |");
     if std::env::var_os("WORST").is_some() {
-        println!("  worst output->mesh {:.3} h at {:?}; mesh->output {:.3} h at {:?}", there.max / h, there.worst, back_dev.max / h, back_dev.worst);
+        println!(
+            "  worst output->mesh {:.3} h at {:?}; mesh->output {:.3} h at {:?}",
+            there.max / h,
+            there.worst,
+            back_dev.max / h,
+            back_dev.worst
+        );
     }
 }

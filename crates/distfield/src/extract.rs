@@ -71,7 +71,11 @@ pub fn extract(
         })
         .collect();
     let mut report = ExtractReport::default();
-    let mut mesh = TriMesh { vertices, triangles: Vec::new(), normals: None };
+    let mut mesh = TriMesh {
+        vertices,
+        triangles: Vec::new(),
+        normals: None,
+    };
     let mut feature_vertices = HashSet::new();
     for (patch, &(cell, ..)) in patches.iter().zip(&cells) {
         let base = mesh.vertices.len() as u32;
@@ -212,7 +216,10 @@ fn table_patch(
     let table = cube_table();
     let edge_vertex = |e: u8| {
         let key = cell_edge_key(spec, cell, e);
-        Vertex::Edge(keys.binary_search(&key).expect("crossing of an active cell") as u32)
+        Vertex::Edge(
+            keys.binary_search(&key)
+                .expect("crossing of an active cell") as u32,
+        )
     };
     let extra: Vec<DVec3> = table
         .loop_centres(config, bits)
@@ -231,9 +238,21 @@ fn table_patch(
     let triangles = table
         .triangles(config, bits)
         .iter()
-        .map(|t| t.map(|e| if e < 12 { edge_vertex(e) } else { Vertex::Extra(e as u32 - 12) }))
+        .map(|t| {
+            t.map(|e| {
+                if e < 12 {
+                    edge_vertex(e)
+                } else {
+                    Vertex::Extra(e as u32 - 12)
+                }
+            })
+        })
         .collect();
-    Patch { triangles, extra, fanned: None }
+    Patch {
+        triangles,
+        extra,
+        fanned: None,
+    }
 }
 
 impl Patch {
@@ -266,10 +285,20 @@ impl Patch {
             fan.length_squared() < min_area2 || fan.normalize().dot(n) < FAN_MIN_COS
         });
         if folds || !is_one_loop(&boundary) {
-            return Patch { fanned: Some(false), ..self };
+            return Patch {
+                fanned: Some(false),
+                ..self
+            };
         }
-        let triangles = boundary.iter().map(|&(a, b, _)| [a, b, Vertex::Extra(0)]).collect();
-        Patch { triangles, extra: vec![feature], fanned: Some(true) }
+        let triangles = boundary
+            .iter()
+            .map(|&(a, b, _)| [a, b, Vertex::Extra(0)])
+            .collect();
+        Patch {
+            triangles,
+            extra: vec![feature],
+            fanned: Some(true),
+        }
     }
 }
 
@@ -340,9 +369,13 @@ fn flip_to_join(mesh: &mut TriMesh, feature: &HashSet<u32>) -> usize {
             continue;
         }
         let pos = |v: u32| mesh.vertices[v as usize];
-        let old = triangle_normal([pos(p), pos(q), pos(f1)]) + triangle_normal([pos(q), pos(p), pos(f2)]);
+        let old =
+            triangle_normal([pos(p), pos(q), pos(f1)]) + triangle_normal([pos(q), pos(p), pos(f2)]);
         let new = [[p, f2, f1], [f2, q, f1]];
-        if new.iter().any(|t| triangle_normal(t.map(pos)).dot(old) <= 0.0) {
+        if new
+            .iter()
+            .any(|t| triangle_normal(t.map(pos)).dot(old) <= 0.0)
+        {
             continue;
         }
         mesh.triangles[t1] = new[0];
@@ -358,10 +391,14 @@ fn flip_to_join(mesh: &mut TriMesh, feature: &HashSet<u32>) -> usize {
 /// Triangle `t` rotated so its edge between `a` and `b` comes first:
 /// (first, second, opposite).
 fn rotate_to_edge(t: [u32; 3], a: u32, b: u32) -> (u32, u32, u32) {
-    let k = (0..3).find(|&k| t[k] != a && t[k] != b).expect("edge of the triangle");
+    let k = (0..3)
+        .find(|&k| t[k] != a && t[k] != b)
+        .expect("edge of the triangle");
     (t[(k + 1) % 3], t[(k + 2) % 3], t[k])
 }
 
 fn third(t: [u32; 3], a: u32, b: u32) -> u32 {
-    *t.iter().find(|&&v| v != a && v != b).expect("edge of the triangle")
+    *t.iter()
+        .find(|&&v| v != a && v != b)
+        .expect("edge of the triangle")
 }

@@ -119,7 +119,10 @@ pub fn cells_with_features(
     bends.dedup();
     for v in bends {
         let p = mesh.vertices[v as usize];
-        if let Some(cell) = cells_containing(spec, p).into_iter().find(|&c| has_surface(c)) {
+        if let Some(cell) = cells_containing(spec, p)
+            .into_iter()
+            .find(|&c| has_surface(c))
+        {
             let entry = cells.entry(cell).or_default();
             if corner_set.contains(&v) {
                 entry.corners.push(p);
@@ -264,7 +267,11 @@ mod tests {
             .iter()
             .flat_map(|q: &[u32; 4]| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
             .collect();
-        TriMesh { vertices: v, triangles, normals: None }
+        TriMesh {
+            vertices: v,
+            triangles,
+            normals: None,
+        }
     }
 
     #[test]
@@ -282,7 +289,11 @@ mod tests {
 
     #[test]
     fn an_edge_is_split_exactly_among_the_cells_it_crosses() {
-        let spec = GridSpec::<3> { origin: [0.0; 3], spacing: 0.25, dims: [9, 9, 9] };
+        let spec = GridSpec::<3> {
+            origin: [0.0; 3],
+            spacing: 0.25,
+            dims: [9, 9, 9],
+        };
         let (a, b) = (DVec3::new(0.1, 0.3, 0.6), DVec3::new(1.9, 1.2, 0.65));
         let pieces = clip_to_cells(&spec, a, b);
         let total: f64 = pieces.iter().map(|(_, [p, q])| p.distance(*q)).sum();

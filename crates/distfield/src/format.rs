@@ -87,7 +87,11 @@ pub fn write_udf(path: &Path, field: &UnifiedField) -> Result<(), DistFieldError
 
 pub fn read_odf(path: &Path) -> Result<OffsetField, DistFieldError> {
     let bytes = std::fs::read(path).map_err(|error| io_error(path, error))?;
-    let mut r = Reader { bytes: &bytes, at: 0, path };
+    let mut r = Reader {
+        bytes: &bytes,
+        at: 0,
+        path,
+    };
     let (spec, values) = r.header(ODF_MAGIC, "offset distance field (.odf)")?;
     let m = r.u64("the count of moved samples")? as usize;
     if m > values.len() || r.remaining() != m * 28 {
@@ -102,18 +106,28 @@ pub fn read_odf(path: &Path) -> Result<OffsetField, DistFieldError> {
         let i = r.u32("a sample index")?;
         let p = r.vec("a sample position")?;
         if (i as usize) >= values.len() || last.is_some_and(|l| i <= l) {
-            return Err(r.bad(format!("moved sample index {i} is out of range or out of order")));
+            return Err(r.bad(format!(
+                "moved sample index {i} is out of range or out of order"
+            )));
         }
         check_in_cell(&r, &spec, i as usize, p)?;
         moved.insert(i, p);
         last = Some(i);
     }
-    Ok(OffsetField { spec, values, moved })
+    Ok(OffsetField {
+        spec,
+        values,
+        moved,
+    })
 }
 
 pub fn read_udf(path: &Path) -> Result<UnifiedField, DistFieldError> {
     let bytes = std::fs::read(path).map_err(|error| io_error(path, error))?;
-    let mut r = Reader { bytes: &bytes, at: 0, path };
+    let mut r = Reader {
+        bytes: &bytes,
+        at: 0,
+        path,
+    };
     let (spec, values) = r.header(UDF_MAGIC, "unified distance field (.udf)")?;
     let n = values.len();
     let tags = r.take(n.div_ceil(4), "the sample tags")?.to_vec();
@@ -132,8 +146,13 @@ pub fn read_udf(path: &Path) -> Result<UnifiedField, DistFieldError> {
         let v = r.vec("extra sample data")?;
         let extra = match tag(i) {
             1 => {
-                if v.to_array().iter().any(|&d| !(d >= 0.0 && d <= spec.spacing || d == f64::INFINITY)) {
-                    return Err(r.bad(format!("sample {i}: directed distances {v} must lie within one spacing")));
+                if v.to_array()
+                    .iter()
+                    .any(|&d| !(d >= 0.0 && d <= spec.spacing || d == f64::INFINITY))
+                {
+                    return Err(r.bad(format!(
+                        "sample {i}: directed distances {v} must lie within one spacing"
+                    )));
                 }
                 Extra::Directed(v.to_array())
             }
@@ -145,7 +164,11 @@ pub fn read_udf(path: &Path) -> Result<UnifiedField, DistFieldError> {
         };
         extras.insert(i as u32, extra);
     }
-    Ok(UnifiedField { spec, values, extras })
+    Ok(UnifiedField {
+        spec,
+        values,
+        extras,
+    })
 }
 
 fn tag_of(e: &Extra) -> u8 {
@@ -156,14 +179,25 @@ fn tag_of(e: &Extra) -> u8 {
     }
 }
 
-fn write_file(path: &Path, fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<(), DistFieldError> {
+fn write_file(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), DistFieldError> {
     surfrecon_geom::io::write_atomic(path, fill).map_err(|e| match e {
         surfrecon_geom::GeomError::Io { path, error } => DistFieldError::Io { path, error },
-        other => DistFieldError::BadFile { path: path.to_path_buf(), message: other.to_string() },
+        other => DistFieldError::BadFile {
+            path: path.to_path_buf(),
+            message: other.to_string(),
+        },
     })
 }
 
-fn write_header(w: &mut dyn Write, magic: &[u8; 8], spec: &GridSpec<3>, values: &[f64]) -> std::io::Result<()> {
+fn write_header(
+    w: &mut dyn Write,
+    magic: &[u8; 8],
+    spec: &GridSpec<3>,
+    values: &[f64],
+) -> std::io::Result<()> {
     w.write_all(magic)?;
     for d in spec.dims {
         w.write_all(&(d as u32).to_le_bytes())?;
@@ -184,7 +218,10 @@ fn write_vec(w: &mut dyn Write, v: DVec3) -> std::io::Result<()> {
 }
 
 fn io_error(path: &Path, error: std::io::Error) -> DistFieldError {
-    DistFieldError::Io { path: path.to_path_buf(), error }
+    DistFieldError::Io {
+        path: path.to_path_buf(),
+        error,
+    }
 }
 
 fn check_finite(r: &Reader, i: usize, p: DVec3) -> Result<DVec3, DistFieldError> {
@@ -215,7 +252,10 @@ struct Reader<'a> {
 
 impl Reader<'_> {
     fn bad(&self, message: String) -> DistFieldError {
-        DistFieldError::BadFile { path: self.path.to_path_buf(), message }
+        DistFieldError::BadFile {
+            path: self.path.to_path_buf(),
+            message,
+        }
     }
 
     fn remaining(&self) -> usize {
@@ -235,31 +275,55 @@ impl Reader<'_> {
     }
 
     fn u32(&mut self, what: &str) -> Result<u32, DistFieldError> {
-        Ok(u32::from_le_bytes(self.take(4, what)?.try_into().expect("4 bytes")))
+        Ok(u32::from_le_bytes(
+            self.take(4, what)?.try_into().expect("4 bytes"),
+        ))
     }
 
     fn u64(&mut self, what: &str) -> Result<u64, DistFieldError> {
-        Ok(u64::from_le_bytes(self.take(8, what)?.try_into().expect("8 bytes")))
+        Ok(u64::from_le_bytes(
+            self.take(8, what)?.try_into().expect("8 bytes"),
+        ))
     }
 
     fn f64(&mut self, what: &str) -> Result<f64, DistFieldError> {
-        Ok(f64::from_le_bytes(self.take(8, what)?.try_into().expect("8 bytes")))
+        Ok(f64::from_le_bytes(
+            self.take(8, what)?.try_into().expect("8 bytes"),
+        ))
     }
 
     fn vec(&mut self, what: &str) -> Result<DVec3, DistFieldError> {
-        Ok(DVec3::new(self.f64(what)?, self.f64(what)?, self.f64(what)?))
+        Ok(DVec3::new(
+            self.f64(what)?,
+            self.f64(what)?,
+            self.f64(what)?,
+        ))
     }
 
-    fn header(&mut self, magic: &[u8; 8], kind: &str) -> Result<(GridSpec<3>, Vec<f64>), DistFieldError> {
+    fn header(
+        &mut self,
+        magic: &[u8; 8],
+        kind: &str,
+    ) -> Result<(GridSpec<3>, Vec<f64>), DistFieldError> {
         if self.bytes.len() < 8 || &self.bytes[..8] != magic {
             return Err(self.bad(format!("not a surfrecon {kind} file (wrong magic bytes)")));
         }
         self.at = 8;
-        let dims = [self.u32("the grid size")?, self.u32("the grid size")?, self.u32("the grid size")?].map(|d| d as usize);
+        let dims = [
+            self.u32("the grid size")?,
+            self.u32("the grid size")?,
+            self.u32("the grid size")?,
+        ]
+        .map(|d| d as usize);
         let origin = self.vec("the grid origin")?.to_array();
         let spacing = self.f64("the grid spacing")?;
-        if dims.iter().any(|&d| d < 2) || !(spacing.is_finite() && spacing > 0.0) || origin.iter().any(|o| !o.is_finite()) {
-            return Err(self.bad(format!("bad grid: {dims:?} samples, spacing {spacing}, origin {origin:?}")));
+        if dims.iter().any(|&d| d < 2)
+            || !(spacing.is_finite() && spacing > 0.0)
+            || origin.iter().any(|o| !o.is_finite())
+        {
+            return Err(self.bad(format!(
+                "bad grid: {dims:?} samples, spacing {spacing}, origin {origin:?}"
+            )));
         }
         let n = dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d));
         let n = match n {
@@ -275,11 +339,21 @@ impl Reader<'_> {
             }
         };
         let raw = self.take(n * 8, "the distances")?;
-        let values: Vec<f64> = raw.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes"))).collect();
+        let values: Vec<f64> = raw
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+            .collect();
         if let Some(i) = values.iter().position(|v| !v.is_finite()) {
             return Err(self.bad(format!("sample {i} has a non-finite distance")));
         }
-        Ok((GridSpec { origin, spacing, dims }, values))
+        Ok((
+            GridSpec {
+                origin,
+                spacing,
+                dims,
+            },
+            values,
+        ))
     }
 }
 
@@ -303,7 +377,8 @@ impl AnyField {
                 surfrecon_grid::field_io::AnyField::D3(f) => Ok(AnyField::Regular(f)),
                 surfrecon_grid::field_io::AnyField::D2(_) => Err(DistFieldError::BadFile {
                     path: path.to_path_buf(),
-                    message: "a 2D field has no surface to sculpt or compare; a 3D field is needed".into(),
+                    message: "a 2D field has no surface to sculpt or compare; a 3D field is needed"
+                        .into(),
                 }),
             },
         }
@@ -312,7 +387,11 @@ impl AnyField {
     /// Write in the file's own kind; `.odf`/`.udf` kinds must be written
     /// to files with those extensions, regular ones to .nrrd or .vtk.
     pub fn write(&self, path: &Path) -> Result<(), DistFieldError> {
-        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
         let expected = match self {
             AnyField::Regular(_) => "nrrd or .vtk",
             AnyField::Offset(_) => "odf",
@@ -363,7 +442,9 @@ impl AnyField {
         match self {
             AnyField::Regular(f) => Ok(sculpt_regular(f, operation, tool)),
             AnyField::Offset(f) => sculpt_odf(f, operation, tool),
-            AnyField::Unified(f) => sculpt_udf(f, operation, tool, crate::unified::DEFAULT_THRESHOLD),
+            AnyField::Unified(f) => {
+                sculpt_udf(f, operation, tool, crate::unified::DEFAULT_THRESHOLD)
+            }
         }
     }
 }

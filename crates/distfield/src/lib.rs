@@ -18,9 +18,9 @@
 
 pub mod error;
 pub mod extract;
-pub mod offset;
 pub mod features;
 pub mod format;
+pub mod offset;
 pub mod query;
 pub mod sculpt;
 pub mod unified;
@@ -34,10 +34,16 @@ use surfrecon_grid::{GridSize, GridSpec};
 /// indices, non-finite coordinates, or an open or non-manifold surface.
 pub fn check_mesh(mesh: &TriMesh) -> Result<(), DistFieldError> {
     if let Some(v) = mesh.vertices.iter().position(|v| !v.is_finite()) {
-        return Err(DistFieldError::InvalidMesh(format!("vertex {v} has a non-finite coordinate")));
+        return Err(DistFieldError::InvalidMesh(format!(
+            "vertex {v} has a non-finite coordinate"
+        )));
     }
     let n = mesh.vertices.len() as u32;
-    if let Some(t) = mesh.triangles.iter().position(|t| t.iter().any(|&v| v >= n)) {
+    if let Some(t) = mesh
+        .triangles
+        .iter()
+        .position(|t| t.iter().any(|&v| v >= n))
+    {
         return Err(DistFieldError::InvalidMesh(format!(
             "triangle {t} refers to a vertex beyond the {n} vertices"
         )));
@@ -49,7 +55,16 @@ pub fn check_mesh(mesh: &TriMesh) -> Result<(), DistFieldError> {
 }
 
 /// The grid over a mesh's bounds with `padding` cells around it.
-pub fn grid_for(mesh: &TriMesh, size: GridSize, padding: usize) -> Result<GridSpec<3>, DistFieldError> {
+pub fn grid_for(
+    mesh: &TriMesh,
+    size: GridSize,
+    padding: usize,
+) -> Result<GridSpec<3>, DistFieldError> {
     let b = mesh.bounds();
-    Ok(GridSpec::from_bounds(b.min.to_array(), b.max.to_array(), size, padding)?)
+    Ok(GridSpec::from_bounds(
+        b.min.to_array(),
+        b.max.to_array(),
+        size,
+        padding,
+    )?)
 }

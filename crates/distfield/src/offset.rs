@@ -25,10 +25,10 @@ use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Instant;
-use surfrecon_geom::{DVec3, TriMesh};
-use surfrecon_grid::marching::tables::EDGE_CORNERS;
 use surfrecon_geom::metrics::closest_point_on_triangle;
+use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::tables::cube_table;
+use surfrecon_grid::marching::tables::EDGE_CORNERS;
 use surfrecon_grid::marching::{cell_case, crossing_fraction};
 use surfrecon_grid::sdf::signed_distance;
 use surfrecon_grid::topology::Neighbourhood;
@@ -44,7 +44,11 @@ pub struct Weights {
 
 impl Default for Weights {
     fn default() -> Self {
-        Self { distance: 1.0, spring: 0.1, ortho: 0.1 }
+        Self {
+            distance: 1.0,
+            spring: 0.1,
+            ortho: 0.1,
+        }
     }
 }
 
@@ -98,19 +102,31 @@ pub struct OdfReport {
 }
 
 /// Build the offset field of a closed, outward-oriented mesh.
-pub fn build_odf(mesh: &TriMesh, options: &OdfOptions) -> Result<(OffsetField, OdfReport), DistFieldError> {
+pub fn build_odf(
+    mesh: &TriMesh,
+    options: &OdfOptions,
+) -> Result<(OffsetField, OdfReport), DistFieldError> {
     let start = Instant::now();
     check_mesh(mesh)?;
     let w = options.weights;
-    if ![w.distance, w.spring, w.ortho].iter().all(|x| x.is_finite() && *x >= 0.0) {
-        return Err(DistFieldError::InvalidOption(format!("energy weights must be finite and at least 0: {w:?}")));
+    if ![w.distance, w.spring, w.ortho]
+        .iter()
+        .all(|x| x.is_finite() && *x >= 0.0)
+    {
+        return Err(DistFieldError::InvalidOption(format!(
+            "energy weights must be finite and at least 0: {w:?}"
+        )));
     }
     let spec = grid_for(mesh, options.size, options.padding)?;
     let values = signed_distance(mesh, &spec, Some(BAND_CELLS * spec.spacing))?.values;
     let query = MeshQuery::new(mesh)?;
     let features = Features::detect(mesh, options.feature_angle_deg);
     let cells = cells_with_features(mesh, &features, &spec, |_| true);
-    let mut field = OffsetField { spec, values, moved: BTreeMap::new() };
+    let mut field = OffsetField {
+        spec,
+        values,
+        moved: BTreeMap::new(),
+    };
     let search = Search::new(mesh, &spec, &query, &cells, w);
     let candidates = search.candidates();
     let mut report = OdfReport {
@@ -198,7 +214,11 @@ fn distance2_to(p: DVec3, triangles: &[[DVec3; 3]]) -> f64 {
 
 /// The source triangles within half a spacing of each feature cell (as
 /// far as a patch can reach).
-fn triangles_near_cells(mesh: &TriMesh, spec: &GridSpec<3>, cells: &BTreeMap<usize, CellFeatures>) -> BTreeMap<usize, Vec<[DVec3; 3]>> {
+fn triangles_near_cells(
+    mesh: &TriMesh,
+    spec: &GridSpec<3>,
+    cells: &BTreeMap<usize, CellFeatures>,
+) -> BTreeMap<usize, Vec<[DVec3; 3]>> {
     let mut near: BTreeMap<usize, Vec<[DVec3; 3]>> = BTreeMap::new();
     for t in 0..mesh.triangles.len() {
         let corners = mesh.corners(t);
@@ -246,7 +266,15 @@ fn cell_triangles(corners: &[(DVec3, f64); 8]) -> Vec<[DVec3; 3]> {
     table
         .triangles(config, bits)
         .iter()
-        .map(|t| t.map(|e| if e < 12 { crossing(e) } else { centres[e as usize - 12] }))
+        .map(|t| {
+            t.map(|e| {
+                if e < 12 {
+                    crossing(e)
+                } else {
+                    centres[e as usize - 12]
+                }
+            })
+        })
         .collect()
 }
 
@@ -260,7 +288,16 @@ fn cell_probes(spec: &GridSpec<3>, query: &MeshQuery, cell: usize, f: &CellFeatu
     let lo = node_position(spec, cell);
     for axis in 0..3 {
         let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-        for (s, t) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (1.0 / 3.0, 1.0 / 3.0), (2.0 / 3.0, 1.0 / 3.0), (1.0 / 3.0, 2.0 / 3.0), (2.0 / 3.0, 2.0 / 3.0)] {
+        for (s, t) in [
+            (0.0, 0.0),
+            (1.0, 0.0),
+            (0.0, 1.0),
+            (1.0, 1.0),
+            (1.0 / 3.0, 1.0 / 3.0),
+            (2.0 / 3.0, 1.0 / 3.0),
+            (1.0 / 3.0, 2.0 / 3.0),
+            (2.0 / 3.0, 2.0 / 3.0),
+        ] {
             let mut origin = lo;
             origin[u] += s * h;
             origin[v] += t * h;
@@ -311,15 +348,31 @@ impl<'a> Search<'a> {
             .iter()
             .map(|(&c, f)| {
                 let surface = near.remove(&c).unwrap_or_default();
-                (c, Target { probes: cell_probes(spec, query, c, f), surface })
+                (
+                    c,
+                    Target {
+                        probes: cell_probes(spec, query, c, f),
+                        surface,
+                    },
+                )
             })
             .collect();
-        Self { spec, query, cells, targets, weights }
+        Self {
+            spec,
+            query,
+            cells,
+            targets,
+            weights,
+        }
     }
 
     /// The samples at the corners of feature cells, sorted.
     pub fn candidates(&self) -> Vec<usize> {
-        let set: BTreeSet<usize> = self.cells.keys().flat_map(|&c| corner_nodes(self.spec, c)).collect();
+        let set: BTreeSet<usize> = self
+            .cells
+            .keys()
+            .flat_map(|&c| corner_nodes(self.spec, c))
+            .collect();
         set.into_iter().filter(|&n| self.interior(n)).collect()
     }
 
@@ -343,7 +396,12 @@ impl<'a> Search<'a> {
     }
 
     /// The best legal move of sample `node` that lowers its energy.
-    fn best_move(&self, field: &impl Movable, node: usize, step: f64) -> Option<(usize, DVec3, f64)> {
+    fn best_move(
+        &self,
+        field: &impl Movable,
+        node: usize,
+        step: f64,
+    ) -> Option<(usize, DVec3, f64)> {
         let here = field.position(node);
         let current = self.local_energy(field, node, here, field.value(node));
         let mut tries: Vec<DVec3> = (0..6)
@@ -360,7 +418,12 @@ impl<'a> Search<'a> {
             .into_iter()
             .filter(|p| (*p - home).abs().max_element() <= reach)
             .filter(|&p| self.stays_convex(field, node, p))
-            .filter_map(|p| Some((p, self.same_topology(field, node, self.query.signed_distance(p))?)))
+            .filter_map(|p| {
+                Some((
+                    p,
+                    self.same_topology(field, node, self.query.signed_distance(p))?,
+                ))
+            })
             .map(|(p, v)| (p, v, self.local_energy(field, node, p, v)))
             .filter(|&(_, _, e)| e < current - 1e-12)
             .min_by(|a, b| a.2.total_cmp(&b.2))
@@ -379,7 +442,11 @@ impl<'a> Search<'a> {
         let v = if (v < 0.0) == (old < 0.0) {
             v
         } else if v.abs() <= 1e-6 * self.spec.spacing {
-            if old < 0.0 { -1e-9 * self.spec.spacing } else { 0.0 }
+            if old < 0.0 {
+                -1e-9 * self.spec.spacing
+            } else {
+                0.0
+            }
         } else {
             return None;
         };
@@ -398,7 +465,10 @@ impl<'a> Search<'a> {
         self.cells_around(node)
             .filter_map(|c| self.cells.get(&c))
             .flat_map(|f| {
-                let on_pieces = f.pieces.iter().map(move |&[a, b]| closest_on_segment(here, a, b));
+                let on_pieces = f
+                    .pieces
+                    .iter()
+                    .map(move |&[a, b]| closest_on_segment(here, a, b));
                 f.corners.iter().chain(&f.bends).copied().chain(on_pieces)
             })
             .collect()
@@ -410,9 +480,18 @@ impl<'a> Search<'a> {
 
     /// Energy terms that change when `node` moves to `p` with value `v`.
     fn local_energy(&self, field: &impl Movable, node: usize, p: DVec3, v: f64) -> f64 {
-        let at = |n: usize| if n == node { (p, v) } else { (field.position(n), field.value(n)) };
+        let at = |n: usize| {
+            if n == node {
+                (p, v)
+            } else {
+                (field.position(n), field.value(n))
+            }
+        };
         let h = self.spec.spacing;
-        let distance: f64 = self.cells_around(node).map(|c| self.cell_energy(c, &at)).sum();
+        let distance: f64 = self
+            .cells_around(node)
+            .map(|c| self.cell_energy(c, &at))
+            .sum();
         let neighbours = self.neighbours(node);
         let spring: f64 = neighbours
             .iter()
@@ -474,13 +553,27 @@ impl<'a> Search<'a> {
         let h2 = self.spec.spacing * self.spec.spacing;
         if patch.is_empty() {
             // Draw the nearest sample onto the surface.
-            let nearest = |q: DVec3| corners.iter().map(|&(p, _)| p.distance_squared(q)).fold(f64::INFINITY, f64::min);
-            return target.probes.iter().map(|&q| UNREACHED + nearest(q) / h2).sum();
+            let nearest = |q: DVec3| {
+                corners
+                    .iter()
+                    .map(|&(p, _)| p.distance_squared(q))
+                    .fold(f64::INFINITY, f64::min)
+            };
+            return target
+                .probes
+                .iter()
+                .map(|&q| UNREACHED + nearest(q) / h2)
+                .sum();
         }
         let to_patch = target.probes.iter().map(|&q| distance2_to(q, &patch));
-        let points = patch.iter().flat_map(|t| [t[0], t[1], t[2], (t[0] + t[1] + t[2]) / 3.0]);
+        let points = patch
+            .iter()
+            .flat_map(|t| [t[0], t[1], t[2], (t[0] + t[1] + t[2]) / 3.0]);
         let to_surface = points.map(|x| distance2_to(x, &target.surface));
-        to_patch.chain(to_surface).map(|d2| (d2 / h2).min(UNREACHED)).sum()
+        to_patch
+            .chain(to_surface)
+            .map(|d2| (d2 / h2).min(UNREACHED))
+            .sum()
     }
 
     fn stays_convex(&self, field: &impl Movable, node: usize, p: DVec3) -> bool {
@@ -500,7 +593,12 @@ impl<'a> Search<'a> {
         let moved: Vec<usize> = field.moved.keys().map(|&n| n as usize).collect();
         let mut ring: BTreeSet<usize> = BTreeSet::new();
         for n in moved {
-            ring.extend(self.neighbours(n).into_iter().flatten().filter(|&m| self.interior(m)));
+            ring.extend(
+                self.neighbours(n)
+                    .into_iter()
+                    .flatten()
+                    .filter(|&m| self.interior(m)),
+            );
         }
         let crossing = |f: &OffsetField, cell: usize| {
             let inside = corner_nodes(self.spec, cell).map(|c| f.values[c] < 0.0);
@@ -508,16 +606,25 @@ impl<'a> Search<'a> {
         };
         let mut count = 0;
         for n in ring {
-            if field.moved.contains_key(&(n as u32)) || self.cells_around(n).any(|c| crossing(field, c)) {
+            if field.moved.contains_key(&(n as u32))
+                || self.cells_around(n).any(|c| crossing(field, c))
+            {
                 continue;
             }
             let centres: Vec<DVec3> = self
                 .cells_around(n)
-                .map(|c| corner_nodes(self.spec, c).map(|m| field.position_of(m)).iter().sum::<DVec3>() / 8.0)
+                .map(|c| {
+                    corner_nodes(self.spec, c)
+                        .map(|m| field.position_of(m))
+                        .iter()
+                        .sum::<DVec3>()
+                        / 8.0
+                })
                 .collect();
             let home = node_position(self.spec, n);
             let reach = DVec3::splat(0.5 * self.spec.spacing * (1.0 - 1e-9));
-            let target = (centres.iter().sum::<DVec3>() / centres.len() as f64).clamp(home - reach, home + reach);
+            let target = (centres.iter().sum::<DVec3>() / centres.len() as f64)
+                .clamp(home - reach, home + reach);
             if target != home && self.stays_convex(&*field, n, target) {
                 let v = self.query.signed_distance(target);
                 if (v >= 0.0) == (field.values[n] >= 0.0) {
@@ -535,11 +642,11 @@ pub fn cells_around(spec: &GridSpec<3>, node: usize) -> impl Iterator<Item = usi
     let idx = spec.unlinear(node);
     (0..8).filter_map(move |c: usize| {
         let mut cell = idx;
-        for a in 0..3 {
+        for (a, i) in cell.iter_mut().enumerate() {
             if (c >> a) & 1 == 1 {
-                cell[a] = cell[a].checked_sub(1)?;
+                *i = i.checked_sub(1)?;
             }
-            if cell[a] + 1 >= spec.dims[a] {
+            if *i + 1 >= spec.dims[a] {
                 return None;
             }
         }
@@ -551,13 +658,22 @@ pub fn cells_around(spec: &GridSpec<3>, node: usize) -> impl Iterator<Item = usi
 /// each cell corner the three edges keep a positive triple product of at
 /// least [`MIN_CORNER_VOLUME`] h³ (no sample crosses the plane of its
 /// neighbours).
-pub(crate) fn stays_convex(spec: &GridSpec<3>, node: usize, p: DVec3, position: impl Fn(usize) -> DVec3) -> bool {
+pub(crate) fn stays_convex(
+    spec: &GridSpec<3>,
+    node: usize,
+    p: DVec3,
+    position: impl Fn(usize) -> DVec3,
+) -> bool {
     let h3 = spec.spacing.powi(3);
     cells_around(spec, node).all(|cell| {
         let pos = corner_nodes(spec, cell).map(|n| if n == node { p } else { position(n) });
         (0..8).all(|c: usize| {
             let e = [1, 2, 4].map(|bit| pos[c ^ bit] - pos[c]);
-            let sign = if c.count_ones() % 2 == 0 { 1.0 } else { -1.0 };
+            let sign = if c.count_ones().is_multiple_of(2) {
+                1.0
+            } else {
+                -1.0
+            };
             sign * e[0].cross(e[1]).dot(e[2]) > MIN_CORNER_VOLUME * h3
         })
     })
@@ -570,7 +686,12 @@ pub(crate) fn stays_convex(spec: &GridSpec<3>, node: usize, p: DVec3, position: 
 /// keeps every sample's side.)
 /// `cube` is the neighbourhood of the field's grid; `node` must not lie on
 /// the grid's outer layer.
-pub(crate) fn may_take(cube: &Neighbourhood, node: usize, v: f64, value: impl Fn(usize) -> f64) -> bool {
+pub(crate) fn may_take(
+    cube: &Neighbourhood,
+    node: usize,
+    v: f64,
+    value: impl Fn(usize) -> f64,
+) -> bool {
     // Which connectivity marching cubes gives each side depends on the
     // values (the asymptotic decider), so the sample must be simple with
     // either side taken face-connected.

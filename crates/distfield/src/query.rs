@@ -24,7 +24,9 @@ impl MeshQuery {
     pub fn new(mesh: &TriMesh) -> Result<Self, DistFieldError> {
         let vertices = mesh.vertices.iter().map(|&v| to_parry(v)).collect();
         let mesh = ParryMesh::with_flags(vertices, mesh.triangles.clone(), TriMeshFlags::ORIENTED)
-            .map_err(|e| DistFieldError::InvalidMesh(format!("cannot index the triangles: {e:?}")))?;
+            .map_err(|e| {
+                DistFieldError::InvalidMesh(format!("cannot index the triangles: {e:?}"))
+            })?;
         Ok(Self { mesh })
     }
 
@@ -73,15 +75,20 @@ pub fn deviation(from: &TriMesh, to: &MeshQuery, per_triangle: usize) -> Deviati
     use rayon::prelude::*;
     // A fixed lattice of barycentric points, the same for every triangle.
     let side = (per_triangle as f64).sqrt().ceil().max(1.0) as usize;
-    let inner = (0..from.triangles.len()).into_par_iter().flat_map_iter(|t| {
-        let [a, b, c] = from.corners(t);
-        (0..side).flat_map(move |i| {
-            (0..side - i).map(move |j| {
-                let (u, v) = ((i as f64 + 1.0 / 3.0) / side as f64, (j as f64 + 1.0 / 3.0) / side as f64);
-                a + (b - a) * u + (c - a) * v
+    let inner = (0..from.triangles.len())
+        .into_par_iter()
+        .flat_map_iter(|t| {
+            let [a, b, c] = from.corners(t);
+            (0..side).flat_map(move |i| {
+                (0..side - i).map(move |j| {
+                    let (u, v) = (
+                        (i as f64 + 1.0 / 3.0) / side as f64,
+                        (j as f64 + 1.0 / 3.0) / side as f64,
+                    );
+                    a + (b - a) * u + (c - a) * v
+                })
             })
-        })
-    });
+        });
     let (max, worst, sum, n) = from
         .vertices
         .par_iter()
@@ -90,7 +97,13 @@ pub fn deviation(from: &TriMesh, to: &MeshQuery, per_triangle: usize) -> Deviati
         .map(|p| (to.signed_distance(p).abs(), p))
         .fold(
             || (0.0f64, DVec3::ZERO, 0.0, 0usize),
-            |(m, w, s, n), (d, p)| if d > m { (d, p, s + d, n + 1) } else { (m, w, s + d, n + 1) },
+            |(m, w, s, n), (d, p)| {
+                if d > m {
+                    (d, p, s + d, n + 1)
+                } else {
+                    (m, w, s + d, n + 1)
+                }
+            },
         )
         .reduce(
             || (0.0, DVec3::ZERO, 0.0, 0),
@@ -99,5 +112,9 @@ pub fn deviation(from: &TriMesh, to: &MeshQuery, per_triangle: usize) -> Deviati
                 (m, w, a.2 + b.2, a.3 + b.3)
             },
         );
-    Deviation { max, mean: sum / n.max(1) as f64, worst }
+    Deviation {
+        max,
+        mean: sum / n.max(1) as f64,
+        worst,
+    }
 }

@@ -14,7 +14,6 @@
 use crate::extract::{corner_nodes, fan_fits};
 use crate::features::nudge_into;
 use crate::offset::{may_take, node_position, on_outer_layer, stays_convex, OffsetField};
-use surfrecon_grid::topology::Neighbourhood;
 use crate::query::MeshQuery;
 use crate::unified::{Extra, UnifiedField};
 use crate::DistFieldError;
@@ -23,6 +22,7 @@ use std::collections::BTreeSet;
 use surfrecon_geom::DVec3;
 use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::marching::tables::EDGE_CORNERS;
+use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_grid::{Field3, GridSpec};
 
 /// How a tool combines with the field.
@@ -46,13 +46,23 @@ impl Operation {
 
 /// A sculpting tool: a solid given by its exact signed distance.
 pub enum Tool {
-    Sphere { centre: DVec3, radius: f64 },
-    Box { min: DVec3, max: DVec3 },
+    Sphere {
+        centre: DVec3,
+        radius: f64,
+    },
+    Box {
+        min: DVec3,
+        max: DVec3,
+    },
     /// A cylinder around the segment `a`-`b`, with flat caps.
-    Cylinder { a: DVec3, b: DVec3, radius: f64 },
+    Cylinder {
+        a: DVec3,
+        b: DVec3,
+        radius: f64,
+    },
     /// A closed, outward-oriented surface (a mesh file, or the surface
     /// of another field).
-    Surface(MeshQuery),
+    Surface(Box<MeshQuery>),
 }
 
 impl Tool {
@@ -103,7 +113,9 @@ impl Tool {
     pub fn closest_point(&self, p: DVec3) -> DVec3 {
         match self {
             Tool::Surface(q) => q.closest_point(p),
-            Tool::Sphere { centre, radius } => *centre + (p - *centre).normalize_or(DVec3::X) * *radius,
+            Tool::Sphere { centre, radius } => {
+                *centre + (p - *centre).normalize_or(DVec3::X) * *radius
+            }
             // Exact distances: stepping back along the gradient lands on
             // the surface (a few steps settle edges and corners).
             _ => (0..4).fold(p, |x, _| x - self.gradient(x) * self.signed_distance(x)),
@@ -153,7 +165,10 @@ pub fn sculpt_regular(field: &mut Field3, operation: Operation, tool: &Tool) -> 
             changed as usize
         })
         .sum();
-    SculptReport { changed, ..Default::default() }
+    SculptReport {
+        changed,
+        ..Default::default()
+    }
 }
 
 /// The exact combined surface: the object as the field represents it
@@ -166,7 +181,8 @@ struct Combined<'a> {
 
 impl Combined<'_> {
     fn signed_distance(&self, p: DVec3) -> f64 {
-        self.operation.apply(self.object.signed_distance(p), self.tool.signed_distance(p))
+        self.operation
+            .apply(self.object.signed_distance(p), self.tool.signed_distance(p))
     }
 
     /// A point on both surfaces near `start` (alternating projections),
@@ -224,11 +240,15 @@ fn touched_cells(spec: &GridSpec<3>, changed: &[usize], values: &[f64]) -> Vec<u
 fn edge_point_in(spec: &GridSpec<3>, combined: &Combined, cell: usize) -> Option<DVec3> {
     let h = spec.spacing;
     let lo = node_position(spec, cell);
-    let starts = std::iter::once(lo + DVec3::splat(0.5 * h))
-        .chain((0..8).map(|c| lo + DVec3::new((c & 1) as f64, ((c >> 1) & 1) as f64, (c >> 2) as f64) * h));
+    let starts = std::iter::once(lo + DVec3::splat(0.5 * h)).chain(
+        (0..8).map(|c| lo + DVec3::new((c & 1) as f64, ((c >> 1) & 1) as f64, (c >> 2) as f64) * h),
+    );
     starts
         .filter_map(|start| combined.edge_point(start, 1e-6 * h))
-        .find(|&p| nudge_into(spec, cell, p).distance(p) < 1e-6 * h && combined.tool.signed_distance(p).abs() < 1e-6 * h)
+        .find(|&p| {
+            nudge_into(spec, cell, p).distance(p) < 1e-6 * h
+                && combined.tool.signed_distance(p).abs() < 1e-6 * h
+        })
         .map(|p| nudge_into(spec, cell, p))
 }
 
@@ -241,7 +261,11 @@ pub fn sculpt_udf(
     threshold: f64,
 ) -> Result<SculptReport, DistFieldError> {
     let (surface, _) = field.extract();
-    let combined = Combined { object: MeshQuery::new(&surface)?, tool, operation };
+    let combined = Combined {
+        object: MeshQuery::new(&surface)?,
+        tool,
+        operation,
+    };
     let spec = field.spec;
     let h = spec.spacing;
     let positions: Vec<(usize, DVec3)> = field
@@ -258,7 +282,11 @@ pub fn sculpt_udf(
     };
     let changed = combine(&mut field.values, position, operation, tool);
     let cells = touched_cells(&spec, &changed, &field.values);
-    let mut report = SculptReport { changed: changed.len(), cells: cells.len(), ..Default::default() };
+    let mut report = SculptReport {
+        changed: changed.len(),
+        cells: cells.len(),
+        ..Default::default()
+    };
     // Old directed distances and feature points of changed samples no
     // longer describe the surface.
     for &n in &changed {
@@ -294,8 +322,12 @@ pub fn sculpt_udf(
         .filter_map(|&(n, axis)| {
             let m = n + spec.strides()[axis];
             let (a, b) = (field.values[n], field.values[m]);
-            let regular = !field.extras.contains_key(&(n as u32)) || matches!(field.extras[&(n as u32)], Extra::Directed(_));
-            if (a >= 0.0) == (b >= 0.0) || !regular || matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_))) {
+            let regular = !field.extras.contains_key(&(n as u32))
+                || matches!(field.extras[&(n as u32)], Extra::Directed(_));
+            if (a >= 0.0) == (b >= 0.0)
+                || !regular
+                || matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_)))
+            {
                 return None;
             }
             let origin = node_position(&spec, n);
@@ -304,7 +336,10 @@ pub fn sculpt_udf(
         })
         .collect();
     for (n, axis, d) in found {
-        let entry = field.extras.entry(n as u32).or_insert(Extra::Directed([f64::INFINITY; 3]));
+        let entry = field
+            .extras
+            .entry(n as u32)
+            .or_insert(Extra::Directed([f64::INFINITY; 3]));
         if let Extra::Directed(dirs) = entry {
             if dirs[axis] == f64::INFINITY {
                 report.directed += 1;
@@ -318,10 +353,14 @@ pub fn sculpt_udf(
         if taken.contains(&c) {
             continue;
         }
-        let Some(p) = edge_point_in(&spec, &combined, c) else { continue };
+        let Some(p) = edge_point_in(&spec, &combined, c) else {
+            continue;
+        };
         report.edge_points += 1;
         let corners = corner_nodes(&spec, c);
-        let free = corners.iter().find(|&&n| !field.extras.contains_key(&(n as u32)));
+        let free = corners
+            .iter()
+            .find(|&&n| !field.extras.contains_key(&(n as u32)));
         if let (Some(&n), true) = (free, fan_fits(&*field, c, p)) {
             field.extras.insert(n as u32, Extra::FeaturePoint(p));
             report.kept += 1;
@@ -356,33 +395,59 @@ fn edge_root(combined: &Combined, origin: DVec3, axis: usize, h: f64) -> Option<
 
 /// Sculpt an offset field: combine at the samples' positions, then move a
 /// sample onto the new edge in each cell it crosses (when legal).
-pub fn sculpt_odf(field: &mut OffsetField, operation: Operation, tool: &Tool) -> Result<SculptReport, DistFieldError> {
+pub fn sculpt_odf(
+    field: &mut OffsetField,
+    operation: Operation,
+    tool: &Tool,
+) -> Result<SculptReport, DistFieldError> {
     let (surface, _) = field.extract();
-    let combined = Combined { object: MeshQuery::new(&surface)?, tool, operation };
+    let combined = Combined {
+        object: MeshQuery::new(&surface)?,
+        tool,
+        operation,
+    };
     let spec = field.spec;
     let h = spec.spacing;
     let moved = field.moved.clone();
-    let position = |i: usize| moved.get(&(i as u32)).copied().unwrap_or_else(|| node_position(&spec, i));
+    let position = |i: usize| {
+        moved
+            .get(&(i as u32))
+            .copied()
+            .unwrap_or_else(|| node_position(&spec, i))
+    };
     let changed = combine(&mut field.values, position, operation, tool);
     let cells = touched_cells(&spec, &changed, &field.values);
-    let mut report = SculptReport { changed: changed.len(), cells: cells.len(), ..Default::default() };
+    let mut report = SculptReport {
+        changed: changed.len(),
+        cells: cells.len(),
+        ..Default::default()
+    };
     let reach = 0.5 * h * (1.0 - 1e-9);
     let cube = Neighbourhood::new(&spec.strides());
     for &c in &cells {
-        let Some(p) = edge_point_in(&spec, &combined, c) else { continue };
+        let Some(p) = edge_point_in(&spec, &combined, c) else {
+            continue;
+        };
         report.edge_points += 1;
         let nearest = corner_nodes(&spec, c)
             .into_iter()
             .filter(|&n| !field.moved.contains_key(&(n as u32)))
             .filter(|&n| (p - node_position(&spec, n)).abs().max_element() <= reach)
-            .min_by(|&a, &b| p.distance(node_position(&spec, a)).total_cmp(&p.distance(node_position(&spec, b))));
+            .min_by(|&a, &b| {
+                p.distance(node_position(&spec, a))
+                    .total_cmp(&p.distance(node_position(&spec, b)))
+            });
         let Some(n) = nearest else { continue };
         if !stays_convex(&spec, n, p, |m| field.position_of(m)) {
             continue;
         }
         // On the edge the distance is 0; keep the sample's side so the
         // crossings to its neighbours collapse onto the edge.
-        let value = if field.values[n] < 0.0 { -1e-9 * h } else { 0.0 };
+        let value = if field.values[n] < 0.0 {
+            -1e-9 * h
+        } else {
+            0.0
+        };
         if on_outer_layer(&spec, n) || !may_take(&cube, n, value, |m| field.values[m]) {
             continue;
         }

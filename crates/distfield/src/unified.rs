@@ -12,9 +12,10 @@
 //! mix: extraction interpolates it wherever nothing more is stored.
 
 use crate::extract::{corner_nodes, extract, fan_fits, ExtractReport, SampledField};
-use crate::features::{cell_of, cells_with_features, closest_on_segment, nudge_into, CellFeatures, Features};
+use crate::features::{
+    cell_of, cells_with_features, closest_on_segment, nudge_into, CellFeatures, Features,
+};
 use crate::offset::{may_take, node_position, on_outer_layer, stays_convex};
-use surfrecon_grid::topology::Neighbourhood;
 use crate::query::MeshQuery;
 use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
@@ -23,6 +24,7 @@ use std::time::Instant;
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::sdf::signed_distance;
+use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_grid::{GridSize, GridSpec};
 
 /// Store directed distances where interpolation errs by more than this
@@ -104,7 +106,7 @@ pub fn build_udf(
 ) -> Result<(UnifiedField, UdfReport), DistFieldError> {
     let start = Instant::now();
     check_mesh(mesh)?;
-    if !(options.threshold >= 0.0) {
+    if options.threshold.is_nan() || options.threshold < 0.0 {
         return Err(DistFieldError::InvalidOption(format!(
             "the directed-distance threshold must be at least 0, not {}",
             options.threshold
@@ -113,14 +115,25 @@ pub fn build_udf(
     let spec = grid_for(mesh, options.size, options.padding)?;
     let values = signed_distance(mesh, &spec, Some(BAND_CELLS * spec.spacing))?.values;
     let query = MeshQuery::new(mesh)?;
-    let mut field = UnifiedField { spec, values, extras: BTreeMap::new() };
-    let mut report = UdfReport { samples: field.values.len(), ..Default::default() };
+    let mut field = UnifiedField {
+        spec,
+        values,
+        extras: BTreeMap::new(),
+    };
+    let mut report = UdfReport {
+        samples: field.values.len(),
+        ..Default::default()
+    };
     for (node, directed) in directed_distances(&field, &query, options.threshold) {
         field.extras.insert(node, Extra::Directed(directed));
         report.directed += 1;
     }
     let features = Features::detect(mesh, options.feature_angle_deg);
-    let corners: Vec<DVec3> = features.corners.iter().map(|&v| mesh.vertices[v as usize]).collect();
+    let corners: Vec<DVec3> = features
+        .corners
+        .iter()
+        .map(|&v| mesh.vertices[v as usize])
+        .collect();
     let snapped = snap_corners(&mut field, &corners);
     let mut cells = cells_with_features(mesh, &features, &field.spec, |c| field.crosses(c));
     for f in cells.values_mut() {
@@ -133,12 +146,21 @@ pub fn build_udf(
         let Some(centroid) = crossing_centroid(&field, &query, *cell) else {
             continue;
         };
-        let candidates = f.candidates(centroid).into_iter().map(|p| nudge_into(&field.spec, *cell, p));
-        let Some(point) = candidates.clone().find(|&p| fan_fits(&field, *cell, p)).or_else(|| candidates.clone().next()) else {
+        let candidates = f
+            .candidates(centroid)
+            .into_iter()
+            .map(|p| nudge_into(&field.spec, *cell, p));
+        let Some(point) = candidates
+            .clone()
+            .find(|&p| fan_fits(&field, *cell, p))
+            .or_else(|| candidates.clone().next())
+        else {
             continue;
         };
         let corners = corner_nodes(&field.spec, *cell);
-        let free = corners.iter().find(|&&n| !field.extras.contains_key(&(n as u32)));
+        let free = corners
+            .iter()
+            .find(|&&n| !field.extras.contains_key(&(n as u32)));
         let node = *free.unwrap_or(&corners[0]) as u32;
         if let Some(Extra::Directed(_)) = field.extras.insert(node, Extra::FeaturePoint(point)) {
             report.directed -= 1;
@@ -171,7 +193,10 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
             continue;
         }
         let n = spec.linear(idx);
-        if field.extras.get(&(n as u32)).is_some_and(|e| !matches!(e, Extra::Directed(_)))
+        if field
+            .extras
+            .get(&(n as u32))
+            .is_some_and(|e| !matches!(e, Extra::Directed(_)))
             || !stays_convex(&spec, n, q, |m| field.position(m))
         {
             continue;
@@ -182,7 +207,9 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
             continue;
         }
         let strides = spec.strides();
-        let neighbours = (0..3).flat_map(|a| [n - strides[a], n + strides[a]]).map(|m| field.values[m]);
+        let neighbours = (0..3)
+            .flat_map(|a| [n - strides[a], n + strides[a]])
+            .map(|m| field.values[m]);
         // Marching cubes counts 0 as outside. With all six neighbours on
         // one side no edge would cross at the corner (a tip thinner than a
         // cell): leave it to a fan.
@@ -190,7 +217,11 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
         if inside == 0 || inside == 6 {
             continue;
         }
-        let value = if inside < 3 { -1e-9 * spec.spacing } else { 0.0 };
+        let value = if inside < 3 {
+            -1e-9 * spec.spacing
+        } else {
+            0.0
+        };
         if !may_take(&cube, n, value, |m| field.values[m]) {
             continue;
         }
@@ -219,11 +250,18 @@ fn snap_unreached(field: &mut UnifiedField, cells: &BTreeMap<usize, CellFeatures
         let nodes = corner_nodes(&spec, cell);
         let mut best: Option<(f64, usize, DVec3)> = None;
         for &n in &nodes {
-            if field.extras.get(&(n as u32)).is_some_and(|e| !matches!(e, Extra::Directed(_))) {
+            if field
+                .extras
+                .get(&(n as u32))
+                .is_some_and(|e| !matches!(e, Extra::Directed(_)))
+            {
                 continue;
             }
             let home = node_position(&spec, n);
-            let on_pieces = f.pieces.iter().map(|&[a, b]| closest_on_segment(home, a, b));
+            let on_pieces = f
+                .pieces
+                .iter()
+                .map(|&[a, b]| closest_on_segment(home, a, b));
             for q in f.corners.iter().chain(&f.bends).copied().chain(on_pieces) {
                 let d = (q - home).abs().max_element();
                 if d <= reach && best.is_none_or(|b| d < b.0) {
@@ -236,7 +274,11 @@ fn snap_unreached(field: &mut UnifiedField, cells: &BTreeMap<usize, CellFeatures
             continue;
         }
         // The sample changes side, which must change no topology.
-        let value = if field.values[nodes[0]] >= 0.0 { -1e-9 * spec.spacing } else { 0.0 };
+        let value = if field.values[nodes[0]] >= 0.0 {
+            -1e-9 * spec.spacing
+        } else {
+            0.0
+        };
         if on_outer_layer(&spec, n) || !may_take(&cube, n, value, |m| field.values[m]) {
             continue;
         }
@@ -249,7 +291,11 @@ fn snap_unreached(field: &mut UnifiedField, cells: &BTreeMap<usize, CellFeatures
 
 /// Samples with an edge crossing that interpolation misplaces by more than
 /// `threshold` spacings, with their exact distances along the three axes.
-fn directed_distances(field: &UnifiedField, query: &MeshQuery, threshold: f64) -> Vec<(u32, [f64; 3])> {
+fn directed_distances(
+    field: &UnifiedField,
+    query: &MeshQuery,
+    threshold: f64,
+) -> Vec<(u32, [f64; 3])> {
     let spec = &field.spec;
     let h = spec.spacing;
     let strides = spec.strides();
@@ -313,7 +359,9 @@ impl UnifiedField {
             .into_par_iter()
             .map(|k| {
                 let cells = (0..ny - 1).flat_map(|j| (0..nx - 1).map(move |i| [i, j, k]));
-                cells.filter(|&idx| self.crosses(self.spec.linear(idx))).count()
+                cells
+                    .filter(|&idx| self.crosses(self.spec.linear(idx)))
+                    .count()
             })
             .sum()
     }

@@ -1,9 +1,9 @@
 //! Distance fields that keep corners: exact corner positions against the
 //! regular field, closed manifold output, file round trips.
 
+use surfrecon_distfield::grid_for;
 use surfrecon_distfield::query::{deviation, MeshQuery};
 use surfrecon_distfield::unified::{build_udf, UdfOptions};
-use surfrecon_distfield::grid_for;
 use surfrecon_geom::metrics::topology;
 use surfrecon_geom::shapes::cuboid;
 use surfrecon_geom::{DVec3, TriMesh};
@@ -34,17 +34,28 @@ fn octahedron() -> TriMesh {
         triangles.push([x, y, 4]);
         triangles.push([y, x, 5]);
     }
-    TriMesh { vertices, triangles, normals: None }
+    TriMesh {
+        vertices,
+        triangles,
+        normals: None,
+    }
 }
 
 fn rotated_cube() -> TriMesh {
-    rotate(&cuboid(DVec3::splat(-0.5), DVec3::splat(0.5)), [0.3, 0.5, 0.7])
+    rotate(
+        &cuboid(DVec3::splat(-0.5), DVec3::splat(0.5)),
+        [0.3, 0.5, 0.7],
+    )
 }
 
 /// Distance from each corner of `shape` (its vertices) to `surface`.
 fn corner_errors(shape: &TriMesh, surface: &TriMesh) -> Vec<f64> {
     let q = MeshQuery::new(surface).unwrap();
-    shape.vertices.iter().map(|&v| q.signed_distance(v).abs()).collect()
+    shape
+        .vertices
+        .iter()
+        .map(|&v| q.signed_distance(v).abs())
+        .collect()
 }
 
 fn assert_closed_manifold(mesh: &TriMesh, euler: i64) {
@@ -55,7 +66,14 @@ fn assert_closed_manifold(mesh: &TriMesh, euler: i64) {
 
 fn check_corners_kept(shape: TriMesh, cells: usize) {
     let size = GridSize::Resolution(cells);
-    let (udf, report) = build_udf(&shape, &UdfOptions { size, ..Default::default() }).unwrap();
+    let (udf, report) = build_udf(
+        &shape,
+        &UdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let h = udf.spec.spacing;
     let (mesh, extract) = udf.extract();
     assert_closed_manifold(&mesh, 2);
@@ -64,8 +82,14 @@ fn check_corners_kept(shape: TriMesh, cells: usize) {
     let regular = corner_errors(&shape, &marching_cubes(&regular_field, 0.0));
     // The regular field's corners are cut by a good part of a cell.
     eprintln!("{report:?} {extract:?}\nudf corners {kept:?}\nregular {regular:?} (h {h})");
-    assert!(kept.iter().all(|&d| d < 0.02 * h), "udf corners {kept:?}, h {h}");
-    assert!(regular.iter().any(|&d| d > 0.2 * h), "the regular field cuts corners: {regular:?}");
+    assert!(
+        kept.iter().all(|&d| d < 0.02 * h),
+        "udf corners {kept:?}, h {h}"
+    );
+    assert!(
+        regular.iter().any(|&d| d > 0.2 * h),
+        "the regular field cuts corners: {regular:?}"
+    );
     // Everywhere, not only at the corners, the surface is closer than the
     // regular field's. (Not yet everywhere within the 0.1 h: where
     // a cell's crossings lie on two faces of an edge that passes just
@@ -78,9 +102,17 @@ fn check_corners_kept(shape: TriMesh, cells: usize) {
         (there.max.max(back.max), 0.5 * (there.mean + back.mean))
     };
     let ((max, mean), (regular_max, regular_mean)) = (error(&mesh), error(&regular_mesh));
-    eprintln!("max / mean error: udf {max} / {mean}, regular {regular_max} / {regular_mean}, h {h}");
-    assert!(max < 0.5 * h && max < regular_max, "max error {max} vs regular {regular_max}, h {h}");
-    assert!(mean < 0.25 * regular_mean, "mean error {mean} vs regular {regular_mean}");
+    eprintln!(
+        "max / mean error: udf {max} / {mean}, regular {regular_max} / {regular_mean}, h {h}"
+    );
+    assert!(
+        max < 0.5 * h && max < regular_max,
+        "max error {max} vs regular {regular_max}, h {h}"
+    );
+    assert!(
+        mean < 0.25 * regular_mean,
+        "mean error {mean} vs regular {regular_mean}"
+    );
 }
 
 #[test]
@@ -100,8 +132,22 @@ fn field_files_round_trip_exactly_and_refuse_truncation() {
     let shape = rotated_cube();
     let size = GridSize::Resolution(12);
     let dir = tempfile::tempdir().unwrap();
-    let (udf, _) = build_udf(&shape, &UdfOptions { size, ..Default::default() }).unwrap();
-    let (odf, _) = build_odf(&shape, &OdfOptions { size, ..Default::default() }).unwrap();
+    let (udf, _) = build_udf(
+        &shape,
+        &UdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let (odf, _) = build_odf(
+        &shape,
+        &OdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     assert!(!udf.extras.is_empty() && !odf.moved.is_empty());
     let (udf_path, odf_path) = (dir.path().join("c.udf"), dir.path().join("c.odf"));
     write_udf(&udf_path, &udf).unwrap();
@@ -109,13 +155,20 @@ fn field_files_round_trip_exactly_and_refuse_truncation() {
     assert_eq!(read_udf(&udf_path).unwrap(), udf);
     assert_eq!(read_odf(&odf_path).unwrap(), odf);
     // Reading one kind as the other, or any truncated file, is an error.
-    assert!(read_udf(&odf_path).unwrap_err().to_string().contains("not a surfrecon"));
+    assert!(read_udf(&odf_path)
+        .unwrap_err()
+        .to_string()
+        .contains("not a surfrecon"));
     for path in [&udf_path, &odf_path] {
         let bytes = std::fs::read(path).unwrap();
         let cut = dir.path().join("cut");
         for len in [0, 7, 30, 60, bytes.len() / 2, bytes.len() - 1] {
             std::fs::write(&cut, &bytes[..len]).unwrap();
-            let err = if path == &udf_path { read_udf(&cut).err() } else { read_odf(&cut).err() };
+            let err = if path == &udf_path {
+                read_udf(&cut).err()
+            } else {
+                read_odf(&cut).err()
+            };
             let message = err.expect("a truncated file is refused").to_string();
             assert!(message.contains("cut:"), "{message}");
         }
@@ -127,9 +180,19 @@ fn odf_moves_samples_onto_the_features_and_lowers_the_error() {
     use surfrecon_distfield::offset::{build_odf, OdfOptions};
     let shape = rotated_cube();
     let size = GridSize::Resolution(20);
-    let (odf, report) = build_odf(&shape, &OdfOptions { size, ..Default::default() }).unwrap();
+    let (odf, report) = build_odf(
+        &shape,
+        &OdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let h = odf.spec.spacing;
-    assert!(report.energy_after < 0.6 * report.energy_before, "{report:?}");
+    assert!(
+        report.energy_after < 0.6 * report.energy_before,
+        "{report:?}"
+    );
     let (mesh, _) = odf.extract();
     assert_closed_manifold(&mesh, 2);
     let regular_field = signed_distance(&shape, &grid_for(&shape, size, 2).unwrap(), None).unwrap();
@@ -171,7 +234,11 @@ fn drilled_box_samples(radius: f64, n: usize) -> (Vec<DVec3>, Vec<DVec3>) {
                 }
             }
             let angle = (i as f64 + j as f64 / n as f64) / n as f64 * std::f64::consts::TAU;
-            surface.push(DVec3::new(radius * angle.cos(), radius * angle.sin(), v * HALF.z));
+            surface.push(DVec3::new(
+                radius * angle.cos(),
+                radius * angle.sin(),
+                v * HALF.z,
+            ));
         }
         let angle = i as f64 / n as f64 * std::f64::consts::TAU;
         for z in [-HALF.z, HALF.z] {
@@ -187,8 +254,19 @@ fn drilling_a_box_keeps_the_new_circular_edges() {
     let shape = cuboid(-HALF, HALF);
     let size = GridSize::Resolution(24);
     let radius = 0.23;
-    let drill = || Tool::Cylinder { a: DVec3::new(0.0, 0.0, -1.0), b: DVec3::new(0.0, 0.0, 1.0), radius };
-    let (mut udf, _) = build_udf(&shape, &UdfOptions { size, ..Default::default() }).unwrap();
+    let drill = || Tool::Cylinder {
+        a: DVec3::new(0.0, 0.0, -1.0),
+        b: DVec3::new(0.0, 0.0, 1.0),
+        radius,
+    };
+    let (mut udf, _) = build_udf(
+        &shape,
+        &UdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let h = udf.spec.spacing;
     let report = sculpt_udf(&mut udf, Operation::Subtract, &drill(), 0.1).unwrap();
     let (mesh, _) = udf.extract();
@@ -217,12 +295,18 @@ fn drilling_a_box_keeps_the_new_circular_edges() {
     let (all, all_regular) = (worst(&mesh, &surface), worst(&regular, &surface));
     eprintln!("{report:?}\nrims {rim} h (regular {rim_regular}), surface {all} h (regular {all_regular}), vertices off {off} h");
     assert!(report.kept > 0 && report.edge_points > 0);
-    assert!(rim < 0.02 && rim < 0.1 * rim_regular, "rim {rim} h, regular {rim_regular} h");
+    assert!(
+        rim < 0.02 && rim < 0.1 * rim_regular,
+        "rim {rim} h, regular {rim_regular} h"
+    );
     assert!(off < 0.15, "vertices {off} h off the exact surface");
     // Not yet the 0.15 h everywhere: along the box's own edges
     // whose faces lie on grid nodes, cells next to the edge cut it by up to
     // half a cell (as the unsculpted field does).
-    assert!(all < all_regular, "surface {all} h, regular {all_regular} h");
+    assert!(
+        all < all_regular,
+        "surface {all} h, regular {all_regular} h"
+    );
 }
 
 /// Fandisk (../shared/data) at the paper's resolution: the unified and
@@ -231,7 +315,8 @@ fn drilling_a_box_keeps_the_new_circular_edges() {
 #[test]
 fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
     use surfrecon_distfield::offset::{build_odf, OdfOptions};
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/fandisk/fandisk.off");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/fandisk/fandisk.off");
     let shape = surfrecon_geom::io::read(&path)
         .unwrap_or_else(|e| panic!("the shared fandisk data is needed beside the repository: {e}"))
         .to_mesh();
@@ -245,15 +330,41 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
     let regular_field = signed_distance(&shape, &grid_for(&shape, size, 2).unwrap(), None).unwrap();
     let h = regular_field.spec.spacing;
     let (regular_max, regular_mean) = error(&marching_cubes(&regular_field, 0.0));
-    let (udf, _) = build_udf(&shape, &UdfOptions { size, ..Default::default() }).unwrap();
+    let (udf, _) = build_udf(
+        &shape,
+        &UdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let (udf_mesh, _) = udf.extract();
-    let (odf, _) = build_odf(&shape, &OdfOptions { size, ..Default::default() }).unwrap();
+    let (odf, _) = build_odf(
+        &shape,
+        &OdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let (odf_mesh, _) = odf.extract();
     for (name, mesh) in [("udf", &udf_mesh), ("odf", &odf_mesh)] {
         assert_closed_manifold(mesh, 2);
         let (max, mean) = error(mesh);
-        eprintln!("{name}: max {} h, mean {} h (regular {} / {})", max / h, mean / h, regular_max / h, regular_mean / h);
-        assert!(max < 0.8 * regular_max, "{name} max {max} vs regular {regular_max}");
-        assert!(mean < 0.45 * regular_mean, "{name} mean {mean} vs regular {regular_mean}");
+        eprintln!(
+            "{name}: max {} h, mean {} h (regular {} / {})",
+            max / h,
+            mean / h,
+            regular_max / h,
+            regular_mean / h
+        );
+        assert!(
+            max < 0.8 * regular_max,
+            "{name} max {max} vs regular {regular_max}"
+        );
+        assert!(
+            mean < 0.45 * regular_mean,
+            "{name} mean {mean} vs regular {regular_mean}"
+        );
     }
 }

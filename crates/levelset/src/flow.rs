@@ -22,9 +22,9 @@ use crate::anchors::{DataCells, TangentSides};
 use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
 use crate::convection::{advection_term, upwind_advection};
 use crate::reinit::reinitialize;
-use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_geom::DVec3;
 use surfrecon_grid::sparse::WINDOW;
+use surfrecon_grid::topology::Neighbourhood;
 
 /// Which law moves the surface.
 #[derive(Clone, Copy, Debug, PartialEq)]

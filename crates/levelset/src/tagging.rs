@@ -18,8 +18,8 @@
 //! The result is the inside/outside labelling whose interface is the
 //! initial surface: roughly a polyhedron with vertices on the data.
 
-use surfrecon_grid::topology::Neighbourhood;
 use std::collections::BinaryHeap;
+use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_grid::Field;
 
 /// Label of a node during tagging.

@@ -69,7 +69,10 @@ fn feature_surface(args: &Args, ctx: &Context) -> anyhow::Result<()> {
         surfrecon_distfield::format::AnyField::Regular(_) => unreachable!("sniffed as odf/udf"),
     };
     if mesh.triangles.is_empty() {
-        bail!("{}: the field has no surface (it never changes sign)", args.input.display());
+        bail!(
+            "{}: the field has no surface (it never changes sign)",
+            args.input.display()
+        );
     }
     let mut summary = mesh_summary(&mesh, ctx);
     summary["fans"] = report.fans.into();
@@ -77,10 +80,18 @@ fn feature_surface(args: &Args, ctx: &Context) -> anyhow::Result<()> {
     summary["flips"] = report.flips.into();
     let format = io::Format::from_path(&args.output)?;
     if !format.stores_triangles() {
-        bail!("{}: format {format} cannot hold a triangle mesh", args.output.display());
+        bail!(
+            "{}: format {format} cannot hold a triangle mesh",
+            args.output.display()
+        );
     }
-    io::write(&args.output, &Geometry::from_mesh(mesh)).with_context(|| format!("cannot write {}", args.output.display()))?;
-    ctx.say(format!("wrote {} in {:.2} s", args.output.display(), ctx.elapsed()));
+    io::write(&args.output, &Geometry::from_mesh(mesh))
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    ctx.say(format!(
+        "wrote {} in {:.2} s",
+        args.output.display(),
+        ctx.elapsed()
+    ));
     ctx.emit_json(&serde_json::json!({
         "command": "extract",
         "input": args.input,

@@ -17,7 +17,10 @@ pub fn run(args: &Args, size: GridSize, ctx: &Context) -> anyhow::Result<()> {
     let t_read = Instant::now();
     let geometry = io::read(&args.input)?;
     if !geometry.is_mesh() {
-        bail!("--kind {kind} needs a closed triangle mesh, but {} has no triangles", args.input.display());
+        bail!(
+            "--kind {kind} needs a closed triangle mesh, but {} has no triangles",
+            args.input.display()
+        );
     }
     let mesh = geometry.to_mesh();
     let read_secs = t_read.elapsed().as_secs_f64();
@@ -29,7 +32,11 @@ pub fn run(args: &Args, size: GridSize, ctx: &Context) -> anyhow::Result<()> {
             size,
             padding: args.padding,
             feature_angle_deg: args.feature_angle,
-            weights: Weights { distance: args.lambda_distance, spring: args.lambda_spring, ortho: args.lambda_ortho },
+            weights: Weights {
+                distance: args.lambda_distance,
+                spring: args.lambda_spring,
+                ortho: args.lambda_ortho,
+            },
             iterations: args.iterations,
         };
         let (field, r) = build_odf(&mesh, &options).with_context(cannot)?;
@@ -72,7 +79,11 @@ pub fn run(args: &Args, size: GridSize, ctx: &Context) -> anyhow::Result<()> {
         spec.dims_string(),
         spec.spacing
     ));
-    ctx.say(format!("wrote {} in {:.2} s (compute {compute_secs:.2} s)", args.output.display(), ctx.elapsed()));
+    ctx.say(format!(
+        "wrote {} in {:.2} s (compute {compute_secs:.2} s)",
+        args.output.display(),
+        ctx.elapsed()
+    ));
     ctx.emit_json(&serde_json::json!({
         "command": "distance",
         "kind": kind,
@@ -94,12 +105,22 @@ fn check_options(args: &Args, kind: &str) -> anyhow::Result<()> {
     if args.band.is_some() || args.two_d || args.allow_open {
         bail!("--kind {kind} takes neither --band, --2d nor --allow-open: it needs a closed mesh in 3D and computes distances near the surface by itself");
     }
-    let ext = args.output.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let ext = args
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("");
     if !ext.eq_ignore_ascii_case(kind) {
-        bail!("{}: a --kind {kind} field is written to a .{kind} file", args.output.display());
+        bail!(
+            "{}: a --kind {kind} field is written to a .{kind} file",
+            args.output.display()
+        );
     }
     if !(args.feature_angle > 0.0 && args.feature_angle < 180.0) {
-        bail!("--feature-angle must lie between 0 and 180 degrees, not {}", args.feature_angle);
+        bail!(
+            "--feature-angle must lie between 0 and 180 degrees, not {}",
+            args.feature_angle
+        );
     }
     Ok(())
 }

@@ -11,7 +11,7 @@ pub mod normals;
 pub mod reconstruct;
 pub mod reconstruct_curves;
 pub mod reconstruct_svm;
-pub mod sculpt;
 pub mod render;
+pub mod sculpt;
 pub mod shell;
 pub mod unshell;

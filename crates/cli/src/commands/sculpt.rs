@@ -38,7 +38,9 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
     for (operation, spec) in steps {
         let tool = load_tool(&spec)?;
         let spinner = ctx.spinner(&format!("{operation:?} {spec}"));
-        let r = field.sculpt(operation, &tool).with_context(|| format!("cannot apply {spec}"))?;
+        let r = field
+            .sculpt(operation, &tool)
+            .with_context(|| format!("cannot apply {spec}"))?;
         spinner.finish_and_clear();
         ctx.detail(format!("{operation:?} {spec}: {r:?}"));
         reports.push(serde_json::json!({
@@ -53,7 +55,11 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
         }));
     }
     field.write(&args.output)?;
-    ctx.say(format!("wrote {} in {:.2} s", args.output.display(), ctx.elapsed()));
+    ctx.say(format!(
+        "wrote {} in {:.2} s",
+        args.output.display(),
+        ctx.elapsed()
+    ));
     ctx.emit_json(&serde_json::json!({
         "command": "sculpt",
         "input": args.input,
@@ -65,7 +71,10 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
 }
 
 /// The (operation, tool) steps in command-line order.
-fn ordered_steps(args: &Args, matches: &clap::ArgMatches) -> anyhow::Result<Vec<(Operation, String)>> {
+fn ordered_steps(
+    args: &Args,
+    matches: &clap::ArgMatches,
+) -> anyhow::Result<Vec<(Operation, String)>> {
     let mut steps: Vec<(usize, Operation, String)> = Vec::new();
     for (id, operation, tools) in [
         ("union", Operation::Union, &args.union),
@@ -97,15 +106,25 @@ fn load_tool(spec: &str) -> anyhow::Result<Tool> {
     let v = |x: &[f64]| DVec3::new(x[0], x[1], x[2]);
     let tool = if let Some(rest) = spec.strip_prefix("sphere:") {
         let x = numbers(rest, 4, "sphere:x,y,z,r")?;
-        Tool::Sphere { centre: v(&x), radius: x[3] }
+        Tool::Sphere {
+            centre: v(&x),
+            radius: x[3],
+        }
     } else if let Some(rest) = spec.strip_prefix("box:") {
         let x = numbers(rest, 6, "box:x0,y0,z0,x1,y1,z1")?;
-        Tool::Box { min: v(&x[..3]), max: v(&x[3..]) }
+        Tool::Box {
+            min: v(&x[..3]),
+            max: v(&x[3..]),
+        }
     } else if let Some(rest) = spec.strip_prefix("cylinder:") {
         let x = numbers(rest, 7, "cylinder:x0,y0,z0,x1,y1,z1,r")?;
-        Tool::Cylinder { a: v(&x[..3]), b: v(&x[3..6]), radius: x[6] }
+        Tool::Cylinder {
+            a: v(&x[..3]),
+            b: v(&x[3..6]),
+            radius: x[6],
+        }
     } else {
-        Tool::Surface(surface_of(Path::new(spec))?)
+        Tool::Surface(Box::new(surface_of(Path::new(spec))?))
     };
     tool.check()?;
     Ok(tool)
@@ -114,15 +133,24 @@ fn load_tool(spec: &str) -> anyhow::Result<Tool> {
 /// A tool file: a field (its surface) or a closed mesh.
 fn surface_of(path: &Path) -> anyhow::Result<MeshQuery> {
     if !path.exists() {
-        bail!("{}: no such file (a tool is sphere:..., box:..., cylinder:... or a file)", path.display());
+        bail!(
+            "{}: no such file (a tool is sphere:..., box:..., cylinder:... or a file)",
+            path.display()
+        );
     }
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    let is_field = surfrecon_distfield::format::sniff(path)?.is_some() || ext == "nrrd" || ext == "vtk";
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    let is_field =
+        surfrecon_distfield::format::sniff(path)?.is_some() || ext == "nrrd" || ext == "vtk";
     let mesh = if is_field {
         AnyField::read(path)?.surface()
     } else {
         let mesh = io::read(path)?.to_mesh();
-        surfrecon_distfield::check_mesh(&mesh).with_context(|| format!("{} cannot be a tool", path.display()))?;
+        surfrecon_distfield::check_mesh(&mesh)
+            .with_context(|| format!("{} cannot be a tool", path.display()))?;
         mesh
     };
     if mesh.triangles.is_empty() {
