@@ -438,25 +438,7 @@ impl<'a> Search<'a> {
     /// gave fandisk and a rotated box a spurious handle: the decider's
     /// connectivity is not digital topology's.)
     fn same_topology(&self, field: &impl Movable, node: usize, v: f64) -> Option<f64> {
-        let old = field.value(node);
-        let v = if (v < 0.0) == (old < 0.0) {
-            v
-        } else if v.abs() <= 1e-6 * self.spec.spacing {
-            if old < 0.0 {
-                -1e-9 * self.spec.spacing
-            } else {
-                0.0
-            }
-        } else {
-            return None;
-        };
-        let decisions = |value: &dyn Fn(usize) -> f64| {
-            self.cells_around(node)
-                .map(|c| cell_case(&corner_nodes(self.spec, c).map(value), 0.0).1)
-                .collect::<Vec<u8>>()
-        };
-        let after = |n: usize| if n == node { v } else { field.value(n) };
-        (decisions(&|n| field.value(n)) == decisions(&after)).then_some(v)
+        same_cases(self.spec, node, v, |n| field.value(n))
     }
 
     /// Corners and bends in the cells around `node`, and the points of
@@ -697,6 +679,32 @@ pub(crate) fn may_take(
     // either side taken face-connected.
     (value(node) < 0.0) == (v < 0.0)
         || (cube.is_simple(node, |n| value(n) < 0.0) && cube.is_simple(node, |n| value(n) >= 0.0))
+}
+
+/// The value sample `node` may take where its exact distance is `v`
+/// without changing any cell's marching-cubes case: it stays on its side
+/// (landing on the surface, it keeps its old side) and no ambiguous face
+/// around it changes its decision.
+pub(crate) fn same_cases(spec: &GridSpec<3>, node: usize, v: f64, value: impl Fn(usize) -> f64) -> Option<f64> {
+    let old = value(node);
+    let v = if (v < 0.0) == (old < 0.0) {
+        v
+    } else if v.abs() <= 1e-6 * spec.spacing {
+        if old < 0.0 {
+            -1e-9 * spec.spacing
+        } else {
+            0.0
+        }
+    } else {
+        return None;
+    };
+    let decisions = |value: &dyn Fn(usize) -> f64| {
+        cells_around(spec, node)
+            .map(|c| cell_case(&corner_nodes(spec, c).map(value), 0.0).1)
+            .collect::<Vec<u8>>()
+    };
+    let after = |n: usize| if n == node { v } else { value(n) };
+    (decisions(&value) == decisions(&after)).then_some(v)
 }
 
 /// Whether `node` lies on the grid's outer layer.
