@@ -685,7 +685,12 @@ pub(crate) fn may_take(
 /// without changing any cell's marching-cubes case: it stays on its side
 /// (landing on the surface, it keeps its old side) and no ambiguous face
 /// around it changes its decision.
-pub(crate) fn same_cases(spec: &GridSpec<3>, node: usize, v: f64, value: impl Fn(usize) -> f64) -> Option<f64> {
+pub(crate) fn same_cases(
+    spec: &GridSpec<3>,
+    node: usize,
+    v: f64,
+    value: impl Fn(usize) -> f64,
+) -> Option<f64> {
     let old = value(node);
     let v = if (v < 0.0) == (old < 0.0) {
         v

@@ -22,6 +22,7 @@ pub mod convection;
 pub mod error;
 pub mod flow;
 pub mod multires;
+mod nesting;
 pub mod reconstruct;
 pub mod refine;
 pub mod reinit;

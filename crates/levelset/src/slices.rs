@@ -27,6 +27,13 @@ const DEFAULT_RESOLUTION: usize = 128;
 /// The outer contour of a slice's 2D reconstruction lies this share of its
 /// widest contour gap out, so that it bridges the gap with room to spare.
 const GAP_BRIDGE: f64 = 0.6;
+/// Least half-width, in cells, of the band around the data that separates
+/// the regions whose nesting is counted; it widens to bridge the contours'
+/// gaps (as the outer contour does), else every region would leak to the
+/// exterior through them. Where an annulus is thinner than the band, its
+/// two contours merge into one and its hole cannot be told (points
+/// without polylines or normals say no more).
+const NESTING_BAND: f64 = 2.0;
 /// Points sharing a plane agree to this share of the data's extent.
 const PLANE_TOLERANCE: f64 = 1e-9;
 
@@ -180,7 +187,43 @@ pub fn interpolate_slices(stack: &SliceStack, params: &ReconstructParams) -> Res
             blend(stack, &sections, &depth, gap, at, s)
         })
         .collect();
-    Ok(Field { spec, values })
+    let mut field = Field { spec, values };
+    fill_cavities(&mut field);
+    Ok(field)
+}
+
+/// Make inside every outside node the grid's border cannot reach (face
+/// neighbours): a hole carved in the middle slices but not in the end
+/// ones (where an annulus is too thin to tell) would otherwise be a
+/// cavity, a second surface hidden inside the first.
+fn fill_cavities(field: &mut Field<3>) {
+    let spec = field.spec;
+    let outside = |v: f64| v >= 0.0;
+    let mut reached = vec![false; spec.node_count()];
+    let mut queue: std::collections::VecDeque<usize> = (0..spec.node_count())
+        .filter(|&l| {
+            let idx = spec.unlinear(l);
+            (0..3).any(|a| idx[a] == 0 || idx[a] + 1 == spec.dims[a]) && outside(field.values[l])
+        })
+        .collect();
+    for &l in &queue {
+        reached[l] = true;
+    }
+    let strides = spec.strides();
+    while let Some(l) = queue.pop_front() {
+        let idx = spec.unlinear(l);
+        for m in spec.axis_neighbours(l, &idx, &strides) {
+            if !reached[m] && outside(field.values[m]) {
+                reached[m] = true;
+                queue.push_back(m);
+            }
+        }
+    }
+    for (v, reached) in field.values.iter_mut().zip(reached) {
+        if outside(*v) && !reached {
+            *v = -v.max(f64::MIN_POSITIVE);
+        }
+    }
 }
 
 /// φ at plane node `at` and stacking coordinate `s`: linear between the
@@ -303,7 +346,8 @@ fn samples(input: &Input, step: f64) -> Vec<DVec3> {
 fn section(slice: &Input, plane: &GridSpec<2>, params: &ReconstructParams) -> Result<Vec<f64>> {
     let (lo, hi) = plane_bounds(std::slice::from_ref(slice));
     let extent = (hi - lo).max_element();
-    let bridge = GAP_BRIDGE * widest_gap(&samples(slice, 0.5 * plane.spacing));
+    let samples = samples(slice, 0.5 * plane.spacing);
+    let bridge = GAP_BRIDGE * widest_gap(&samples);
     let slice_params = ReconstructParams {
         resolution: Some(((extent / plane.spacing).ceil() as usize).max(8)),
         epsilon: (bridge > 3.0 * plane.spacing).then_some(bridge),
@@ -315,7 +359,7 @@ fn section(slice: &Input, plane: &GridSpec<2>, params: &ReconstructParams) -> Re
     let (band, field, _) = reconstruct_field::<2>(slice, &slice_params)?;
     // `full_field` asks for the dense signed distance.
     let field = field.unwrap_or_else(|| band.to_dense());
-    Ok((0..plane.node_count())
+    let mut values: Vec<f64> = (0..plane.node_count())
         .into_par_iter()
         .map(|l| {
             let p = plane.position(plane.unlinear(l));
@@ -327,7 +371,15 @@ fn section(slice: &Input, plane: &GridSpec<2>, params: &ReconstructParams) -> Re
             let outside = ((p[0] - inside[0]).powi(2) + (p[1] - inside[1]).powi(2)).sqrt();
             crate::multires::interpolate(&field, inside) + outside
         })
-        .collect())
+        .collect();
+    // Holes enclosed by inner contours are out of the level set's reach.
+    crate::nesting::apply_nesting(
+        &mut values,
+        plane,
+        &samples,
+        bridge.max(NESTING_BAND * plane.spacing),
+    );
+    Ok(values)
 }
 
 #[cfg(test)]

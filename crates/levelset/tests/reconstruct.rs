@@ -627,6 +627,44 @@ fn contour_slice_stacks_take_the_interpolation_path() {
     assert!(topology(&evolved.mesh).0);
 }
 
+#[test]
+fn slices_of_a_torus_keep_its_hole() {
+    // A torus (R = 1, r = 0.4) cut by 12 planes across z: every slice is
+    // two concentric closed contours (polylines). The disk inside the
+    // inner one is a hole, which the 2D level set cannot reach from the
+    // border; the nesting of the contours says so.
+    let mut segments = Vec::new();
+    for k in 0..12 {
+        let z = -0.36 + k as f64 * 0.72 / 11.0;
+        let half = (0.4f64 * 0.4 - z * z).sqrt();
+        for radius in [1.0 - half, 1.0 + half] {
+            let n = 160;
+            let at = |i: usize| {
+                let t = i as f64 / n as f64 * std::f64::consts::TAU;
+                DVec3::new(radius * t.cos(), radius * t.sin(), z)
+            };
+            segments.extend((0..n).map(|i| [at(i), at((i + 1) % n)]));
+        }
+    }
+    let input = Input {
+        segments,
+        ..Default::default()
+    };
+    let r = reconstruct_3d(&input, &ReconstructParams::default()).unwrap();
+    assert_eq!(r.report.slices, Some((2, 12)));
+    let (watertight, euler, comps) = topology(&r.mesh);
+    assert!(watertight);
+    assert_eq!((euler, comps), (0, 1), "one piece of genus 1");
+    // Nothing of the surface inside the hole (r < 0.6 at every z).
+    let in_hole = r
+        .mesh
+        .vertices
+        .iter()
+        .filter(|v| v.x.hypot(v.y) < 0.5)
+        .count();
+    assert_eq!(in_hole, 0);
+}
+
 /// Points of a unit sphere with four thin cones (base radius 0.08–0.14,
 /// 0.8 long beyond the sphere), uniform by area, none inside another part.
 fn spiky_sphere_points() -> Vec<DVec3> {
