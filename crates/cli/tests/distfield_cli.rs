@@ -30,6 +30,25 @@ fn write_box(dir: &Path) -> PathBuf {
     path
 }
 
+/// The turned box and its unified field at `resolution` cells.
+fn box_udf(dir: &Path, resolution: &str) -> (PathBuf, PathBuf) {
+    let input = write_box(dir);
+    let field = dir.join("box.udf");
+    let out = surfrecon(&[
+        "distance",
+        path_str(&input),
+        "-o",
+        path_str(&field),
+        "--kind",
+        "udf",
+        "--resolution",
+        resolution,
+        "--json",
+    ]);
+    json_of(&out);
+    (input, field)
+}
+
 fn read_mesh(path: &Path) -> TriMesh {
     io::read(path).unwrap().to_mesh()
 }
@@ -106,19 +125,7 @@ fn udf_and_odf_files_extract_to_closed_surfaces_with_sharp_corners() {
 #[test]
 fn sculpting_applies_steps_in_order_and_keeps_the_kind() {
     let dir = tempfile::tempdir().unwrap();
-    let input = write_box(dir.path());
-    let field = dir.path().join("box.udf");
-    json_of(&surfrecon(&[
-        "distance",
-        path_str(&input),
-        "-o",
-        path_str(&field),
-        "--kind",
-        "udf",
-        "--resolution",
-        "20",
-        "--json",
-    ]));
+    let (input, field) = box_udf(dir.path(), "20");
     // A sphere added and then carved again leaves the box; carved first
     // and added then, the sphere stays.
     let sphere = "sphere:0.5,0,0,0.25";
@@ -217,19 +224,7 @@ fn sculpting_applies_steps_in_order_and_keeps_the_kind() {
 #[test]
 fn bad_fields_tools_and_meshes_get_one_clear_error() {
     let dir = tempfile::tempdir().unwrap();
-    let input = write_box(dir.path());
-    let field = dir.path().join("box.udf");
-    json_of(&surfrecon(&[
-        "distance",
-        path_str(&input),
-        "-o",
-        path_str(&field),
-        "--kind",
-        "udf",
-        "--resolution",
-        "12",
-        "--json",
-    ]));
+    let (input, field) = box_udf(dir.path(), "12");
     let out = dir.path().join("out.udf");
     let run = |args: &[&str]| surfrecon(args);
     // Open mesh.

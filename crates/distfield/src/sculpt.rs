@@ -19,7 +19,7 @@ use crate::unified::{Extra, UnifiedField};
 use crate::DistFieldError;
 use rayon::prelude::*;
 use std::collections::BTreeSet;
-use surfrecon_geom::DVec3;
+use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::marching::tables::EDGE_CORNERS;
 use surfrecon_grid::topology::Neighbourhood;
@@ -179,7 +179,19 @@ struct Combined<'a> {
     operation: Operation,
 }
 
-impl Combined<'_> {
+impl<'a> Combined<'a> {
+    fn new(
+        surface: &TriMesh,
+        tool: &'a Tool,
+        operation: Operation,
+    ) -> Result<Self, DistFieldError> {
+        Ok(Self {
+            object: MeshQuery::new(surface)?,
+            tool,
+            operation,
+        })
+    }
+
     fn signed_distance(&self, p: DVec3) -> f64 {
         self.operation
             .apply(self.object.signed_distance(p), self.tool.signed_distance(p))
@@ -260,12 +272,7 @@ pub fn sculpt_udf(
     tool: &Tool,
     threshold: f64,
 ) -> Result<SculptReport, DistFieldError> {
-    let (surface, _) = field.extract();
-    let combined = Combined {
-        object: MeshQuery::new(&surface)?,
-        tool,
-        operation,
-    };
+    let combined = Combined::new(&field.extract().0, tool, operation)?;
     let spec = field.spec;
     let h = spec.spacing;
     let positions: Vec<(usize, DVec3)> = field
@@ -400,12 +407,7 @@ pub fn sculpt_odf(
     operation: Operation,
     tool: &Tool,
 ) -> Result<SculptReport, DistFieldError> {
-    let (surface, _) = field.extract();
-    let combined = Combined {
-        object: MeshQuery::new(&surface)?,
-        tool,
-        operation,
-    };
+    let combined = Combined::new(&field.extract().0, tool, operation)?;
     let spec = field.spec;
     let h = spec.spacing;
     let moved = field.moved.clone();

@@ -58,6 +58,23 @@ fn corner_errors(shape: &TriMesh, surface: &TriMesh) -> Vec<f64> {
         .collect()
 }
 
+/// The regular signed distance field of `shape` (2 cells of padding).
+fn regular_field(shape: &TriMesh, size: GridSize) -> surfrecon_grid::Field3 {
+    signed_distance(shape, &grid_for(shape, size, 2).unwrap(), None).unwrap()
+}
+
+/// (max, mean) of the exact distances both ways between `shape` and `mesh`.
+fn two_way_error(
+    shape: &TriMesh,
+    exact: &MeshQuery,
+    mesh: &TriMesh,
+    per_triangle: usize,
+) -> (f64, f64) {
+    let there = deviation(mesh, exact, per_triangle);
+    let back = deviation(shape, &MeshQuery::new(mesh).unwrap(), per_triangle);
+    (there.max.max(back.max), 0.5 * (there.mean + back.mean))
+}
+
 fn assert_closed_manifold(mesh: &TriMesh, euler: i64) {
     let t = topology(mesh);
     assert!(t.watertight && t.vertex_manifold, "{t:?}");
@@ -78,7 +95,7 @@ fn check_corners_kept(shape: TriMesh, cells: usize) {
     let (mesh, extract) = udf.extract();
     assert_closed_manifold(&mesh, 2);
     let kept = corner_errors(&shape, &mesh);
-    let regular_field = signed_distance(&shape, &grid_for(&shape, size, 2).unwrap(), None).unwrap();
+    let regular_field = regular_field(&shape, size);
     let regular = corner_errors(&shape, &marching_cubes(&regular_field, 0.0));
     // The regular field's corners are cut by a good part of a cell.
     eprintln!("{report:?} {extract:?}\nudf corners {kept:?}\nregular {regular:?} (h {h})");
@@ -96,11 +113,7 @@ fn check_corners_kept(shape: TriMesh, cells: usize) {
     // outside it, its patch cuts the ridge by up to 0.45 h.)
     let exact = MeshQuery::new(&shape).unwrap();
     let regular_mesh = marching_cubes(&regular_field, 0.0);
-    let error = |m: &TriMesh| {
-        let there = deviation(m, &exact, 9);
-        let back = deviation(&shape, &MeshQuery::new(m).unwrap(), 9);
-        (there.max.max(back.max), 0.5 * (there.mean + back.mean))
-    };
+    let error = |m: &TriMesh| two_way_error(&shape, &exact, m, 9);
     let ((max, mean), (regular_max, regular_mean)) = (error(&mesh), error(&regular_mesh));
     eprintln!(
         "max / mean error: udf {max} / {mean}, regular {regular_max} / {regular_mean}, h {h}"
@@ -195,14 +208,10 @@ fn odf_moves_samples_onto_the_features_and_lowers_the_error() {
     );
     let (mesh, _) = odf.extract();
     assert_closed_manifold(&mesh, 2);
-    let regular_field = signed_distance(&shape, &grid_for(&shape, size, 2).unwrap(), None).unwrap();
+    let regular_field = regular_field(&shape, size);
     let regular = marching_cubes(&regular_field, 0.0);
     let exact = MeshQuery::new(&shape).unwrap();
-    let error = |m: &TriMesh| {
-        let there = deviation(m, &exact, 9);
-        let back = deviation(&shape, &MeshQuery::new(m).unwrap(), 9);
-        (there.max.max(back.max), 0.5 * (there.mean + back.mean))
-    };
+    let error = |m: &TriMesh| two_way_error(&shape, &exact, m, 9);
     let ((max, mean), (regular_max, regular_mean)) = (error(&mesh), error(&regular));
     eprintln!("odf {report:?}\nmax / mean error: odf {max} / {mean}, regular {regular_max} / {regular_mean}, h {h}");
     assert!(max < regular_max && mean < 0.5 * regular_mean);
@@ -271,7 +280,7 @@ fn drilling_a_box_keeps_the_new_circular_edges() {
     let report = sculpt_udf(&mut udf, Operation::Subtract, &drill(), 0.1).unwrap();
     let (mesh, _) = udf.extract();
     assert_closed_manifold(&mesh, 0);
-    let mut regular = signed_distance(&shape, &grid_for(&shape, size, 2).unwrap(), None).unwrap();
+    let mut regular = regular_field(&shape, size);
     sculpt_regular(&mut regular, Operation::Subtract, &drill());
     let regular = marching_cubes(&regular, 0.0);
     let (surface, rims) = drilled_box_samples(radius, 40);
@@ -322,12 +331,8 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
         .to_mesh();
     let size = GridSize::Resolution(64);
     let exact = MeshQuery::new(&shape).unwrap();
-    let error = |m: &TriMesh| {
-        let there = deviation(m, &exact, 4);
-        let back = deviation(&shape, &MeshQuery::new(m).unwrap(), 4);
-        (there.max.max(back.max), 0.5 * (there.mean + back.mean))
-    };
-    let regular_field = signed_distance(&shape, &grid_for(&shape, size, 2).unwrap(), None).unwrap();
+    let error = |m: &TriMesh| two_way_error(&shape, &exact, m, 4);
+    let regular_field = regular_field(&shape, size);
     let h = regular_field.spec.spacing;
     let (regular_max, regular_mean) = error(&marching_cubes(&regular_field, 0.0));
     let (udf, _) = build_udf(
