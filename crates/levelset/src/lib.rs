@@ -21,6 +21,7 @@ pub mod cleaning;
 pub mod convection;
 pub mod error;
 pub mod flow;
+mod holes;
 pub mod multires;
 mod nesting;
 pub mod reconstruct;

@@ -8,6 +8,7 @@ use crate::band::{BandDistance, NarrowBand};
 use crate::cleaning::{clean_points, CleaningStats};
 use crate::error::{LevelsetError, Result};
 use crate::flow::{evolve, Anchors, EvolveParams, EvolveStats, Motion};
+use crate::holes::seal_with_normals;
 use crate::multires::{
     auto_levels, coarsen, grow_to_points, interpolate, restore_near_missed, upsample_band,
 };
@@ -30,6 +31,9 @@ use surfrecon_grid::{Field, Field2, Field3, GridSize, GridSpec};
 #[derive(Clone, Debug, Default)]
 pub struct Input {
     pub points: Vec<DVec3>,
+    /// Unit outward normals of `points`, in the same order, or empty. Used
+    /// only to keep the outside from flooding in through holes.
+    pub normals: Vec<DVec3>,
     pub segments: Vec<[DVec3; 2]>,
     pub triangles: Vec<[DVec3; 3]>,
 }
@@ -59,8 +63,13 @@ impl Input {
             .flat_map(|l| l.windows(2))
             .filter_map(|w| Some([at(w[0])?, at(w[1])?]))
             .collect();
+        let normals = match &g.points.normals {
+            Some(n) if n.len() == v.len() => n.clone(),
+            _ => Vec::new(),
+        };
         Input {
             points: v.clone(),
+            normals,
             segments,
             triangles,
         }
@@ -175,6 +184,9 @@ pub struct Report {
     /// Points the coarsest evolution left outside, around which the tagged
     /// inside was put back ([`crate::multires::restore_near_missed`]).
     pub restored_near_points: usize,
+    /// Nodes the points' oriented normals sealed against the exterior
+    /// flood ([`crate::holes`]).
+    pub sealed_nodes: usize,
     /// Band nodes at the end.
     pub band_nodes: usize,
     /// Blocks of 8^D nodes (the sparse grid's blocks) allocated for φ.
@@ -351,8 +363,23 @@ fn cleaned<'a>(
     }
     let (points, stats) = report.time("cleaning", || clean_points(&input.points, dim));
     report.cleaning = stats;
+    // Cleaned points keep the normal of the input point they came from
+    // (the nearest: cleaning drops points and moves the rest slightly).
+    let normals = if input.normals.is_empty() {
+        Vec::new()
+    } else {
+        let tree = KdTree::new(&input.points);
+        points
+            .iter()
+            .map(|&p| {
+                tree.nearest(p)
+                    .map_or(DVec3::ZERO, |n| input.normals[n.index])
+            })
+            .collect()
+    };
     std::borrow::Cow::Owned(Input {
         points,
+        normals,
         segments: input.segments.clone(),
         triangles: input.triangles.clone(),
     })
@@ -680,16 +707,34 @@ fn initial_band<const D: usize>(
         let (lo, hi) = bounds::<D>(input);
         (lo.map(|x| x - 2.0 * h), hi.map(|x| x + 2.0 * h))
     });
-    let tagging = report.time("tagging", || {
+    let oriented = input.normals.len() == input.points.len() && !input.points.is_empty();
+    let sealed = oriented
+        .then(|| {
+            let reach = HOLE_REACH * bounds_diagonal::<D>(input);
+            report.time("tagging", || seal_with_normals(d, input, epsilon, reach))
+        })
+        .flatten();
+    let run_tag = |field: &Field<D>| {
         tag(
-            d,
+            field,
             epsilon,
             params.epsilon.is_none(),
             h,
             bbox.as_ref(),
             params.keep_topology,
         )
-    });
+    };
+    let mut tagging = report.time("tagging", || run_tag(d));
+    // The sealed tagging replaces the plain one only where the flood had
+    // got in: then the inside it keeps is much larger. Elsewhere sealing
+    // only adds doubt (scattered normals of noisy data seal stray nodes).
+    if let Some((sealed_d, count)) = &sealed {
+        let with_seal = report.time("tagging", || run_tag(sealed_d));
+        if with_seal.inside_count() as f64 > FLOODED * tagging.inside_count() as f64 {
+            tagging = with_seal;
+            report.sealed_nodes = *count;
+        }
+    }
     report.epsilon = tagging.epsilon;
     report.heap_pops = tagging.heap_pops;
     report.tagged_inside = tagging.inside_count();
@@ -706,6 +751,20 @@ fn initial_band<const D: usize>(
         reinitialize(&mut band);
         Ok(band)
     })
+}
+
+/// How far from the data (share of the bounding box diagonal) oriented
+/// normals seal the inside against the flood: the harness's missing
+/// patches reach 6% of the diagonal.
+const HOLE_REACH: f64 = 0.1;
+
+/// Sealing is kept when it keeps this many times the inside the plain
+/// tagging does (the flood through a hole takes most of the inside).
+const FLOODED: f64 = 1.3;
+
+fn bounds_diagonal<const D: usize>(input: &Input) -> f64 {
+    let (lo, hi) = bounds::<D>(input);
+    (0..D).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
 }
 
 /// The grid node nearest to `v` (first `D` coordinates), if inside the grid.
@@ -770,14 +829,17 @@ fn evolve_level<const D: usize>(
 /// points per coarse cell. Distances change by at most √3·cell/2.
 fn thinned(input: &Input, cell: f64) -> Input {
     let mut seen = std::collections::HashSet::with_capacity(input.points.len());
-    let points = input
-        .points
-        .iter()
-        .filter(|p| seen.insert((*p / cell).floor().as_i64vec3().to_array()))
-        .copied()
+    let kept: Vec<usize> = (0..input.points.len())
+        .filter(|&i| seen.insert((input.points[i] / cell).floor().as_i64vec3().to_array()))
         .collect();
+    let normals = if input.normals.is_empty() {
+        Vec::new()
+    } else {
+        kept.iter().map(|&i| input.normals[i]).collect()
+    };
     Input {
-        points,
+        points: kept.iter().map(|&i| input.points[i]).collect(),
+        normals,
         segments: input.segments.clone(),
         triangles: input.triangles.clone(),
     }
