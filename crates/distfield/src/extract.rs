@@ -125,6 +125,12 @@ fn active_cells(field: &impl SampledField) -> Vec<(usize, u8, u8)> {
         .collect()
 }
 
+/// Whether the surface crosses `cell`: its corners' signs differ.
+pub fn crosses(spec: &GridSpec<3>, values: &[f64], cell: usize) -> bool {
+    let inside = corner_nodes(spec, cell).map(|n| values[n] < 0.0);
+    inside.iter().any(|&s| s) && inside.iter().any(|&s| !s)
+}
+
 /// The eight nodes of a cell, corner `c = x + 2y + 4z`.
 pub fn corner_nodes(spec: &GridSpec<3>, cell: usize) -> [usize; 8] {
     let s = spec.strides();

@@ -17,7 +17,7 @@
 //! energy term, so each parity class moves in parallel and the result
 //! does not depend on the thread count.
 
-use crate::extract::{corner_nodes, extract, ExtractReport, SampledField};
+use crate::extract::{corner_nodes, crosses, extract, ExtractReport, SampledField};
 use crate::features::{cells_with_features, closest_on_segment, CellFeatures, Features};
 use crate::query::MeshQuery;
 use crate::unified::BAND_CELLS;
@@ -582,14 +582,12 @@ impl<'a> Search<'a> {
                     .filter(|&m| self.interior(m)),
             );
         }
-        let crossing = |f: &OffsetField, cell: usize| {
-            let inside = corner_nodes(self.spec, cell).map(|c| f.values[c] < 0.0);
-            inside.iter().any(|&s| s) && inside.iter().any(|&s| !s)
-        };
         let mut count = 0;
         for n in ring {
             if field.moved.contains_key(&(n as u32))
-                || self.cells_around(n).any(|c| crossing(field, c))
+                || self
+                    .cells_around(n)
+                    .any(|c| crosses(self.spec, &field.values, c))
             {
                 continue;
             }

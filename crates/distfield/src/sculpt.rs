@@ -11,9 +11,11 @@
 //! edge (where the two surfaces meet) in each cell it crosses; an offset
 //! field gets a sample moved onto that edge instead.
 
-use crate::extract::{corner_nodes, fan_fits};
+use crate::extract::{corner_nodes, crosses, fan_fits, SampledField};
 use crate::features::nudge_into;
-use crate::offset::{may_take, node_position, on_outer_layer, stays_convex, OffsetField};
+use crate::offset::{
+    cells_around, may_take, node_position, on_outer_layer, stays_convex, OffsetField,
+};
 use crate::query::MeshQuery;
 use crate::unified::{Extra, UnifiedField};
 use crate::DistFieldError;
@@ -211,39 +213,43 @@ impl<'a> Combined<'a> {
     }
 }
 
-/// Combine samples with the tool at their positions; returns the samples
-/// that changed (sorted) and updates `values`.
-fn combine(
-    values: &mut [f64],
-    position: impl Fn(usize) -> DVec3 + Sync,
+/// Combine every sample of `field` with the tool at the sample's
+/// position; returns the changed samples (sorted), the cells around them
+/// that the new surface crosses, and a report counting both.
+fn combine<F: SampledField>(
+    field: &mut F,
+    values: impl Fn(&mut F) -> &mut Vec<f64>,
     operation: Operation,
     tool: &Tool,
-) -> Vec<usize> {
-    values
-        .par_iter_mut()
-        .enumerate()
-        .filter_map(|(i, v)| {
-            let new = operation.apply(*v, tool.signed_distance(position(i)));
-            let changed = new != *v;
-            *v = new;
-            changed.then_some(i)
+) -> (Vec<usize>, Vec<usize>, SculptReport) {
+    let spec = *field.spec();
+    let new: Vec<(usize, f64)> = (0..spec.node_count())
+        .into_par_iter()
+        .filter_map(|i| {
+            let v = field.value(i);
+            let w = operation.apply(v, tool.signed_distance(field.position(i)));
+            (w != v).then_some((i, w))
         })
-        .collect()
-}
-
-/// Cells with a changed corner that the (new) surface crosses.
-fn touched_cells(spec: &GridSpec<3>, changed: &[usize], values: &[f64]) -> Vec<usize> {
-    let mut cells = BTreeSet::new();
-    for &n in changed {
-        cells.extend(crate::offset::cells_around(spec, n));
+        .collect();
+    let values = values(field);
+    for &(i, w) in &new {
+        values[i] = w;
     }
-    cells
+    let changed: Vec<usize> = new.into_iter().map(|(i, _)| i).collect();
+    let around: BTreeSet<usize> = changed
+        .iter()
+        .flat_map(|&n| cells_around(&spec, n))
+        .collect();
+    let cells: Vec<usize> = around
         .into_iter()
-        .filter(|&c| {
-            let inside = corner_nodes(spec, c).map(|n| values[n] < 0.0);
-            inside.iter().any(|&s| s) && inside.iter().any(|&s| !s)
-        })
-        .collect()
+        .filter(|&c| crosses(&spec, values, c))
+        .collect();
+    let report = SculptReport {
+        changed: changed.len(),
+        cells: cells.len(),
+        ..Default::default()
+    };
+    (changed, cells, report)
 }
 
 /// A point where object and tool meet in `cell` (its closed box), if
@@ -275,25 +281,7 @@ pub fn sculpt_udf(
     let combined = Combined::new(&field.extract().0, tool, operation)?;
     let spec = field.spec;
     let h = spec.spacing;
-    let positions: Vec<(usize, DVec3)> = field
-        .extras
-        .iter()
-        .filter_map(|(&i, e)| match e {
-            Extra::Position(p) => Some((i as usize, *p)),
-            _ => None,
-        })
-        .collect();
-    let position = |i: usize| match positions.binary_search_by_key(&i, |x| x.0) {
-        Ok(k) => positions[k].1,
-        Err(_) => node_position(&spec, i),
-    };
-    let changed = combine(&mut field.values, position, operation, tool);
-    let cells = touched_cells(&spec, &changed, &field.values);
-    let mut report = SculptReport {
-        changed: changed.len(),
-        cells: cells.len(),
-        ..Default::default()
-    };
+    let (changed, cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
     // Old directed distances and feature points of changed samples no
     // longer describe the surface.
     for &n in &changed {
@@ -410,20 +398,7 @@ pub fn sculpt_odf(
     let combined = Combined::new(&field.extract().0, tool, operation)?;
     let spec = field.spec;
     let h = spec.spacing;
-    let moved = field.moved.clone();
-    let position = |i: usize| {
-        moved
-            .get(&(i as u32))
-            .copied()
-            .unwrap_or_else(|| node_position(&spec, i))
-    };
-    let changed = combine(&mut field.values, position, operation, tool);
-    let cells = touched_cells(&spec, &changed, &field.values);
-    let mut report = SculptReport {
-        changed: changed.len(),
-        cells: cells.len(),
-        ..Default::default()
-    };
+    let (_, cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
     let reach = 0.5 * h * (1.0 - 1e-9);
     let cube = Neighbourhood::new(&spec.strides());
     for &c in &cells {

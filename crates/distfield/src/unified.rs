@@ -348,8 +348,7 @@ fn crossing_centroid(field: &UnifiedField, query: &MeshQuery, cell: usize) -> Op
 impl UnifiedField {
     /// Whether the surface crosses `cell` (its corners' signs differ).
     pub fn crosses(&self, cell: usize) -> bool {
-        let inside = corner_nodes(&self.spec, cell).map(|c| self.values[c] < 0.0);
-        inside.iter().any(|&s| s) && inside.iter().any(|&s| !s)
+        crate::extract::crosses(&self.spec, &self.values, cell)
     }
 
     /// Cells the surface passes through.
