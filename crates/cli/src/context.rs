@@ -35,6 +35,16 @@ impl Context {
         }
     }
 
+    /// "wrote PATH in T s", plus `detail` in parentheses when given.
+    pub fn say_wrote(&self, path: &std::path::Path, detail: Option<String>) {
+        let detail = detail.map(|d| format!(" ({d})")).unwrap_or_default();
+        self.say(format!(
+            "wrote {} in {:.2} s{detail}",
+            path.display(),
+            self.elapsed()
+        ));
+    }
+
     /// Seconds since the command started.
     pub fn elapsed(&self) -> f64 {
         self.start.elapsed().as_secs_f64()

@@ -232,11 +232,7 @@ fn write<const D: usize>(
         spec.dims_string(),
         spec.spacing
     ));
-    ctx.say(format!(
-        "wrote {} in {:.2} s (compute {compute_secs:.2} s)",
-        args.output.display(),
-        ctx.elapsed()
-    ));
+    ctx.say_wrote(&args.output, Some(format!("compute {compute_secs:.2} s")));
     Ok(serde_json::json!({
         "command": "distance",
         "input": args.input,

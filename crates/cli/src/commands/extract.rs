@@ -39,11 +39,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     };
     spinner.finish_and_clear();
     write_output(&args, &field, &geometry)?;
-    ctx.say(format!(
-        "wrote {} in {:.2} s",
-        args.output.display(),
-        ctx.elapsed()
-    ));
+    ctx.say_wrote(&args.output, None);
     ctx.emit_json(&serde_json::json!({
         "command": "extract",
         "input": args.input,
@@ -87,11 +83,7 @@ fn feature_surface(args: &Args, ctx: &Context) -> anyhow::Result<()> {
     }
     io::write(&args.output, &Geometry::from_mesh(mesh))
         .with_context(|| format!("cannot write {}", args.output.display()))?;
-    ctx.say(format!(
-        "wrote {} in {:.2} s",
-        args.output.display(),
-        ctx.elapsed()
-    ));
+    ctx.say_wrote(&args.output, None);
     ctx.emit_json(&serde_json::json!({
         "command": "extract",
         "input": args.input,

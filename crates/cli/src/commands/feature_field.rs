@@ -79,11 +79,7 @@ pub fn run(args: &Args, size: GridSize, ctx: &Context) -> anyhow::Result<()> {
         spec.dims_string(),
         spec.spacing
     ));
-    ctx.say(format!(
-        "wrote {} in {:.2} s (compute {compute_secs:.2} s)",
-        args.output.display(),
-        ctx.elapsed()
-    ));
+    ctx.say_wrote(&args.output, Some(format!("compute {compute_secs:.2} s")));
     ctx.emit_json(&serde_json::json!({
         "command": "distance",
         "kind": kind,

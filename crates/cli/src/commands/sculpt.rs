@@ -55,11 +55,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
         }));
     }
     field.write(&args.output)?;
-    ctx.say(format!(
-        "wrote {} in {:.2} s",
-        args.output.display(),
-        ctx.elapsed()
-    ));
+    ctx.say_wrote(&args.output, None);
     ctx.emit_json(&serde_json::json!({
         "command": "sculpt",
         "input": args.input,
