@@ -571,7 +571,7 @@ fn union(parent: &mut [u32], base: u32, a: u32, b: u32) {
 /// Bounding-volume tree over triangles for fast generalized winding
 /// numbers: a cluster far from the query (relative to its radius) is
 /// replaced by a dipole, its area-weighted normal at its area centroid.
-struct WindingTree {
+pub struct WindingTree {
     triangles: Vec<[DVec3; 3]>,
     nodes: Vec<Cluster>,
 }
@@ -736,6 +736,14 @@ fn partition(tris: &mut [[DVec3; 3]], first: impl Fn(&[DVec3; 3]) -> bool) -> us
 }
 
 impl WindingTree {
+    /// The tree over the triangles of `mesh` (indices must be valid).
+    pub fn of_mesh(mesh: &TriMesh) -> Self {
+        let triangles: Vec<[[f64; 3]; 3]> = (0..mesh.triangles.len())
+            .map(|t| mesh.corners(t).map(|c| c.to_array()))
+            .collect();
+        Self::new(&triangles)
+    }
+
     fn new(triangles: &[[[f64; 3]; 3]]) -> Self {
         let mut triangles: Vec<[DVec3; 3]> =
             triangles.iter().map(|t| t.map(DVec3::from_array)).collect();
@@ -746,7 +754,7 @@ impl WindingTree {
 
     /// Generalized winding number at `q` (1 inside a closed outward mesh,
     /// 0 outside).
-    fn winding_number(&self, q: DVec3) -> f64 {
+    pub fn winding_number(&self, q: DVec3) -> f64 {
         let mut total = 0.0;
         // Each pop pushes at most two, so the stack never exceeds the depth
         // plus one; halving splits keep the depth below 64.

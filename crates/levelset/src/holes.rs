@@ -7,26 +7,37 @@
 //! without a closed contour: each stands for a small disk of the surface
 //! (its share of the area, in its tangent plane), and the generalized
 //! winding number of those disks exceeds 1/2 inside. It integrates over
-//! all points, so scattered normals of noisy data average out. Nodes it
-//! puts inside, beyond ε and within a reach of the data, are sealed (given
-//! distance 0 in the field the flood reads); the evolution still follows
-//! the data everywhere.
+//! all points, so scattered normals of noisy data average out. Nodes the
+//! plain flood reached that it puts inside, beyond ε and within a reach of
+//! the data, are sealed (given distance 0 in the field the flood reads);
+//! the evolution still follows the data everywhere.
 
 use crate::reconstruct::Input;
 use rayon::prelude::*;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, TriMesh};
-use surfrecon_grid::{Field, GridSpec};
+use surfrecon_grid::sdf::WindingTree;
+use surfrecon_grid::Field;
 
 /// Neighbours whose mean distance sets a point's share of the area.
 const AREA_NEIGHBOURS: usize = 6;
 
-/// The distance field for tagging: `d` with the nodes farther than
-/// `epsilon` but within `reach` of the data that the oriented points'
-/// winding number puts inside set to 0, and how many were sealed. Only in
-/// 3D; `input.normals` must hold one unit normal per point.
+/// Share of the sampled candidates that must be inside for the flood to
+/// count as got in (and the full field to be computed).
+const FLOODED_SHARE: f64 = 0.02;
+/// Every this many candidates are sampled for that test.
+const SAMPLE_STRIDE: usize = 32;
+
+/// The distance field for tagging, when the flood got in: `d` with the
+/// nodes that `exterior` (the plain tagging) put outside, farther than
+/// `epsilon` but within `reach` of the data, set to 0 where the oriented
+/// points' winding number puts them inside; and how many were sealed.
+/// `None` when a sample of those nodes finds (almost) none inside, so data
+/// the flood did not enter cost one cheap test. `input.normals` must hold
+/// one unit normal per point.
 pub(crate) fn seal_with_normals<const D: usize>(
     d: &Field<D>,
+    exterior: impl Fn(usize) -> bool + Sync,
     input: &Input,
     epsilon: f64,
     reach: f64,
@@ -34,23 +45,30 @@ pub(crate) fn seal_with_normals<const D: usize>(
     if D != 3 {
         return None;
     }
-    let spec = GridSpec::<3> {
-        origin: std::array::from_fn(|a| d.spec.origin[a]),
-        spacing: d.spec.spacing,
-        dims: std::array::from_fn(|a| d.spec.dims[a]),
-    };
-    let disks = oriented_disks(input);
-    let signed =
-        surfrecon_grid::sdf::signed_distance(&disks, &spec, Some(reach.max(spec.spacing))).ok()?;
-    let mut field = d.clone();
-    let mut count = 0;
-    for (v, s) in field.values.iter_mut().zip(&signed.values) {
-        if *v > epsilon && *v <= reach && *s < 0.0 {
-            *v = 0.0;
-            count += 1;
-        }
+    let candidates: Vec<usize> = (0..d.values.len())
+        .filter(|&l| d.values[l] > epsilon && d.values[l] <= reach && exterior(l))
+        .collect();
+    if candidates.is_empty() {
+        return None;
     }
-    Some((field, count))
+    let tree = WindingTree::of_mesh(&oriented_disks(input));
+    let spec = d.spec;
+    let inside = |l: usize| {
+        let p = spec.position(spec.unlinear(l));
+        let x = DVec3::from_array(std::array::from_fn(|a| if a < D { p[a] } else { 0.0 }));
+        tree.winding_number(x) > 0.5
+    };
+    let sampled: Vec<usize> = candidates.iter().step_by(SAMPLE_STRIDE).copied().collect();
+    let found = sampled.par_iter().filter(|&&l| inside(l)).count();
+    if (found as f64) < FLOODED_SHARE * sampled.len() as f64 {
+        return None;
+    }
+    let sealed: Vec<usize> = candidates.into_par_iter().filter(|&l| inside(l)).collect();
+    let mut field = d.clone();
+    for &l in &sealed {
+        field.values[l] = 0.0;
+    }
+    Some((field, sealed.len()))
 }
 
 /// One small triangle per point, in its tangent plane, facing along its

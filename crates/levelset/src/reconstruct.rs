@@ -707,13 +707,6 @@ fn initial_band<const D: usize>(
         let (lo, hi) = bounds::<D>(input);
         (lo.map(|x| x - 2.0 * h), hi.map(|x| x + 2.0 * h))
     });
-    let oriented = input.normals.len() == input.points.len() && !input.points.is_empty();
-    let sealed = oriented
-        .then(|| {
-            let reach = HOLE_REACH * bounds_diagonal::<D>(input);
-            report.time("tagging", || seal_with_normals(d, input, epsilon, reach))
-        })
-        .flatten();
     let run_tag = |field: &Field<D>| {
         tag(
             field,
@@ -725,14 +718,22 @@ fn initial_band<const D: usize>(
         )
     };
     let mut tagging = report.time("tagging", || run_tag(d));
-    // The sealed tagging replaces the plain one only where the flood had
-    // got in: then the inside it keeps is much larger. Elsewhere sealing
-    // only adds doubt (scattered normals of noisy data seal stray nodes).
-    if let Some((sealed_d, count)) = &sealed {
-        let with_seal = report.time("tagging", || run_tag(sealed_d));
-        if with_seal.inside_count() as f64 > FLOODED * tagging.inside_count() as f64 {
-            tagging = with_seal;
-            report.sealed_nodes = *count;
+    // Oriented normals may show that the flood got in through holes; the
+    // sealed tagging replaces the plain one only if it then keeps much
+    // more inside (elsewhere sealing only adds doubt: scattered normals of
+    // noisy data would seal stray nodes).
+    if input.normals.len() == input.points.len() && !input.points.is_empty() {
+        let reach = HOLE_REACH * bounds_diagonal::<D>(input);
+        let inside = tagging.inside();
+        let sealed = report.time("tagging", || {
+            seal_with_normals(d, |l| !inside[l], input, epsilon, reach)
+        });
+        if let Some((sealed_d, count)) = sealed {
+            let with_seal = report.time("tagging", || run_tag(&sealed_d));
+            if with_seal.inside_count() as f64 > FLOODED * tagging.inside_count() as f64 {
+                tagging = with_seal;
+                report.sealed_nodes = count;
+            }
         }
     }
     report.epsilon = tagging.epsilon;
