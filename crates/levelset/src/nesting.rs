@@ -1,4 +1,5 @@
-//! Nested contours in a plane: which regions they enclose are inside.
+//! Nested contours in a plane: which regions they enclose are inside,
+//! by the nesting rule, or by the points' normals where they have them.
 //!
 //! A slice through a torus has two concentric contours; the disk inside
 //! the inner one is a hole, but the level set, which tags the exterior
@@ -76,6 +77,122 @@ pub(crate) fn apply_nesting(
         }
     }
     wrong.iter().filter(|&&w| w).count()
+}
+
+/// Points whose tangent lines give a node near the contours its value.
+const TANGENT_NEIGHBOURS: usize = 4;
+
+/// The signed distance (negative inside, at the nodes of `plane`) to the
+/// contours sampled by `points` (plane coordinates) with outward
+/// `normals` (in-plane components in x and y). Within `band` of the
+/// points a node takes the mean signed distance to the tangent lines of
+/// its nearest points, which is 0 on the contour between samples; where
+/// those lines disagree on its side (off a sharp corner), or farther out,
+/// the distance to the points with the side that the points' winding
+/// number gives (for a region farther than `band`, once, at its node
+/// farthest from them). Normals tell a thin annulus from a disk, where
+/// the nesting rule, once the band merges its two contours, cannot.
+pub(crate) fn oriented_section(
+    plane: &GridSpec<2>,
+    points: &[DVec3],
+    normals: &[DVec3],
+    band: f64,
+) -> Vec<f64> {
+    let tree = KdTree::new(points);
+    let outward: Vec<DVec3> = normals
+        .iter()
+        .map(|n| DVec3::new(n.x, n.y, 0.0).normalize_or_zero())
+        .collect();
+    let winding = ContourWinding::new(points, &outward, &tree);
+    let at = |l: usize| {
+        let p = plane.position(plane.unlinear(l));
+        DVec3::new(p[0], p[1], 0.0)
+    };
+    let signed = |l: usize, distance: f64| {
+        if winding.at(at(l)) > 0.5 {
+            -distance
+        } else {
+            distance
+        }
+    };
+    // Per node: the distance to the points, and the tangent-line value
+    // where their lines agree (NaN where they do not or it is far).
+    let near: Vec<(f64, f64)> = (0..plane.node_count())
+        .into_par_iter()
+        .map(|l| {
+            let q = at(l);
+            let found = tree.knn(q, TANGENT_NEIGHBOURS);
+            let distance = found.first().map_or(f64::INFINITY, |n| n.distance);
+            let sides: Vec<f64> = found
+                .iter()
+                .map(|n| (q - points[n.index]).dot(outward[n.index]))
+                .collect();
+            let agreed = sides.iter().all(|&x| x > 0.0) || sides.iter().all(|&x| x < 0.0);
+            let value = if distance > band {
+                f64::NAN
+            } else if agreed {
+                sides.iter().sum::<f64>() / sides.len() as f64
+            } else {
+                signed(l, distance)
+            };
+            (distance, value)
+        })
+        .collect();
+    let (region, regions) = label(plane, |l| near[l].0 > band, false);
+    let mut deepest = vec![(f64::NEG_INFINITY, 0usize); regions];
+    for (l, &r) in region.iter().enumerate() {
+        if r != UNSET && near[l].0 > deepest[r].0 {
+            deepest[r] = (near[l].0, l);
+        }
+    }
+    let region_sign: Vec<f64> = deepest.par_iter().map(|&(_, l)| signed(l, 1.0)).collect();
+    near.iter()
+        .zip(&region)
+        .map(|(&(distance, value), &r)| {
+            if r == UNSET {
+                value
+            } else {
+                region_sign[r] * distance
+            }
+        })
+        .collect()
+}
+
+/// Oriented contour points as short segments along their tangents (each
+/// as long as the mean distance to its two nearest neighbours): their
+/// winding number is about 1 inside the contours they sample, 0 outside.
+struct ContourWinding {
+    segments: Vec<(DVec3, DVec3)>,
+}
+
+impl ContourWinding {
+    fn new(points: &[DVec3], outward: &[DVec3], tree: &KdTree) -> Self {
+        let segments = points
+            .par_iter()
+            .zip(outward)
+            .filter(|(_, n)| **n != DVec3::ZERO)
+            .map(|(&p, n)| {
+                let near = tree.knn(p, 3);
+                let length = near.iter().skip(1).map(|m| m.distance).sum::<f64>() / 2.0;
+                // Counter-clockwise around the inside when `n` points out.
+                let half = 0.5 * length * DVec3::new(-n.y, n.x, 0.0);
+                (p - half, p + half)
+            })
+            .collect();
+        Self { segments }
+    }
+
+    fn at(&self, q: DVec3) -> f64 {
+        let turned: f64 = self
+            .segments
+            .iter()
+            .map(|&(a, b)| {
+                let (a, b) = (a - q, b - q);
+                (a.x * b.y - a.y * b.x).atan2(a.x * b.x + a.y * b.y)
+            })
+            .sum();
+        turned / std::f64::consts::TAU
+    }
 }
 
 /// Axis neighbours (and with `diagonal`, the diagonal ones too) of node `l`.

@@ -39,6 +39,11 @@ pub struct Input {
 }
 
 impl Input {
+    /// Whether every point has a normal (and there are points).
+    pub fn is_oriented(&self) -> bool {
+        !self.points.is_empty() && self.normals.len() == self.points.len()
+    }
+
     /// Points only.
     pub fn from_points(points: Vec<DVec3>) -> Self {
         Input {
@@ -722,7 +727,7 @@ fn initial_band<const D: usize>(
     // sealed tagging replaces the plain one only if it then keeps much
     // more inside (elsewhere sealing only adds doubt: scattered normals of
     // noisy data would seal stray nodes).
-    if input.normals.len() == input.points.len() && !input.points.is_empty() {
+    if input.is_oriented() {
         let reach = HOLE_REACH * bounds_diagonal::<D>(input);
         let inside = tagging.inside();
         let sealed = report.time("tagging", || {
