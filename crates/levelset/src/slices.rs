@@ -317,10 +317,20 @@ fn blend(levels: &[f64], sections: &[Section], gap: f64, at: usize, s: f64) -> f
     let t = (s - levels[k]) / width;
     let (a, b) = (&sections[k], &sections[k + 1]);
     let (t2, t3) = (t * t, t * t * t);
-    a.values[at] * (2.0 * t3 - 3.0 * t2 + 1.0)
-        + b.values[at] * (3.0 * t2 - 2.0 * t3)
+    let (va, vb) = (a.values[at], b.values[at]);
+    let cubic = va * (2.0 * t3 - 3.0 * t2 + 1.0)
+        + vb * (3.0 * t2 - 2.0 * t3)
         + width * a.slope(at) * (t3 - 2.0 * t2 + t)
-        + width * b.slope(at) * (t3 - t2)
+        + width * b.slope(at) * (t3 - t2);
+    // The slices decide the side; the slopes only move the surface where
+    // they disagree. (The slopes of the nearest points, which may lie on
+    // another part, otherwise carved pits and joined nearby parts by
+    // handles: the sliced bunny had genus 3.)
+    if (va < 0.0) == (vb < 0.0) && (cubic < 0.0) != (va < 0.0) {
+        (1.0 - t) * va + t * vb
+    } else {
+        cubic
+    }
 }
 
 /// The grid over the stack: the slices' extent in the plane (`lo..hi`,
