@@ -128,6 +128,12 @@ impl PointPlanes {
             tree: KdTree::new(points),
         })
     }
+
+    /// One small triangle per point in its tangent plane, of its share of
+    /// the area (see [`crate::holes::tangent_disks`]).
+    pub fn surfels(&self) -> Vec<[DVec3; 3]> {
+        crate::holes::tangent_disks(&self.points, &self.planes, &self.tree)
+    }
 }
 
 /// Oriented tangent planes of the points, for the side test.

@@ -72,14 +72,27 @@ pub(crate) fn seal_with_normals<const D: usize>(
 }
 
 /// One small triangle per point, in its tangent plane, facing along its
-/// normal, with the point's share of the surface area (from the mean
-/// distance to its nearest neighbours).
+/// normal, with the point's share of the surface area.
 fn oriented_disks(input: &Input) -> TriMesh {
     let tree = KdTree::new(&input.points);
-    let corners: Vec<[DVec3; 3]> = input
-        .points
+    let corners = tangent_disks(&input.points, &input.normals, &tree);
+    TriMesh {
+        vertices: corners.iter().flatten().copied().collect(),
+        triangles: (0..corners.len() as u32)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect(),
+        normals: None,
+    }
+}
+
+/// Per point a triangle in the plane through it with the given unit
+/// normal, counter-clockwise about the normal, of area spacing² (the mean
+/// distance to its nearest neighbours in `tree`, built over `points`): the
+/// point's share of the surface it samples.
+pub(crate) fn tangent_disks(points: &[DVec3], normals: &[DVec3], tree: &KdTree) -> Vec<[DVec3; 3]> {
+    points
         .par_iter()
-        .zip(&input.normals)
+        .zip(normals)
         .map(|(&p, &n)| {
             let near = tree.knn(p, AREA_NEIGHBOURS + 1);
             let spacing = near.iter().map(|x| x.distance).sum::<f64>() / AREA_NEIGHBOURS as f64;
@@ -93,12 +106,5 @@ fn oriented_disks(input: &Input) -> TriMesh {
                 p + (u * t.cos() + v * t.sin()) * r
             })
         })
-        .collect();
-    TriMesh {
-        vertices: corners.iter().flatten().copied().collect(),
-        triangles: (0..corners.len() as u32)
-            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-            .collect(),
-        normals: None,
-    }
+        .collect()
 }
