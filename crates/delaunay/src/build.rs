@@ -1,0 +1,111 @@
+//! Building a triangulation from a point set: checks, the first
+//! tetrahedron, then insertion in BRIO order.
+
+use crate::error::{DelaunayError, Result};
+use crate::insert::Scratch;
+use crate::order::brio_order;
+use crate::predicates::orient3d;
+use crate::triangulation::{Triangulation, FACET, INF, NONE};
+use glam::DVec3;
+
+impl Triangulation {
+    /// The Delaunay tetrahedralization of `points`. Vertex ids are the
+    /// points' indices; exact duplicates are merged into one vertex (see
+    /// [`Triangulation::merged_duplicates`], [`Triangulation::duplicate_of`]).
+    /// Errors on non-finite coordinates, fewer than 4 points, or points that
+    /// span no tetrahedron (all identical, collinear or coplanar).
+    pub fn bulk_load(points: &[DVec3]) -> Result<Triangulation> {
+        if let Some(index) = points.iter().position(|p| !p.is_finite()) {
+            return Err(DelaunayError::NonFinite { index });
+        }
+        if points.len() < 4 {
+            return Err(DelaunayError::TooFewPoints {
+                count: points.len(),
+            });
+        }
+        if points.len() >= INF as usize || points.len().saturating_mul(8) > crate::triangulation::MAX_TETS {
+            return Err(DelaunayError::TooLarge);
+        }
+        let order = brio_order(points);
+        let first = first_tetrahedron(points, &order)?;
+        let mut tri = Triangulation::with_first_tet(points.to_vec(), first);
+        for &v in &order {
+            if first.contains(&v) {
+                continue;
+            }
+            if let Some(existing) = tri.insert_vertex(v)? {
+                tri.duplicates.push((v, existing));
+            }
+        }
+        tri.duplicates.sort_unstable();
+        Ok(tri)
+    }
+
+    /// A triangulation of one positively oriented tetrahedron of `points`
+    /// and its four ghosts.
+    fn with_first_tet(points: Vec<DVec3>, first: [u32; 4]) -> Triangulation {
+        let expected_tets = points.len() * 7 + 16;
+        let mut tri = Triangulation {
+            vertex_tet: vec![NONE; points.len()],
+            points,
+            tets: Vec::with_capacity(expected_tets),
+            adj: Vec::with_capacity(expected_tets),
+            free: Vec::new(),
+            duplicates: Vec::new(),
+            live_vertices: 4,
+            finite_tets: 0,
+            ghost_tets: 0,
+            hint: 0,
+            scratch: Scratch::default(),
+        };
+        let t = tri.alloc_tet(first);
+        // The ghosts are the cone from infinity over the tetrahedron's
+        // facets, each reversed so that infinity is on its positive side.
+        tri.scratch.boundary.clear();
+        for (i, facet) in FACET.iter().enumerate() {
+            let [a, b, c] = facet.map(|s| first[s]);
+            tri.scratch.boundary.push(([a, c, b], t * 4 + i as u32));
+        }
+        tri.cone(INF, &[]);
+        for v in first {
+            tri.vertex_tet[v as usize] = t;
+        }
+        tri.hint = t;
+        tri
+    }
+}
+
+/// Four points spanning a positively oriented tetrahedron, taken early in
+/// `order` so the walk starts where insertion starts.
+fn first_tetrahedron(points: &[DVec3], order: &[u32]) -> Result<[u32; 4]> {
+    let count = points.len();
+    let p = |i: u32| points[i as usize];
+    let a = order[0];
+    let b = *order
+        .iter()
+        .find(|&&i| p(i) != p(a))
+        .ok_or(DelaunayError::AllIdentical { count })?;
+    let c = *order
+        .iter()
+        .find(|&&i| !collinear(p(a), p(b), p(i)))
+        .ok_or(DelaunayError::AllCollinear { count })?;
+    let d = *order
+        .iter()
+        .find(|&&i| orient3d(p(a), p(b), p(c), p(i)) != 0.0)
+        .ok_or(DelaunayError::AllCoplanar { count })?;
+    Ok(if orient3d(p(a), p(b), p(c), p(d)) > 0.0 {
+        [a, b, c, d]
+    } else {
+        [b, a, c, d]
+    })
+}
+
+/// Exact collinearity: the cross product (b − a) × (c − a) vanishes iff its
+/// three components, the 2D orientations of the projections, all vanish.
+fn collinear(a: DVec3, b: DVec3, c: DVec3) -> bool {
+    let o = |i: usize, j: usize| {
+        let q = |v: DVec3| robust::Coord { x: v[i], y: v[j] };
+        robust::orient2d(q(a), q(b), q(c))
+    };
+    o(0, 1) == 0.0 && o(1, 2) == 0.0 && o(0, 2) == 0.0
+}
