@@ -38,7 +38,23 @@ impl Triangulation {
             }
         }
         tri.duplicates.sort_unstable();
+        tri.set_vertex_tets();
         Ok(tri)
+    }
+
+    /// Point every vertex at one of its tetrahedra, then keep that current.
+    fn set_vertex_tets(&mut self) {
+        for (t, cell) in self.cells.iter().enumerate() {
+            if cell.v[0] == NONE {
+                continue;
+            }
+            for &x in &cell.v {
+                if x != INF {
+                    self.vertex_tet[x as usize] = t as u32;
+                }
+            }
+        }
+        self.track_vertex_tets = true;
     }
 
     /// A triangulation of one positively oriented tetrahedron of `points`
@@ -48,13 +64,13 @@ impl Triangulation {
         let mut tri = Triangulation {
             vertex_tet: vec![NONE; points.len()],
             points,
-            tets: Vec::with_capacity(expected_tets),
-            adj: Vec::with_capacity(expected_tets),
+            cells: Vec::with_capacity(expected_tets),
             free: Vec::new(),
             duplicates: Vec::new(),
             live_vertices: 4,
             finite_tets: 0,
             ghost_tets: 0,
+            track_vertex_tets: false,
             hint: 0,
             scratch: Scratch::default(),
         };

@@ -7,7 +7,7 @@
 
 use crate::error::{DelaunayError, Result};
 use crate::predicates::{insphere_sos, orient3d};
-use crate::triangulation::{Location, TetId, Triangulation, VertexId, FACET, INF, MAX_TETS, NONE};
+use crate::triangulation::{Cell, Location, TetId, Triangulation, VertexId, FACET, INF, MAX_TETS, NONE};
 use glam::DVec3;
 
 /// Reusable buffers of one insertion or removal, kept between calls so
@@ -139,7 +139,7 @@ impl Triangulation {
         if !p.is_finite() {
             return Err(DelaunayError::NonFinite { index: 0 });
         }
-        let start = if self.tets.get(start.index()).is_some_and(|t| t[0] != NONE) {
+        let start = if self.cells.get(start.index()).is_some_and(|c| c.v[0] != NONE) {
             start.0
         } else {
             self.hint
@@ -158,14 +158,14 @@ impl Triangulation {
         let p = self.points[v as usize];
         let walk = self.walk(p, self.hint);
         if !walk.outside {
-            let tv = self.tets[walk.tet as usize];
+            let tv = self.cells[walk.tet as usize].v;
             if let Some(&w) = tv.iter().find(|&&w| self.points[w as usize] == p) {
                 return Ok(Some(w));
             }
         }
         self.find_cavity(walk.tet, v);
         let created = self.scratch.boundary.len();
-        if self.tets.len() + created > MAX_TETS {
+        if self.cells.len() + created > MAX_TETS {
             return Err(DelaunayError::TooLarge);
         }
         let cavity = std::mem::take(&mut self.scratch.cavity);
@@ -178,15 +178,16 @@ impl Triangulation {
         Ok(None)
     }
 
-    /// Visibility walk from `start` towards `p`: cross any facet that has
-    /// `p` strictly on its far side, in a random facet order and never back
-    /// through the facet just crossed (the "remembering stochastic walk",
-    /// which cannot cycle). Stops in the finite tetrahedron containing `p`
-    /// or in the first ghost, which means `p` is outside the hull.
+    /// Visibility walk from `start` towards `p`: cross a facet that has
+    /// `p` strictly on its far side, trying facets in a random order and
+    /// never straight back (the remembering stochastic walk, which ends with
+    /// probability 1 whatever the triangulation). Stops in the finite
+    /// tetrahedron containing `p`, or in the first ghost reached, which
+    /// means `p` is outside the hull.
     pub(crate) fn walk(&self, p: DVec3, start: u32) -> Walk {
-        let mut t = start;
-        if self.tets[t as usize][3] == INF {
-            t = self.adj[t as usize][3] >> 2;
+        let mut t = start as usize;
+        if self.cells[t].v[3] == INF {
+            t = (self.cells[t].n[3] >> 2) as usize;
         }
         let mut previous = NONE;
         // Seeded from the point so that `locate` needs no mutable state.
@@ -194,37 +195,40 @@ impl Triangulation {
         let mut steps = 0usize;
         'walk: loop {
             steps += 1;
-            if steps > self.tets.len() + 16 {
+            if steps > self.cells.len() + 16 {
                 // Unreachable for a valid triangulation; a scan is the safe
                 // answer rather than a hang.
                 return self.scan_locate(p);
             }
-            let tv = self.tets[t as usize];
+            let cell = &self.cells[t];
             let first = next_random(&mut random) as usize;
             for k in 0..4 {
                 let i = (first + k) & 3;
-                let n = self.adj[t as usize][i] >> 2;
+                let n = cell.n[i] >> 2;
                 if n == previous {
                     continue;
                 }
-                let [a, b, c] = FACET[i].map(|s| self.points[tv[s] as usize]);
+                let f = &FACET[i];
+                let a = self.points[cell.v[f[0]] as usize];
+                let b = self.points[cell.v[f[1]] as usize];
+                let c = self.points[cell.v[f[2]] as usize];
                 if orient3d(a, b, c, p) < 0.0 {
-                    previous = t;
-                    t = n;
-                    if self.tets[t as usize][3] == INF {
-                        return Walk { tet: t, outside: true };
+                    previous = t as u32;
+                    t = n as usize;
+                    if self.cells[t].v[3] == INF {
+                        return Walk { tet: t as u32, outside: true };
                     }
                     continue 'walk;
                 }
             }
-            return Walk { tet: t, outside: false };
+            return Walk { tet: t as u32, outside: false };
         }
     }
 
     /// Locate by testing every tetrahedron (fallback only).
     fn scan_locate(&self, p: DVec3) -> Walk {
         let inside = |t: u32| {
-            let tv = self.tets[t as usize];
+            let tv = self.cells[t as usize].v;
             (0..4).all(|i| {
                 let [a, b, c] = FACET[i].map(|s| self.points[tv[s] as usize]);
                 orient3d(a, b, c, p) >= 0.0
@@ -234,7 +238,7 @@ impl Triangulation {
             return Walk { tet: t, outside: false };
         }
         let beyond = |t: u32| {
-            let tv = self.tets[t as usize];
+            let tv = self.cells[t as usize].v;
             let [a, b, c] = [0, 1, 2].map(|s| self.points[tv[s] as usize]);
             orient3d(a, b, c, p) > 0.0
         };
@@ -249,24 +253,32 @@ impl Triangulation {
     /// its apex goes to infinity, same perturbation).
     #[inline]
     pub(crate) fn in_conflict(&self, t: u32, v: u32) -> bool {
-        let tv = self.tets[t as usize];
-        if tv[3] != INF {
+        let cell = &self.cells[t as usize];
+        if cell.v[3] != INF {
             return self.finite_conflict(t, v);
         }
         let p = self.points[v as usize];
-        let [a, b, c] = [0, 1, 2].map(|s| self.points[tv[s] as usize]);
+        let a = self.points[cell.v[0] as usize];
+        let b = self.points[cell.v[1] as usize];
+        let c = self.points[cell.v[2] as usize];
         let o = orient3d(a, b, c, p);
         if o != 0.0 {
             return o > 0.0;
         }
-        self.finite_conflict(self.adj[t as usize][3] >> 2, v)
+        self.finite_conflict(cell.n[3] >> 2, v)
     }
 
     #[inline]
     fn finite_conflict(&self, t: u32, v: u32) -> bool {
-        let tv = self.tets[t as usize];
-        let ids = [tv[0], tv[1], tv[2], tv[3], v];
-        insphere_sos(ids.map(|i| self.points[i as usize]), ids)
+        let [i0, i1, i2, i3] = self.cells[t as usize].v;
+        let pts = [
+            self.points[i0 as usize],
+            self.points[i1 as usize],
+            self.points[i2 as usize],
+            self.points[i3 as usize],
+            self.points[v as usize],
+        ];
+        insphere_sos(pts, [i0, i1, i2, i3, v])
     }
 
     /// Fill `scratch.cavity` with the tetrahedra in conflict with `v`
@@ -274,44 +286,43 @@ impl Triangulation {
     /// `scratch.boundary` with the cavity's boundary facets.
     fn find_cavity(&mut self, start: u32, v: u32) {
         let epoch = self.next_epoch();
-        let s = &mut self.scratch;
+        let mut s = std::mem::take(&mut self.scratch);
         s.stack.clear();
         s.cavity.clear();
         s.boundary.clear();
         s.mark[start as usize] = epoch;
         s.stack.push(start);
         s.cavity.push(start);
-        while let Some(t) = self.scratch.stack.pop() {
+        while let Some(t) = s.stack.pop() {
+            let cell = self.cells[t as usize];
             for i in 0..4 {
-                let n = self.adj[t as usize][i] >> 2;
-                let mark = self.scratch.mark[n as usize];
-                let inside = if mark == epoch {
+                let n = cell.n[i] >> 2;
+                let mark = s.mark[n as usize];
+                if mark == epoch {
                     continue;
-                } else if mark == epoch + 1 {
-                    false
-                } else if self.in_conflict(n, v) {
-                    self.scratch.mark[n as usize] = epoch;
-                    self.scratch.stack.push(n);
-                    self.scratch.cavity.push(n);
-                    true
-                } else {
-                    self.scratch.mark[n as usize] = epoch + 1;
-                    false
-                };
-                if !inside {
-                    let tv = self.tets[t as usize];
-                    let facet = FACET[i].map(|s| tv[s]);
-                    self.scratch.boundary.push((facet, self.adj[t as usize][i]));
                 }
+                if mark != epoch + 1 {
+                    if self.in_conflict(n, v) {
+                        s.mark[n as usize] = epoch;
+                        s.stack.push(n);
+                        s.cavity.push(n);
+                        continue;
+                    }
+                    s.mark[n as usize] = epoch + 1;
+                }
+                let f = &FACET[i];
+                let facet = [cell.v[f[0]], cell.v[f[1]], cell.v[f[2]]];
+                s.boundary.push((facet, cell.n[i]));
             }
         }
+        self.scratch = s;
     }
 
     /// A fresh pair of mark values (`epoch`, `epoch + 1`).
     pub(crate) fn next_epoch(&mut self) -> u32 {
         let s = &mut self.scratch;
-        if s.mark.len() < self.tets.len() {
-            s.mark.resize(self.tets.len(), 0);
+        if s.mark.len() < self.cells.len() {
+            s.mark.resize(self.cells.len(), 0);
         }
         if s.epoch >= u32::MAX - 2 {
             s.mark.iter_mut().for_each(|m| *m = 0);
@@ -328,32 +339,43 @@ impl Triangulation {
     /// boundary (hole on the positive side, outside neighbour).
     pub(crate) fn cone(&mut self, apex: u32, seeds: &[([u32; 3], u32)]) {
         let boundary = std::mem::take(&mut self.scratch.boundary);
-        self.scratch.edges.reset(3 * boundary.len() + seeds.len());
+        let mut edges = std::mem::take(&mut self.scratch.edges);
+        edges.reset(3 * boundary.len() + seeds.len());
         for &(facet, outside) in seeds {
-            let k = facet.iter().position(|&x| x == apex).expect("seed facet holds the apex");
+            let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
             let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
             // Seen from the outside tetrahedron the facet is (apex, w, u).
-            self.scratch.edges.pair(w, u, outside);
+            edges.pair(w, u, outside);
         }
-        for &(facet, outside) in &boundary {
-            let verts = ghost_last([facet[0], facet[1], facet[2], apex]);
+        for &([a, b, c], outside) in &boundary {
+            // (a, b, c, apex) is positive; an even permutation `slot ^ x`
+            // moves the infinite vertex, if any, to slot 3.
+            let x = if a == INF {
+                3
+            } else if b == INF {
+                2
+            } else if c == INF {
+                1
+            } else {
+                0
+            };
+            let old = [a, b, c, apex];
+            let verts = [old[x], old[1 ^ x], old[2 ^ x], old[3 ^ x]];
             let t = self.alloc_tet(verts);
-            for (slot, &x) in verts.iter().enumerate() {
-                if x == apex {
-                    self.link(t * 4 + slot as u32, outside);
-                    continue;
-                }
-                let f = FACET[slot].map(|s| verts[s]);
-                let k = f.iter().position(|&y| y == apex).expect("apex on the facet");
-                let (u, w) = (f[(k + 1) % 3], f[(k + 2) % 3]);
+            self.link(t * 4 + (3 ^ x) as u32, outside);
+            // The facet through the apex opposite a is (apex, c, b): its
+            // neighbour holds (apex, b, c). Likewise for b and c.
+            for (slot, u, w) in [(x, c, b), (1 ^ x, a, c), (2 ^ x, b, a)] {
                 let here = t * 4 + slot as u32;
-                if let Some(there) = self.scratch.edges.pair(u, w, here) {
+                if let Some(there) = edges.pair(u, w, here) {
                     self.link(here, there);
                 }
             }
-            for &x in &verts {
-                if x != INF {
-                    self.vertex_tet[x as usize] = t;
+            if self.track_vertex_tets {
+                for &y in &verts {
+                    if y != INF {
+                        self.vertex_tet[y as usize] = t;
+                    }
                 }
             }
             if verts[3] != INF {
@@ -361,13 +383,14 @@ impl Triangulation {
             }
         }
         self.scratch.boundary = boundary;
+        self.scratch.edges = edges;
     }
 
     /// Make two encoded facets neighbours of each other.
     #[inline]
     pub(crate) fn link(&mut self, a: u32, b: u32) {
-        self.adj[(a >> 2) as usize][(a & 3) as usize] = b;
-        self.adj[(b >> 2) as usize][(b & 3) as usize] = a;
+        self.cells[(a >> 2) as usize].n[(a & 3) as usize] = b;
+        self.cells[(b >> 2) as usize].n[(b & 3) as usize] = a;
     }
 
     pub(crate) fn alloc_tet(&mut self, verts: [u32; 4]) -> u32 {
@@ -377,37 +400,24 @@ impl Triangulation {
             self.finite_tets += 1;
         }
         if let Some(t) = self.free.pop() {
-            self.tets[t as usize] = verts;
+            self.cells[t as usize].v = verts;
             return t;
         }
-        self.tets.push(verts);
-        self.adj.push([NONE; 4]);
+        self.cells.push(Cell {
+            v: verts,
+            n: [NONE; 4],
+        });
         self.scratch.mark.push(0);
-        (self.tets.len() - 1) as u32
+        (self.cells.len() - 1) as u32
     }
 
     pub(crate) fn free_tet(&mut self, t: u32) {
-        if self.tets[t as usize][3] == INF {
+        if self.cells[t as usize].v[3] == INF {
             self.ghost_tets -= 1;
         } else {
             self.finite_tets -= 1;
         }
-        self.tets[t as usize][0] = NONE;
+        self.cells[t as usize].v[0] = NONE;
         self.free.push(t);
-    }
-}
-
-/// Reorder a tetrahedron by an even permutation (same orientation) so that
-/// the infinite vertex, if any, is in slot 3.
-#[inline]
-pub(crate) fn ghost_last(v: [u32; 4]) -> [u32; 4] {
-    if v[0] == INF {
-        [v[3], v[2], v[1], v[0]]
-    } else if v[1] == INF {
-        [v[2], v[3], v[0], v[1]]
-    } else if v[2] == INF {
-        [v[1], v[0], v[3], v[2]]
-    } else {
-        v
     }
 }

@@ -44,8 +44,8 @@ impl Triangulation {
         self.live_vertices -= 1;
         // The walk must start in a live finite tetrahedron.
         let outside = boundary[0].1 >> 2;
-        self.hint = if self.tets[outside as usize][3] == INF {
-            self.adj[outside as usize][3] >> 2
+        self.hint = if self.cells[outside as usize].v[3] == INF {
+            self.cells[outside as usize].n[3] >> 2
         } else {
             outside
         };
@@ -57,9 +57,9 @@ impl Triangulation {
     fn link_facets(&self, v: u32, star: &[u32]) -> Vec<Facet> {
         star.iter()
             .map(|&t| {
-                let tv = self.tets[t as usize];
+                let tv = self.cells[t as usize].v;
                 let k = tv.iter().position(|&x| x == v).unwrap_or(0);
-                (FACET[k].map(|s| tv[s]), self.adj[t as usize][k])
+                (FACET[k].map(|s| tv[s]), self.cells[t as usize].n[k])
             })
             .collect()
     }
@@ -74,16 +74,16 @@ impl Triangulation {
             .map(|(i, (f, _))| (sorted(*f), i))
             .collect();
         // matched[4m + i]: the boundary facet that facet i of small tet m is.
-        let mut matched = vec![NONE; small.tets.len() * 4];
-        let mut in_hole = vec![false; small.tets.len()];
+        let mut matched = vec![NONE; small.cells.len() * 4];
+        let mut in_hole = vec![false; small.cells.len()];
         let mut hole = Vec::new();
         let mut found = 0;
-        for m in 0..small.tets.len() {
-            if small.tets[m][0] == NONE {
+        for m in 0..small.cells.len() {
+            if small.cells[m].v[0] == NONE {
                 continue;
             }
             for (i, facet) in FACET.iter().enumerate() {
-                let f = facet.map(|s| global(small.tets[m][s]));
+                let f = facet.map(|s| global(small.cells[m].v[s]));
                 let Some(&b) = by_vertices.get(&sorted(f)) else {
                     continue;
                 };
@@ -109,7 +109,7 @@ impl Triangulation {
             let m = hole[next] as usize;
             next += 1;
             for i in 0..4 {
-                let n = (small.adj[m][i] >> 2) as usize;
+                let n = (small.cells[m].n[i] >> 2) as usize;
                 if matched[4 * m + i] == NONE && !in_hole[n] {
                     in_hole[n] = true;
                     hole.push(n as u32);
@@ -119,9 +119,9 @@ impl Triangulation {
         for &t in star {
             self.free_tet(t);
         }
-        let mut new_id = vec![NONE; small.tets.len()];
+        let mut new_id = vec![NONE; small.cells.len()];
         for &m in &hole {
-            let verts = small.tets[m as usize].map(global);
+            let verts = small.cells[m as usize].v.map(global);
             let t = self.alloc_tet(verts);
             new_id[m as usize] = t;
             for x in verts {
@@ -138,7 +138,7 @@ impl Triangulation {
                 if b != NONE {
                     self.link(here, boundary[b as usize].1);
                 } else {
-                    let a = small.adj[m][i];
+                    let a = small.cells[m].n[i];
                     self.link(here, new_id[(a >> 2) as usize] * 4 + (a & 3));
                 }
             }
@@ -151,7 +151,7 @@ impl Triangulation {
     fn fill_flat(&mut self, v: u32, star: &[u32], boundary: &[Facet]) -> Result<()> {
         let finite_in_star = star
             .iter()
-            .filter(|&&t| self.tets[t as usize][3] != INF)
+            .filter(|&&t| self.cells[t as usize].v[3] != INF)
             .count();
         if finite_in_star == self.finite_tets {
             return Err(DelaunayError::RemovalWouldFlatten(v));

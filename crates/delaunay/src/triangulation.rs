@@ -6,9 +6,10 @@
 //!   infinite vertex, always stored in slot 3, with `orient3d(a, b, c, q) < 0`
 //!   for every finite vertex `q` not on the facet (the hull facet faces out);
 //!   so every facet of the complex has exactly two sides;
-//! - `adj[t][i]` is the tetrahedron across the facet opposite slot `i`,
+//! - `n[i]` of tetrahedron `t` is the tetrahedron across the facet opposite slot `i`,
 //!   encoded as `4 · tet + slot` where `slot` is the facet's index in that
-//!   neighbour, and `adj[adj[t][i]] = t` (neighbour symmetry);
+//!   neighbour, and following it back leads to `4 · t + i` (neighbour
+//!   symmetry);
 //! - facet `i` of a tetrahedron is `FACET[i]`, ordered so that the vertex in
 //!   slot `i` lies on its positive side;
 //! - every tetrahedron is Delaunay for the symbolically perturbed points
@@ -68,6 +69,16 @@ pub enum Location {
     Outside(TetId),
 }
 
+/// One tetrahedron: its vertices `v` and encoded neighbours `n` side by
+/// side in 32 bytes, because every step of the walk and of the cavity
+/// search reads both.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub(crate) struct Cell {
+    pub v: [u32; 4],
+    pub n: [u32; 4],
+}
+
 /// A 3D Delaunay tetrahedralization with a vertex at infinity.
 #[derive(Clone, Debug)]
 pub struct Triangulation {
@@ -76,8 +87,7 @@ pub struct Triangulation {
     pub(crate) points: Vec<DVec3>,
     /// One tetrahedron incident to each vertex, `NONE` if not a vertex.
     pub(crate) vertex_tet: Vec<u32>,
-    pub(crate) tets: Vec<[u32; 4]>,
-    pub(crate) adj: Vec<[u32; 4]>,
+    pub(crate) cells: Vec<Cell>,
     /// Freed tetrahedron slots for reuse.
     pub(crate) free: Vec<u32>,
     /// (merged input index, vertex it was merged into), sorted.
@@ -85,6 +95,9 @@ pub struct Triangulation {
     pub(crate) live_vertices: usize,
     pub(crate) finite_tets: usize,
     pub(crate) ghost_tets: usize,
+    /// Whether insertions keep `vertex_tet` current; `bulk_load` skips it
+    /// (nothing reads it while building) and sets it in one pass at the end.
+    pub(crate) track_vertex_tets: bool,
     /// Where the next walk starts: the last tetrahedron created.
     pub(crate) hint: u32,
     pub(crate) scratch: crate::insert::Scratch,
@@ -145,58 +158,58 @@ impl Triangulation {
     /// The finite tetrahedra, each positively oriented.
     pub fn finite_tets(&self) -> impl Iterator<Item = TetId> + '_ {
         self.live_slots()
-            .filter(|&t| self.tets[t as usize][3] != INF)
+            .filter(|&t| self.cells[t as usize].v[3] != INF)
             .map(TetId)
     }
 
     /// The ghost tetrahedra (one per hull facet, infinite vertex in slot 3).
     pub fn ghost_tets(&self) -> impl Iterator<Item = TetId> + '_ {
         self.live_slots()
-            .filter(|&t| self.tets[t as usize][3] == INF)
+            .filter(|&t| self.cells[t as usize].v[3] == INF)
             .map(TetId)
     }
 
     fn live_slots(&self) -> impl Iterator<Item = u32> + '_ {
-        (0..self.tets.len() as u32).filter(|&t| self.tets[t as usize][0] != NONE)
+        (0..self.cells.len() as u32).filter(|&t| self.cells[t as usize].v[0] != NONE)
     }
 
     /// The four vertices of `t` (a ghost has [`VertexId::INFINITE`] last).
     pub fn tet_vertices(&self, t: TetId) -> [VertexId; 4] {
-        self.tets[t.index()].map(VertexId)
+        self.cells[t.index()].v.map(VertexId)
     }
 
     /// The four corner points of a finite tetrahedron.
     pub fn tet_points(&self, t: TetId) -> [DVec3; 4] {
-        self.tets[t.index()].map(|v| self.points[v as usize])
+        self.cells[t.index()].v.map(|v| self.points[v as usize])
     }
 
     /// Whether `t` is a ghost tetrahedron (outside the hull).
     pub fn is_ghost(&self, t: TetId) -> bool {
-        self.tets[t.index()][3] == INF
+        self.cells[t.index()].v[3] == INF
     }
 
     /// Neighbour `i` is across the facet opposite vertex `i`.
     pub fn neighbors(&self, t: TetId) -> [TetId; 4] {
-        self.adj[t.index()].map(|a| TetId(a >> 2))
+        self.cells[t.index()].n.map(|a| TetId(a >> 2))
     }
 
     /// The neighbour across facet `i` of `t` and that facet's index in it.
     pub fn mirror(&self, t: TetId, i: usize) -> (TetId, usize) {
-        let a = self.adj[t.index()][i];
+        let a = self.cells[t.index()].n[i];
         (TetId(a >> 2), (a & 3) as usize)
     }
 
     /// Facet `i` of `t` (the three vertices other than slot `i`), ordered so
     /// that vertex `i` is on its positive side.
     pub fn facet(&self, t: TetId, i: usize) -> [VertexId; 3] {
-        let v = self.tets[t.index()];
+        let v = self.cells[t.index()].v;
         FACET[i].map(|s| VertexId(v[s]))
     }
 
     /// Hull facets ordered so that `(b − a) × (c − a)` points outward.
     pub fn hull_facets(&self) -> impl Iterator<Item = [VertexId; 3]> + '_ {
         self.ghost_tets().map(|t| {
-            let v = self.tets[t.index()];
+            let v = self.cells[t.index()].v;
             [VertexId(v[0]), VertexId(v[1]), VertexId(v[2])]
         })
     }
@@ -222,10 +235,10 @@ impl Triangulation {
             next += 1;
             for i in 0..4 {
                 // Facets opposite the other slots contain v.
-                if self.tets[t][i] == v {
+                if self.cells[t].v[i] == v {
                     continue;
                 }
-                let n = self.adj[t][i] >> 2;
+                let n = self.cells[t].n[i] >> 2;
                 if !out.contains(&n) {
                     out.push(n);
                 }

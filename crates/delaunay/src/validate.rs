@@ -14,18 +14,18 @@ impl Triangulation {
     /// implies globally Delaunay. Returns the first violation found.
     pub fn validate(&self) -> Result<(), String> {
         let (mut finite, mut ghosts) = (0, 0);
-        for t in 0..self.tets.len() {
-            if self.tets[t][0] == NONE {
+        for t in 0..self.cells.len() {
+            if self.cells[t].v[0] == NONE {
                 continue;
             }
             self.check_vertices(t)?;
-            if self.tets[t][3] == INF {
+            if self.cells[t].v[3] == INF {
                 ghosts += 1;
             } else {
                 finite += 1;
-                let [a, b, c, d] = self.tets[t].map(|v| self.points[v as usize]);
+                let [a, b, c, d] = self.cells[t].v.map(|v| self.points[v as usize]);
                 if orient3d(a, b, c, d) <= 0.0 {
-                    return Err(format!("tet {t} {:?} is not positively oriented", self.tets[t]));
+                    return Err(format!("tet {t} {:?} is not positively oriented", self.cells[t].v));
                 }
             }
             for i in 0..4 {
@@ -43,7 +43,7 @@ impl Triangulation {
     }
 
     fn check_vertices(&self, t: usize) -> Result<(), String> {
-        let tv = self.tets[t];
+        let tv = self.cells[t].v;
         for (s, &x) in tv.iter().enumerate() {
             let bad = if x == INF {
                 s != 3
@@ -58,16 +58,16 @@ impl Triangulation {
     }
 
     fn check_neighbor(&self, t: usize, i: usize) -> Result<(), String> {
-        let a = self.adj[t][i];
+        let a = self.cells[t].n[i];
         let (n, j) = ((a >> 2) as usize, (a & 3) as usize);
-        if n >= self.tets.len() || self.tets[n][0] == NONE {
+        if n >= self.cells.len() || self.cells[n].v[0] == NONE {
             return Err(format!("tet {t} facet {i}: neighbour {n} is not a live tet"));
         }
-        if self.adj[n][j] != (t * 4 + i) as u32 {
+        if self.cells[n].n[j] != (t * 4 + i) as u32 {
             return Err(format!("tet {t} facet {i}: neighbour {n} does not point back"));
         }
-        let f = FACET[i].map(|s| self.tets[t][s]);
-        let g = FACET[j].map(|s| self.tets[n][s]);
+        let f = FACET[i].map(|s| self.cells[t].v[s]);
+        let g = FACET[j].map(|s| self.cells[n].v[s]);
         let reversed = [g[0], g[2], g[1]];
         let opposite = (0..3).any(|r| f == [reversed[r], reversed[(r + 1) % 3], reversed[(r + 2) % 3]]);
         if !opposite {
@@ -77,10 +77,10 @@ impl Triangulation {
     }
 
     fn check_empty_sphere(&self, t: usize, i: usize) -> Result<(), String> {
-        let a = self.adj[t][i];
+        let a = self.cells[t].n[i];
         let (n, j) = ((a >> 2) as usize, (a & 3) as usize);
-        let apex = self.tets[n][j];
-        let tv = self.tets[t];
+        let apex = self.cells[n].v[j];
+        let tv = self.cells[t].v;
         let p = |v: u32| self.points[v as usize];
         if tv[3] != INF {
             if apex != INF && insphere(p(tv[0]), p(tv[1]), p(tv[2]), p(tv[3]), p(apex)) > 0.0 {
@@ -99,7 +99,7 @@ impl Triangulation {
         if o == 0.0 {
             // Coplanar hull facets: apex outside the facet's circumcircle,
             // tested through the finite tetrahedron behind the facet.
-            let behind = self.tets[(self.adj[t][3] >> 2) as usize];
+            let behind = self.cells[(self.cells[t].n[3] >> 2) as usize].v;
             let [q0, q1, q2, q3] = behind.map(p);
             if insphere(q0, q1, q2, q3, p(apex)) > 0.0 {
                 return Err(format!("coplanar hull facets {:?} and ghost {n}: not Delaunay in their plane", &tv[..3]));
@@ -115,7 +115,7 @@ impl Triangulation {
                 continue;
             }
             live += 1;
-            let tv = self.tets.get(t as usize).copied().unwrap_or([NONE; 4]);
+            let tv = self.cells.get(t as usize).map_or([NONE; 4], |c| c.v);
             if tv[0] == NONE || !tv.contains(&(v as u32)) {
                 return Err(format!("vertex {v}: its tet {t} does not contain it"));
             }
