@@ -5,13 +5,15 @@ use crate::error::{DelaunayError, Result};
 use crate::insert::Scratch;
 use crate::order::brio_order;
 use crate::predicates::orient3d;
-use crate::triangulation::{Triangulation, FACET, INF, NONE};
+use crate::triangulation::{Triangulation, FACET, INF, MAX_TETS, NONE};
 use glam::DVec3;
 
 impl Triangulation {
-    /// The Delaunay tetrahedralization of `points`. Vertex ids are the
-    /// points' indices; exact duplicates are merged into one vertex (see
-    /// [`Triangulation::merged_duplicates`], [`Triangulation::duplicate_of`]).
+    /// The Delaunay tetrahedralization of `points`. Exact duplicates are
+    /// merged into one vertex. Vertices are numbered in insertion order
+    /// (spatially coherent, which keeps the build cache-friendly), not in
+    /// input order: [`Triangulation::vertex_of_input`] and
+    /// [`Triangulation::input_of_vertex`] translate.
     /// Errors on non-finite coordinates, fewer than 4 points, or points that
     /// span no tetrahedron (all identical, collinear or coplanar).
     pub fn bulk_load(points: &[DVec3]) -> Result<Triangulation> {
@@ -23,23 +25,42 @@ impl Triangulation {
                 count: points.len(),
             });
         }
-        if points.len() >= INF as usize || points.len().saturating_mul(8) > crate::triangulation::MAX_TETS {
+        if points.len() >= INF as usize || points.len().saturating_mul(8) > MAX_TETS {
             return Err(DelaunayError::TooLarge);
         }
         let order = brio_order(points);
-        let first = first_tetrahedron(points, &order)?;
-        let mut tri = Triangulation::with_first_tet(points.to_vec(), first);
-        for &v in &order {
+        let sorted: Vec<DVec3> = order.iter().map(|&i| points[i as usize]).collect();
+        let identity: Vec<u32> = (0..points.len() as u32).collect();
+        let (mut tri, duplicates) = Triangulation::build(sorted, &identity)?;
+        tri.input_vertex = vec![NONE; points.len()];
+        for (v, &i) in order.iter().enumerate() {
+            tri.input_vertex[i as usize] = v as u32;
+        }
+        for (copy, kept) in duplicates {
+            tri.input_vertex[order[copy as usize] as usize] = kept;
+        }
+        tri.vertex_input = order;
+        Ok(tri)
+    }
+
+    /// The triangulation of `points` (vertex `i` is `points[i]`, which also
+    /// fixes the symbolic perturbation order), inserted in `insertion`
+    /// order. Returns it with the (duplicate, kept vertex) pairs.
+    pub(crate) fn build(points: Vec<DVec3>, insertion: &[u32]) -> Result<(Triangulation, Vec<(u32, u32)>)> {
+        let first = first_tetrahedron(&points, insertion)?;
+        let mut tri = Triangulation::with_first_tet(points, first);
+        let mut duplicates = Vec::new();
+        for &v in insertion {
             if first.contains(&v) {
                 continue;
             }
-            if let Some(existing) = tri.insert_vertex(v)? {
-                tri.duplicates.push((v, existing));
+            if let Some(kept) = tri.insert_vertex(v)? {
+                duplicates.push((v, kept));
             }
         }
-        tri.duplicates.sort_unstable();
+        tri.merged = duplicates.len();
         tri.set_vertex_tets();
-        Ok(tri)
+        Ok((tri, duplicates))
     }
 
     /// Point every vertex at one of its tetrahedra, then keep that current.
@@ -66,7 +87,9 @@ impl Triangulation {
             points,
             cells: Vec::with_capacity(expected_tets),
             free: Vec::new(),
-            duplicates: Vec::new(),
+            merged: 0,
+            input_vertex: Vec::new(),
+            vertex_input: Vec::new(),
             live_vertices: 4,
             finite_tets: 0,
             ghost_tets: 0,

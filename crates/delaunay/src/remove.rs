@@ -33,8 +33,10 @@ impl Triangulation {
         link.sort_unstable();
         link.dedup();
         let local: Vec<_> = link.iter().map(|&x| self.points[x as usize]).collect();
-        match Triangulation::bulk_load(&local) {
-            Ok(small) => self.fill_from(&small, &link, &star, &boundary)?,
+        // Local ids follow global ids, so the perturbation agrees.
+        let insertion = crate::order::brio_order(&local);
+        match Triangulation::build(local, &insertion) {
+            Ok((small, _)) => self.fill_from(&small, &link, &star, &boundary)?,
             Err(DelaunayError::AllCoplanar { .. } | DelaunayError::TooFewPoints { .. }) => {
                 self.fill_flat(v, &star, &boundary)?
             }

@@ -30,9 +30,9 @@ pub(crate) const MAX_TETS: usize = (u32::MAX / 4) as usize;
 /// on its positive side (each row followed by `i` is an even permutation).
 pub(crate) const FACET: [[usize; 3]; 4] = [[1, 3, 2], [0, 2, 3], [0, 3, 1], [0, 1, 2]];
 
-/// A vertex: the index of its point in the input of
-/// [`Triangulation::bulk_load`], then one per new point of
-/// [`Triangulation::insert`].
+/// A vertex: an index into [`Triangulation::points`]. `bulk_load` numbers
+/// its vertices in insertion order (see [`Triangulation::vertex_of_input`]);
+/// [`Triangulation::insert`] appends.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct VertexId(pub u32);
 
@@ -90,8 +90,12 @@ pub struct Triangulation {
     pub(crate) cells: Vec<Cell>,
     /// Freed tetrahedron slots for reuse.
     pub(crate) free: Vec<u32>,
-    /// (merged input index, vertex it was merged into), sorted.
-    pub(crate) duplicates: Vec<(u32, u32)>,
+    /// Input points merged into an existing vertex by `bulk_load`.
+    pub(crate) merged: usize,
+    /// Vertex of each `bulk_load` input point (the kept one for duplicates).
+    pub(crate) input_vertex: Vec<u32>,
+    /// `bulk_load` input index of each of its vertices.
+    pub(crate) vertex_input: Vec<u32>,
     pub(crate) live_vertices: usize,
     pub(crate) finite_tets: usize,
     pub(crate) ghost_tets: usize,
@@ -119,18 +123,22 @@ impl Triangulation {
         self.ghost_tets
     }
 
-    /// Number of input points that were exact duplicates of a vertex and
-    /// were merged into it.
+    /// Number of `bulk_load` input points that were exact duplicates of
+    /// another and were merged into its vertex.
     pub fn merged_duplicates(&self) -> usize {
-        self.duplicates.len()
+        self.merged
     }
 
-    /// The vertex a merged duplicate input point was merged into.
-    pub fn duplicate_of(&self, v: VertexId) -> Option<VertexId> {
-        self.duplicates
-            .binary_search_by_key(&v.0, |d| d.0)
-            .ok()
-            .map(|i| VertexId(self.duplicates[i].1))
+    /// The vertex made for input point `i` of `bulk_load` (for a duplicate,
+    /// the vertex it was merged into); it may since have been removed.
+    pub fn vertex_of_input(&self, i: usize) -> Option<VertexId> {
+        self.input_vertex.get(i).map(|&v| VertexId(v))
+    }
+
+    /// The `bulk_load` input index of vertex `v` (`None` for vertices added
+    /// by [`Triangulation::insert`]).
+    pub fn input_of_vertex(&self, v: VertexId) -> Option<usize> {
+        self.vertex_input.get(v.index()).map(|&i| i as usize)
     }
 
     /// All points by vertex id, including merged and removed ones.

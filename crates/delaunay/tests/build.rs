@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 use rand::Rng;
-use surfrecon_delaunay::{DVec3, DelaunayError, Triangulation, VertexId};
+use surfrecon_delaunay::{DVec3, DelaunayError, Triangulation};
 
 #[test]
 fn uniform_random_points() {
@@ -87,17 +87,20 @@ fn duplicates_are_merged() {
     for i in 0..200 {
         points.push(points[i * 3]);
     }
-    // Exact duplicates of the lattice too.
     let tri = Triangulation::bulk_load(&points).unwrap();
     assert_valid(&tri, 1000);
     assert_eq!(tri.merged_duplicates(), 200);
-    for i in 0..200u32 {
-        let copy = VertexId(1000 + i);
-        let original = VertexId(i * 3);
-        // Either copy may be the one kept, depending on insertion order.
-        let kept = tri.duplicate_of(copy).or(tri.duplicate_of(original));
-        assert!(kept == Some(original) || kept == Some(copy), "{i}: {kept:?}");
-        assert_eq!(tri.point(kept.unwrap()), points[i as usize * 3]);
+    for i in 0..200 {
+        let copy = tri.vertex_of_input(1000 + i).unwrap();
+        let original = tri.vertex_of_input(i * 3).unwrap();
+        assert_eq!(copy, original);
+        assert!(tri.contains_vertex(copy));
+        assert_eq!(tri.point(copy), points[i * 3]);
+    }
+    // Every vertex maps back to an input point at its position.
+    for v in tri.vertices() {
+        let i = tri.input_of_vertex(v).unwrap();
+        assert_eq!(points[i], tri.point(v));
     }
     let mut lattice_twice = lattice(4);
     lattice_twice.extend(lattice(4));
