@@ -5,7 +5,7 @@ use crate::error::{DelaunayError, Result};
 use crate::insert::Scratch;
 use crate::order::brio_order;
 use crate::predicates::orient3d;
-use crate::triangulation::{Triangulation, FACET, INF, MAX_TETS, NONE};
+use crate::triangulation::{Triangulation, FACET, INF, MAX_TETS, MAX_VERTICES, NONE};
 use glam::DVec3;
 
 impl Triangulation {
@@ -25,7 +25,7 @@ impl Triangulation {
                 count: points.len(),
             });
         }
-        if points.len() >= INF as usize || points.len().saturating_mul(8) > MAX_TETS {
+        if points.len() >= MAX_VERTICES || points.len().saturating_mul(8) > MAX_TETS {
             return Err(DelaunayError::TooLarge);
         }
         let order = brio_order(points);

@@ -7,18 +7,16 @@
 
 use crate::error::{DelaunayError, Result};
 use crate::predicates::{insphere_sos, orient3d};
-use crate::triangulation::{Cell, Location, TetId, Triangulation, VertexId, FACET, INF, MAX_TETS, NONE};
+use crate::triangulation::{Cell, Location, TetId, Triangulation, VertexId, FACET, INF, MAX_TETS, MAX_VERTICES, NONE};
 use glam::DVec3;
 
 /// Reusable buffers of one insertion or removal, kept between calls so
 /// insertions allocate nothing.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Scratch {
-    /// Per tetrahedron: `epoch` if in the current cavity, `epoch + 1` if
-    /// tested and not in it.
-    mark: Vec<u32>,
-    epoch: u32,
     stack: Vec<u32>,
+    /// Tetrahedra tested and found not in conflict (flag to clear).
+    rejected: Vec<u32>,
     pub(crate) cavity: Vec<u32>,
     /// Facets of the hole to fill: vertices ordered with the hole on their
     /// positive side, and the encoded neighbour outside the hole.
@@ -81,6 +79,14 @@ impl EdgeTable {
     }
 }
 
+/// Flag on `v[0]` of a cell in the cavity being searched. Vertex ids stay
+/// below 2^30 (see `MAX_VERTICES`), so the top bit is free; slots 0 and 1
+/// never hold the infinite vertex, and dead cells are never searched.
+const IN_CAVITY: u32 = 1 << 31;
+/// Flag on `v[1]` of a cell tested and found not in conflict.
+const REJECTED: u32 = 1 << 31;
+const FLAGS: u32 = 1 << 31;
+
 /// Result of a walk: the tetrahedron where it stopped and whether the point
 /// is outside the hull (the tetrahedron is then a ghost).
 #[derive(Clone, Copy, Debug)]
@@ -107,7 +113,7 @@ impl Triangulation {
                 index: self.points.len(),
             });
         }
-        if self.points.len() >= INF as usize {
+        if self.points.len() >= MAX_VERTICES {
             return Err(DelaunayError::TooLarge);
         }
         let v = self.points.len() as u32;
@@ -258,8 +264,8 @@ impl Triangulation {
             return self.finite_conflict(t, v);
         }
         let p = self.points[v as usize];
-        let a = self.points[cell.v[0] as usize];
-        let b = self.points[cell.v[1] as usize];
+        let a = self.points[(cell.v[0] & !FLAGS) as usize];
+        let b = self.points[(cell.v[1] & !FLAGS) as usize];
         let c = self.points[cell.v[2] as usize];
         let o = orient3d(a, b, c, p);
         if o != 0.0 {
@@ -270,7 +276,9 @@ impl Triangulation {
 
     #[inline]
     fn finite_conflict(&self, t: u32, v: u32) -> bool {
+        // `t` may be flagged when reached from a coplanar ghost.
         let [i0, i1, i2, i3] = self.cells[t as usize].v;
+        let (i0, i1) = (i0 & !FLAGS, i1 & !FLAGS);
         let pts = [
             self.points[i0 as usize],
             self.points[i1 as usize],
@@ -284,52 +292,49 @@ impl Triangulation {
     /// Fill `scratch.cavity` with the tetrahedra in conflict with `v`
     /// (connected, found by a search from `start`, which is in conflict) and
     /// `scratch.boundary` with the cavity's boundary facets.
+    ///
+    /// Search state lives in the cells themselves (flag bits on vertex ids,
+    /// see [`IN_CAVITY`]): the cell is loaded anyway, a side array would
+    /// cost one more cache miss per test.
     fn find_cavity(&mut self, start: u32, v: u32) {
-        let epoch = self.next_epoch();
         let mut s = std::mem::take(&mut self.scratch);
         s.stack.clear();
         s.cavity.clear();
         s.boundary.clear();
-        s.mark[start as usize] = epoch;
+        s.rejected.clear();
+        self.cells[start as usize].v[0] |= IN_CAVITY;
         s.stack.push(start);
         s.cavity.push(start);
         while let Some(t) = s.stack.pop() {
             let cell = self.cells[t as usize];
+            // Only slots 0 and 1 carry flags (slot 3 may be the infinite
+            // vertex, whose id has the top bit set).
+            let verts = [cell.v[0] & !FLAGS, cell.v[1] & !FLAGS, cell.v[2], cell.v[3]];
             for i in 0..4 {
                 let n = cell.n[i] >> 2;
-                let mark = s.mark[n as usize];
-                if mark == epoch {
+                let other = &self.cells[n as usize];
+                if other.v[0] & IN_CAVITY != 0 {
                     continue;
                 }
-                if mark != epoch + 1 {
+                if other.v[1] & REJECTED == 0 {
                     if self.in_conflict(n, v) {
-                        s.mark[n as usize] = epoch;
+                        self.cells[n as usize].v[0] |= IN_CAVITY;
                         s.stack.push(n);
                         s.cavity.push(n);
                         continue;
                     }
-                    s.mark[n as usize] = epoch + 1;
+                    self.cells[n as usize].v[1] |= REJECTED;
+                    s.rejected.push(n);
                 }
                 let f = &FACET[i];
-                let facet = [cell.v[f[0]], cell.v[f[1]], cell.v[f[2]]];
+                let facet = [verts[f[0]], verts[f[1]], verts[f[2]]];
                 s.boundary.push((facet, cell.n[i]));
             }
         }
+        for &t in &s.rejected {
+            self.cells[t as usize].v[1] &= !REJECTED;
+        }
         self.scratch = s;
-    }
-
-    /// A fresh pair of mark values (`epoch`, `epoch + 1`).
-    pub(crate) fn next_epoch(&mut self) -> u32 {
-        let s = &mut self.scratch;
-        if s.mark.len() < self.cells.len() {
-            s.mark.resize(self.cells.len(), 0);
-        }
-        if s.epoch >= u32::MAX - 2 {
-            s.mark.iter_mut().for_each(|m| *m = 0);
-            s.epoch = 0;
-        }
-        s.epoch += 2;
-        s.epoch
     }
 
     /// Fill the hole described by `scratch.boundary` with the cone from
@@ -407,7 +412,6 @@ impl Triangulation {
             v: verts,
             n: [NONE; 4],
         });
-        self.scratch.mark.push(0);
         (self.cells.len() - 1) as u32
     }
 

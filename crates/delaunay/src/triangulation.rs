@@ -23,6 +23,9 @@ pub(crate) const INF: u32 = u32::MAX - 1;
 /// "No tetrahedron" (a vertex not in the triangulation) and the mark of a
 /// freed tetrahedron in slot 0.
 pub(crate) const NONE: u32 = u32::MAX;
+/// Vertex ids stay below 2^30, leaving the top bits of a cell's vertex
+/// slots free for search flags.
+pub(crate) const MAX_VERTICES: usize = 1 << 30;
 /// Tetrahedra are addressed as `4 · tet + slot` in `u32`.
 pub(crate) const MAX_TETS: usize = (u32::MAX / 4) as usize;
 
