@@ -19,18 +19,70 @@ fn coord(p: DVec3) -> Coord3D<f64> {
     }
 }
 
+/// Unit roundoff of f64 (half an ulp of 1).
+const EPS: f64 = f64::EPSILON / 2.0;
+/// Relative error bound of the floating-point orientation determinant
+/// below, in units of its permanent (Shewchuk 1997, first stage).
+const ORIENT_BOUND: f64 = (7.0 + 56.0 * EPS) * EPS;
+/// The same for the in-sphere determinant.
+const INSPHERE_BOUND: f64 = (16.0 + 224.0 * EPS) * EPS;
+
 /// Exact sign (adaptive precision) of `det[b − a, c − a, d − a]`; the value
 /// is that determinant up to rounding when it is far from zero.
-#[inline]
+///
+/// The plain floating-point determinant decides when it exceeds its error
+/// bound (almost always); otherwise the adaptive `robust` predicate does.
+#[inline(always)]
 pub fn orient3d(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> f64 {
+    let (u, v, w) = (b - a, c - a, d - a);
+    let (uv_z, vu_z) = (u.x * v.y, v.x * u.y);
+    let (vw_z, wv_z) = (v.x * w.y, w.x * v.y);
+    let (wu_z, uw_z) = (w.x * u.y, u.x * w.y);
+    let det = w.z * (uv_z - vu_z) + u.z * (vw_z - wv_z) + v.z * (wu_z - uw_z);
+    let permanent = w.z.abs() * (uv_z.abs() + vu_z.abs())
+        + u.z.abs() * (vw_z.abs() + wv_z.abs())
+        + v.z.abs() * (wu_z.abs() + uw_z.abs());
+    if det.abs() > ORIENT_BOUND * permanent {
+        return det;
+    }
     robust::orient3d(coord(a), coord(c), coord(b), coord(d))
 }
 
 /// Exact in-sphere test for a positively oriented tetrahedron `abcd`:
 /// positive when `e` is strictly inside its circumsphere, negative when
 /// strictly outside, zero when the five points are cospherical.
-#[inline]
+///
+/// Filtered like [`orient3d`]: the lifted 4×4 determinant of the
+/// differences to `e`, expanded by 2×2 minors of the x, y columns, decides
+/// when it exceeds the error bound of its permanent.
+#[inline(always)]
 pub fn insphere(a: DVec3, b: DVec3, c: DVec3, d: DVec3, e: DVec3) -> f64 {
+    // Shewchuk's positive order is (a, c, b, d): rows p, q, r, s.
+    let (p, q, r, s) = (a - e, c - e, b - e, d - e);
+    let (pq, qp) = (p.x * q.y, q.x * p.y);
+    let (qr, rq) = (q.x * r.y, r.x * q.y);
+    let (rs, sr) = (r.x * s.y, s.x * r.y);
+    let (sp, ps) = (s.x * p.y, p.x * s.y);
+    let (pr, rp) = (p.x * r.y, r.x * p.y);
+    let (qs, sq) = (q.x * s.y, s.x * q.y);
+    let (m_pq, m_qr, m_rs, m_sp, m_pr, m_qs) = (pq - qp, qr - rq, rs - sr, sp - ps, pr - rp, qs - sq);
+    // 3×3 minors (x, y, z) of the row triples, then the lifted expansion.
+    let pqr = p.z * m_qr - q.z * m_pr + r.z * m_pq;
+    let qrs = q.z * m_rs - r.z * m_qs + s.z * m_qr;
+    let rsp = r.z * m_sp + s.z * m_pr + p.z * m_rs;
+    let spq = s.z * m_pq + p.z * m_qs + q.z * m_sp;
+    let (lp, lq, lr, ls) = (p.length_squared(), q.length_squared(), r.length_squared(), s.length_squared());
+    let det = (ls * pqr - lr * spq) + (lq * rsp - lp * qrs);
+    let (zp, zq, zr, zs) = (p.z.abs(), q.z.abs(), r.z.abs(), s.z.abs());
+    let (a_pq, a_qr, a_rs, a_sp) = (pq.abs() + qp.abs(), qr.abs() + rq.abs(), rs.abs() + sr.abs(), sp.abs() + ps.abs());
+    let (a_pr, a_qs) = (pr.abs() + rp.abs(), qs.abs() + sq.abs());
+    let permanent = (a_rs * zq + a_qs * zr + a_qr * zs) * lp
+        + (a_sp * zr + a_pr * zs + a_rs * zp) * lq
+        + (a_pq * zs + a_qs * zp + a_sp * zq) * lr
+        + (a_qr * zp + a_pr * zq + a_pq * zr) * ls;
+    if det.abs() > INSPHERE_BOUND * permanent {
+        return det;
+    }
     robust::insphere(coord(a), coord(c), coord(b), coord(d), coord(e))
 }
 
@@ -105,6 +157,33 @@ mod tests {
         assert_eq!(o, 1.0);
         assert_eq!(orient3d(DVec3::ZERO, DVec3::Y, DVec3::X, DVec3::Z), -1.0);
         assert_eq!(orient3d(DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::X + DVec3::Y), 0.0);
+    }
+
+    /// The filtered predicates agree in sign with the adaptive ones, on
+    /// random and on nearly degenerate inputs.
+    #[test]
+    fn filters_agree_with_robust() {
+        let mut state = 12345u64;
+        let mut random = move || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut point = || DVec3::new(random(), random(), random());
+        for k in 0..200_000 {
+            let (a, b, c, mut d, mut e) = (point(), point(), point(), point(), point());
+            if k % 2 == 1 {
+                // Nearly coplanar / cospherical: stress the fallback.
+                d = a + (b - a) * 0.3 + (c - a) * 0.6 + DVec3::splat(1e-17 * (k % 7) as f64);
+                e = a.lerp(b, 0.5) + DVec3::Z * 1e-16 * (k % 5) as f64;
+            }
+            let o = robust::orient3d(coord(a), coord(c), coord(b), coord(d));
+            assert_eq!(orient3d(a, b, c, d).signum() * (o != 0.0) as i32 as f64, o.signum() * (o != 0.0) as i32 as f64);
+            assert_eq!(orient3d(a, b, c, d) == 0.0, o == 0.0);
+            let s = robust::insphere(coord(a), coord(c), coord(b), coord(d), coord(e));
+            let f = insphere(a, b, c, d, e);
+            assert_eq!(f == 0.0, s == 0.0);
+            assert!(f == 0.0 || f.signum() == s.signum(), "{k}: {f} vs {s}");
+        }
     }
 
     #[test]
