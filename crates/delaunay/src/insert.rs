@@ -26,56 +26,55 @@ pub(crate) struct Scratch {
 
 /// Open-addressing table pairing the new tetrahedra's facets through the
 /// apex: a facet `(apex, u, w)` meets the facet `(apex, w, u)` of its
-/// neighbour. Cleared in O(1) by bumping a stamp.
+/// neighbour, so both look up the unordered edge {u, w}: the first stores
+/// itself, the second finds its partner. Cleared in O(1) by a stamp.
 #[derive(Clone, Debug, Default)]
 struct EdgeTable {
-    keys: Vec<u64>,
-    values: Vec<u32>,
-    stamps: Vec<u32>,
+    entries: Vec<EdgeEntry>,
+    shift: u32,
+    stamp: u32,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct EdgeEntry {
+    key: u64,
+    value: u32,
     stamp: u32,
 }
 
 impl EdgeTable {
     fn reset(&mut self, entries: usize) {
         let capacity = (entries * 4).next_power_of_two().max(64);
-        if capacity > self.keys.len() || self.stamp == u32::MAX {
-            let capacity = capacity.max(self.keys.len());
-            self.keys = vec![0; capacity];
-            self.values = vec![0; capacity];
-            self.stamps = vec![0; capacity];
+        if capacity > self.entries.len() || self.stamp == u32::MAX {
+            let capacity = capacity.max(self.entries.len());
+            self.entries = vec![EdgeEntry::default(); capacity];
+            self.shift = 64 - capacity.trailing_zeros();
             self.stamp = 0;
         }
         self.stamp += 1;
     }
 
-    #[inline]
-    fn slot(&self, key: u64) -> usize {
-        let bits = self.keys.len().trailing_zeros();
-        (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - bits)) as usize
-    }
-
-    /// The value stored under `(w, u)` if any; otherwise store `value`
-    /// under `(u, w)`.
+    /// The value stored for edge {u, w} if any; otherwise store `value`.
     #[inline]
     fn pair(&mut self, u: u32, w: u32, value: u32) -> Option<u32> {
-        let mask = self.keys.len() - 1;
-        let want = ((w as u64) << 32) | u as u64;
-        let mut i = self.slot(want);
-        while self.stamps[i] == self.stamp {
-            if self.keys[i] == want {
-                return Some(self.values[i]);
+        let key = ((u.min(w) as u64) << 32) | u.max(w) as u64;
+        let mask = self.entries.len() - 1;
+        let mut i = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize;
+        loop {
+            let entry = &mut self.entries[i & mask];
+            if entry.stamp != self.stamp {
+                *entry = EdgeEntry {
+                    key,
+                    value,
+                    stamp: self.stamp,
+                };
+                return None;
             }
-            i = (i + 1) & mask;
+            if entry.key == key {
+                return Some(entry.value);
+            }
+            i += 1;
         }
-        let own = ((u as u64) << 32) | w as u64;
-        let mut i = self.slot(own);
-        while self.stamps[i] == self.stamp {
-            i = (i + 1) & mask;
-        }
-        self.keys[i] = own;
-        self.values[i] = value;
-        self.stamps[i] = self.stamp;
-        None
     }
 }
 
@@ -349,8 +348,7 @@ impl Triangulation {
         for &(facet, outside) in seeds {
             let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
             let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
-            // Seen from the outside tetrahedron the facet is (apex, w, u).
-            edges.pair(w, u, outside);
+            edges.pair(u, w, outside);
         }
         for &([a, b, c], outside) in &boundary {
             // (a, b, c, apex) is positive; an even permutation `slot ^ x`
@@ -368,9 +366,9 @@ impl Triangulation {
             let verts = [old[x], old[1 ^ x], old[2 ^ x], old[3 ^ x]];
             let t = self.alloc_tet(verts);
             self.link(t * 4 + (3 ^ x) as u32, outside);
-            // The facet through the apex opposite a is (apex, c, b): its
-            // neighbour holds (apex, b, c). Likewise for b and c.
-            for (slot, u, w) in [(x, c, b), (1 ^ x, a, c), (2 ^ x, b, a)] {
+            // The facet through the apex opposite a holds the edge {b, c}.
+            // Likewise for b and c.
+            for (slot, u, w) in [(x, b, c), (1 ^ x, a, c), (2 ^ x, a, b)] {
                 let here = t * 4 + slot as u32;
                 if let Some(there) = edges.pair(u, w, here) {
                     self.link(here, there);
