@@ -43,7 +43,13 @@ fn parse_vtk(bytes: &[u8]) -> Grid {
     assert_eq!(line(), "BINARY");
     assert_eq!(line(), "DATASET UNSTRUCTURED_GRID");
     let header = line();
-    let n: usize = header.strip_prefix("POINTS ").unwrap().strip_suffix(" double").unwrap().parse().unwrap();
+    let n: usize = header
+        .strip_prefix("POINTS ")
+        .unwrap()
+        .strip_suffix(" double")
+        .unwrap()
+        .parse()
+        .unwrap();
     let f64_at = |i: usize| f64::from_be_bytes(bytes[i..i + 8].try_into().unwrap());
     let i32_at = |i: usize| i32::from_be_bytes(bytes[i..i + 4].try_into().unwrap());
     let start = at;
@@ -58,7 +64,11 @@ fn parse_vtk(bytes: &[u8]) -> Grid {
         (text, at)
     };
     let (cells_header, start) = line();
-    let parts: Vec<usize> = cells_header.split(' ').skip(1).map(|s| s.parse().unwrap()).collect();
+    let parts: Vec<usize> = cells_header
+        .split(' ')
+        .skip(1)
+        .map(|s| s.parse().unwrap())
+        .collect();
     let m = parts[0];
     assert_eq!(parts[1], 5 * m);
     let cells: Vec<Vec<i32>> = (0..m)
@@ -67,9 +77,15 @@ fn parse_vtk(bytes: &[u8]) -> Grid {
     let rest = &bytes[start + 20 * m + 1..];
     let types_header = format!("CELL_TYPES {m}\n");
     assert!(rest.starts_with(types_header.as_bytes()));
-    let types = (0..m).map(|k| i32_at(start + 20 * m + 1 + types_header.len() + 4 * k)).collect();
+    let types = (0..m)
+        .map(|k| i32_at(start + 20 * m + 1 + types_header.len() + 4 * k))
+        .collect();
     assert_eq!(rest.len(), types_header.len() + 4 * m + 1);
-    Grid { points, cells, types }
+    Grid {
+        points,
+        cells,
+        types,
+    }
 }
 
 fn det_volume(grid: &Grid, cell: &[i32]) -> f64 {
@@ -84,7 +100,13 @@ fn tetrahedralize_writes_a_valid_vtk_grid() {
     let input = dir.path().join("lattice.xyz");
     let count = write_lattice(&input);
     let output = dir.path().join("lattice.vtk");
-    let v = json_of(&surfrecon(&["tetrahedralize", path_str(&input), "-o", path_str(&output), "--json"]));
+    let v = json_of(&surfrecon(&[
+        "tetrahedralize",
+        path_str(&input),
+        "-o",
+        path_str(&output),
+        "--json",
+    ]));
     assert_eq!(v["points"], count);
     assert_eq!(v["vertices"], 64);
     assert_eq!(v["duplicates_merged"], 10);
@@ -116,7 +138,10 @@ fn tetrahedralize_rejects_flat_input_and_leaves_no_file() {
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.contains("flat.xyz") && err.contains("coplanar"), "{err}");
+    assert!(
+        err.contains("flat.xyz") && err.contains("coplanar"),
+        "{err}"
+    );
     assert!(!output.exists());
 
     let out = surfrecon(&["tetrahedralize", path_str(&input), "-o", "grid.ply"]);

@@ -46,7 +46,10 @@ impl Triangulation {
     /// The triangulation of `points` (vertex `i` is `points[i]`, which also
     /// fixes the symbolic perturbation order), inserted in `insertion`
     /// order. Returns it with the (duplicate, kept vertex) pairs.
-    pub(crate) fn build(points: Vec<DVec3>, insertion: &[u32]) -> Result<(Triangulation, Vec<(u32, u32)>)> {
+    pub(crate) fn build(
+        points: Vec<DVec3>,
+        insertion: &[u32],
+    ) -> Result<(Triangulation, Vec<(u32, u32)>)> {
         let first = first_tetrahedron(&points, insertion)?;
         let mut tri = Triangulation::with_first_tet(points, first);
         let mut duplicates = Vec::new();

@@ -7,7 +7,9 @@
 
 use crate::error::{DelaunayError, Result};
 use crate::predicates::{insphere_sos, orient3d};
-use crate::triangulation::{Cell, Location, TetId, Triangulation, VertexId, FACET, INF, MAX_TETS, MAX_VERTICES, NONE};
+use crate::triangulation::{
+    Cell, Location, TetId, Triangulation, VertexId, FACET, INF, MAX_TETS, MAX_VERTICES, NONE,
+};
 use glam::DVec3;
 
 /// Reusable buffers of one insertion or removal, kept between calls so
@@ -144,7 +146,11 @@ impl Triangulation {
         if !p.is_finite() {
             return Err(DelaunayError::NonFinite { index: 0 });
         }
-        let start = if self.cells.get(start.index()).is_some_and(|c| c.v[0] != NONE) {
+        let start = if self
+            .cells
+            .get(start.index())
+            .is_some_and(|c| c.v[0] != NONE)
+        {
             start.0
         } else {
             self.hint
@@ -196,7 +202,9 @@ impl Triangulation {
         }
         let mut previous = NONE;
         // Seeded from the point so that `locate` needs no mutable state.
-        let mut random = (p.x.to_bits() ^ p.y.to_bits().rotate_left(21) ^ p.z.to_bits().rotate_left(42)) as u32 | 1;
+        let mut random =
+            (p.x.to_bits() ^ p.y.to_bits().rotate_left(21) ^ p.z.to_bits().rotate_left(42)) as u32
+                | 1;
         let mut steps = 0usize;
         'walk: loop {
             steps += 1;
@@ -221,12 +229,18 @@ impl Triangulation {
                     previous = t as u32;
                     t = n as usize;
                     if self.cells[t].v[3] == INF {
-                        return Walk { tet: t as u32, outside: true };
+                        return Walk {
+                            tet: t as u32,
+                            outside: true,
+                        };
                     }
                     continue 'walk;
                 }
             }
-            return Walk { tet: t as u32, outside: false };
+            return Walk {
+                tet: t as u32,
+                outside: false,
+            };
         }
     }
 
@@ -240,15 +254,25 @@ impl Triangulation {
             })
         };
         if let Some(t) = self.finite_tets().map(|t| t.0).find(|&t| inside(t)) {
-            return Walk { tet: t, outside: false };
+            return Walk {
+                tet: t,
+                outside: false,
+            };
         }
         let beyond = |t: u32| {
             let tv = self.cells[t as usize].v;
             let [a, b, c] = [0, 1, 2].map(|s| self.points[tv[s] as usize]);
             orient3d(a, b, c, p) > 0.0
         };
-        let ghost = self.ghost_tets().map(|t| t.0).find(|&t| beyond(t)).unwrap_or(self.hint);
-        Walk { tet: ghost, outside: true }
+        let ghost = self
+            .ghost_tets()
+            .map(|t| t.0)
+            .find(|&t| beyond(t))
+            .unwrap_or(self.hint);
+        Walk {
+            tet: ghost,
+            outside: true,
+        }
     }
 
     /// Whether vertex `v` lies in the perturbed circumsphere of `t`. For a
@@ -309,8 +333,8 @@ impl Triangulation {
             // Only slots 0 and 1 carry flags (slot 3 may be the infinite
             // vertex, whose id has the top bit set).
             let verts = [cell.v[0] & !FLAGS, cell.v[1] & !FLAGS, cell.v[2], cell.v[3]];
-            for i in 0..4 {
-                let n = cell.n[i] >> 2;
+            for (f, &across) in FACET.iter().zip(&cell.n) {
+                let n = across >> 2;
                 let other = &self.cells[n as usize];
                 if other.v[0] & IN_CAVITY != 0 {
                     continue;
@@ -325,9 +349,8 @@ impl Triangulation {
                     self.cells[n as usize].v[1] |= REJECTED;
                     s.rejected.push(n);
                 }
-                let f = &FACET[i];
                 let facet = [verts[f[0]], verts[f[1]], verts[f[2]]];
-                s.boundary.push((facet, cell.n[i]));
+                s.boundary.push((facet, across));
             }
         }
         for &t in &s.rejected {

@@ -34,7 +34,11 @@ pub fn brio_order(points: &[DVec3]) -> Vec<u32> {
         .collect();
     let mut end = packed.len();
     while end > 0 {
-        let start = if end / 2 < FIRST_ROUND_MIN { 0 } else { end / 2 };
+        let start = if end / 2 < FIRST_ROUND_MIN {
+            0
+        } else {
+            end / 2
+        };
         packed[start..end].sort_unstable();
         end = start;
     }
@@ -50,7 +54,11 @@ fn hilbert_keys(points: &[DVec3]) -> Vec<u64> {
     let cells = (1u64 << HILBERT_BITS) as f64;
     // One scale for all axes keeps the curve's cells cubic.
     let extent = (hi - lo).max_element();
-    let scale = if extent > 0.0 { (cells - 1.0) / extent } else { 0.0 };
+    let scale = if extent > 0.0 {
+        (cells - 1.0) / extent
+    } else {
+        0.0
+    };
     points
         .iter()
         .map(|&p| {

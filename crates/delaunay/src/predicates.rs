@@ -65,16 +65,27 @@ pub fn insphere(a: DVec3, b: DVec3, c: DVec3, d: DVec3, e: DVec3) -> f64 {
     let (sp, ps) = (s.x * p.y, p.x * s.y);
     let (pr, rp) = (p.x * r.y, r.x * p.y);
     let (qs, sq) = (q.x * s.y, s.x * q.y);
-    let (m_pq, m_qr, m_rs, m_sp, m_pr, m_qs) = (pq - qp, qr - rq, rs - sr, sp - ps, pr - rp, qs - sq);
+    let (m_pq, m_qr, m_rs, m_sp, m_pr, m_qs) =
+        (pq - qp, qr - rq, rs - sr, sp - ps, pr - rp, qs - sq);
     // 3×3 minors (x, y, z) of the row triples, then the lifted expansion.
     let pqr = p.z * m_qr - q.z * m_pr + r.z * m_pq;
     let qrs = q.z * m_rs - r.z * m_qs + s.z * m_qr;
     let rsp = r.z * m_sp + s.z * m_pr + p.z * m_rs;
     let spq = s.z * m_pq + p.z * m_qs + q.z * m_sp;
-    let (lp, lq, lr, ls) = (p.length_squared(), q.length_squared(), r.length_squared(), s.length_squared());
+    let (lp, lq, lr, ls) = (
+        p.length_squared(),
+        q.length_squared(),
+        r.length_squared(),
+        s.length_squared(),
+    );
     let det = (ls * pqr - lr * spq) + (lq * rsp - lp * qrs);
     let (zp, zq, zr, zs) = (p.z.abs(), q.z.abs(), r.z.abs(), s.z.abs());
-    let (a_pq, a_qr, a_rs, a_sp) = (pq.abs() + qp.abs(), qr.abs() + rq.abs(), rs.abs() + sr.abs(), sp.abs() + ps.abs());
+    let (a_pq, a_qr, a_rs, a_sp) = (
+        pq.abs() + qp.abs(),
+        qr.abs() + rq.abs(),
+        rs.abs() + sr.abs(),
+        sp.abs() + ps.abs(),
+    );
     let (a_pr, a_qs) = (pr.abs() + rp.abs(), qs.abs() + sq.abs());
     let permanent = (a_rs * zq + a_qs * zr + a_qr * zs) * lp
         + (a_sp * zr + a_pr * zs + a_rs * zp) * lq
@@ -156,7 +167,10 @@ mod tests {
         let o = orient3d(DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z);
         assert_eq!(o, 1.0);
         assert_eq!(orient3d(DVec3::ZERO, DVec3::Y, DVec3::X, DVec3::Z), -1.0);
-        assert_eq!(orient3d(DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::X + DVec3::Y), 0.0);
+        assert_eq!(
+            orient3d(DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::X + DVec3::Y),
+            0.0
+        );
     }
 
     /// The filtered predicates agree in sign with the adaptive ones, on
@@ -165,7 +179,9 @@ mod tests {
     fn filters_agree_with_robust() {
         let mut state = 12345u64;
         let mut random = move || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (state >> 11) as f64 / (1u64 << 53) as f64
         };
         let mut point = || DVec3::new(random(), random(), random());
@@ -177,7 +193,10 @@ mod tests {
                 e = a.lerp(b, 0.5) + DVec3::Z * 1e-16 * (k % 5) as f64;
             }
             let o = robust::orient3d(coord(a), coord(c), coord(b), coord(d));
-            assert_eq!(orient3d(a, b, c, d).signum() * (o != 0.0) as i32 as f64, o.signum() * (o != 0.0) as i32 as f64);
+            assert_eq!(
+                orient3d(a, b, c, d).signum() * (o != 0.0) as i32 as f64,
+                o.signum() * (o != 0.0) as i32 as f64
+            );
             assert_eq!(orient3d(a, b, c, d) == 0.0, o == 0.0);
             let s = robust::insphere(coord(a), coord(c), coord(b), coord(d), coord(e));
             let f = insphere(a, b, c, d, e);
@@ -208,7 +227,11 @@ mod tests {
                 let (mut p, mut q) = (pts, ids);
                 p.swap(i, j);
                 q.swap(i, j);
-                assert_eq!(perturbed_sign(p, q).signum(), -base.signum(), "swap {i} {j}");
+                assert_eq!(
+                    perturbed_sign(p, q).signum(),
+                    -base.signum(),
+                    "swap {i} {j}"
+                );
             }
         }
     }
@@ -236,8 +259,10 @@ mod tests {
                             let idx = v.map(|i| ids[i as usize]);
                             // abcd and bace share the face abc, apexes d and e.
                             let e_in = insphere_sos([pa, pb, pc, pd, pe], idx);
-                            let d_in =
-                                insphere_sos([pb, pa, pc, pe, pd], [idx[1], idx[0], idx[2], idx[4], idx[3]]);
+                            let d_in = insphere_sos(
+                                [pb, pa, pc, pe, pd],
+                                [idx[1], idx[0], idx[2], idx[4], idx[3]],
+                            );
                             assert_eq!(e_in, d_in, "{v:?}");
                         }
                     }

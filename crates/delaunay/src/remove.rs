@@ -68,7 +68,13 @@ impl Triangulation {
 
     /// Fill the hole with the tetrahedra of `small` (the triangulation of
     /// the link vertices, local id `i` ↔ `link[i]`) that lie inside it.
-    fn fill_from(&mut self, small: &Triangulation, link: &[u32], star: &[u32], boundary: &[Facet]) -> Result<()> {
+    fn fill_from(
+        &mut self,
+        small: &Triangulation,
+        link: &[u32],
+        star: &[u32],
+        boundary: &[Facet],
+    ) -> Result<()> {
         let global = |x: u32| if x == INF { INF } else { link[x as usize] };
         let by_vertices: HashMap<[u32; 3], usize> = boundary
             .iter()
@@ -163,7 +169,8 @@ impl Triangulation {
                 "interior vertex {v} has a flat link"
             )));
         }
-        let (seeds, finite): (Vec<Facet>, Vec<Facet>) = boundary.iter().partition(|(f, _)| f.contains(&INF));
+        let (seeds, finite): (Vec<Facet>, Vec<Facet>) =
+            boundary.iter().partition(|(f, _)| f.contains(&INF));
         for &t in star {
             self.free_tet(t);
         }

@@ -25,7 +25,10 @@ impl Triangulation {
                 finite += 1;
                 let [a, b, c, d] = self.cells[t].v.map(|v| self.points[v as usize]);
                 if orient3d(a, b, c, d) <= 0.0 {
-                    return Err(format!("tet {t} {:?} is not positively oriented", self.cells[t].v));
+                    return Err(format!(
+                        "tet {t} {:?} is not positively oriented",
+                        self.cells[t].v
+                    ));
                 }
             }
             for i in 0..4 {
@@ -61,17 +64,24 @@ impl Triangulation {
         let a = self.cells[t].n[i];
         let (n, j) = ((a >> 2) as usize, (a & 3) as usize);
         if n >= self.cells.len() || self.cells[n].v[0] == NONE {
-            return Err(format!("tet {t} facet {i}: neighbour {n} is not a live tet"));
+            return Err(format!(
+                "tet {t} facet {i}: neighbour {n} is not a live tet"
+            ));
         }
         if self.cells[n].n[j] != (t * 4 + i) as u32 {
-            return Err(format!("tet {t} facet {i}: neighbour {n} does not point back"));
+            return Err(format!(
+                "tet {t} facet {i}: neighbour {n} does not point back"
+            ));
         }
         let f = FACET[i].map(|s| self.cells[t].v[s]);
         let g = FACET[j].map(|s| self.cells[n].v[s]);
         let reversed = [g[0], g[2], g[1]];
-        let opposite = (0..3).any(|r| f == [reversed[r], reversed[(r + 1) % 3], reversed[(r + 2) % 3]]);
+        let opposite =
+            (0..3).any(|r| f == [reversed[r], reversed[(r + 1) % 3], reversed[(r + 2) % 3]]);
         if !opposite {
-            return Err(format!("tets {t} and {n} share no facet in opposite orientations: {f:?} / {g:?}"));
+            return Err(format!(
+                "tets {t} and {n} share no facet in opposite orientations: {f:?} / {g:?}"
+            ));
         }
         Ok(())
     }
@@ -84,7 +94,9 @@ impl Triangulation {
         let p = |v: u32| self.points[v as usize];
         if tv[3] != INF {
             if apex != INF && insphere(p(tv[0]), p(tv[1]), p(tv[2]), p(tv[3]), p(apex)) > 0.0 {
-                return Err(format!("tet {t} {tv:?}: vertex {apex} of neighbour {n} is inside its circumsphere"));
+                return Err(format!(
+                    "tet {t} {tv:?}: vertex {apex} of neighbour {n} is inside its circumsphere"
+                ));
             }
             return Ok(());
         }
@@ -94,7 +106,10 @@ impl Triangulation {
         // Two ghosts across a hull edge: the hull must be convex there.
         let o = orient3d(p(tv[0]), p(tv[1]), p(tv[2]), p(apex));
         if o > 0.0 {
-            return Err(format!("hull facet {:?} sees hull vertex {apex}: not convex", &tv[..3]));
+            return Err(format!(
+                "hull facet {:?} sees hull vertex {apex}: not convex",
+                &tv[..3]
+            ));
         }
         if o == 0.0 {
             // Coplanar hull facets: apex outside the facet's circumcircle,
@@ -102,7 +117,10 @@ impl Triangulation {
             let behind = self.cells[(self.cells[t].n[3] >> 2) as usize].v;
             let [q0, q1, q2, q3] = behind.map(p);
             if insphere(q0, q1, q2, q3, p(apex)) > 0.0 {
-                return Err(format!("coplanar hull facets {:?} and ghost {n}: not Delaunay in their plane", &tv[..3]));
+                return Err(format!(
+                    "coplanar hull facets {:?} and ghost {n}: not Delaunay in their plane",
+                    &tv[..3]
+                ));
             }
         }
         Ok(())
@@ -121,7 +139,10 @@ impl Triangulation {
             }
         }
         if live != self.live_vertices {
-            return Err(format!("{live} live vertices, recorded {}", self.live_vertices));
+            return Err(format!(
+                "{live} live vertices, recorded {}",
+                self.live_vertices
+            ));
         }
         Ok(())
     }

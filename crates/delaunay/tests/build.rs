@@ -140,19 +140,43 @@ fn a_lattice_plane_with_one_point_off_it() {
 #[test]
 fn degenerate_inputs_are_errors() {
     let few = [DVec3::ZERO, DVec3::X, DVec3::Y];
-    assert_eq!(Triangulation::bulk_load(&few).unwrap_err(), DelaunayError::TooFewPoints { count: 3 });
-    assert_eq!(Triangulation::bulk_load(&[]).unwrap_err(), DelaunayError::TooFewPoints { count: 0 });
+    assert_eq!(
+        Triangulation::bulk_load(&few).unwrap_err(),
+        DelaunayError::TooFewPoints { count: 3 }
+    );
+    assert_eq!(
+        Triangulation::bulk_load(&[]).unwrap_err(),
+        DelaunayError::TooFewPoints { count: 0 }
+    );
     let same = [DVec3::ONE; 10];
-    assert_eq!(Triangulation::bulk_load(&same).unwrap_err(), DelaunayError::AllIdentical { count: 10 });
+    assert_eq!(
+        Triangulation::bulk_load(&same).unwrap_err(),
+        DelaunayError::AllIdentical { count: 10 }
+    );
     let line: Vec<DVec3> = (0..50).map(|i| DVec3::splat(i as f64 * 0.1)).collect();
-    assert_eq!(Triangulation::bulk_load(&line).unwrap_err(), DelaunayError::AllCollinear { count: 50 });
-    let plane: Vec<DVec3> = lattice(5).into_iter().map(|p| DVec3::new(p.x, p.y, p.x + 2.0 * p.y)).collect();
-    assert_eq!(Triangulation::bulk_load(&plane).unwrap_err(), DelaunayError::AllCoplanar { count: 125 });
+    assert_eq!(
+        Triangulation::bulk_load(&line).unwrap_err(),
+        DelaunayError::AllCollinear { count: 50 }
+    );
+    let plane: Vec<DVec3> = lattice(5)
+        .into_iter()
+        .map(|p| DVec3::new(p.x, p.y, p.x + 2.0 * p.y))
+        .collect();
+    assert_eq!(
+        Triangulation::bulk_load(&plane).unwrap_err(),
+        DelaunayError::AllCoplanar { count: 125 }
+    );
     let mut bad = uniform(10, 5);
     bad[7].y = f64::NAN;
-    assert_eq!(Triangulation::bulk_load(&bad).unwrap_err(), DelaunayError::NonFinite { index: 7 });
+    assert_eq!(
+        Triangulation::bulk_load(&bad).unwrap_err(),
+        DelaunayError::NonFinite { index: 7 }
+    );
     bad[7].y = f64::INFINITY;
-    assert_eq!(Triangulation::bulk_load(&bad).unwrap_err(), DelaunayError::NonFinite { index: 7 });
+    assert_eq!(
+        Triangulation::bulk_load(&bad).unwrap_err(),
+        DelaunayError::NonFinite { index: 7 }
+    );
 }
 
 #[test]

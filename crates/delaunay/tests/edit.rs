@@ -28,9 +28,15 @@ fn insert_inside_and_outside_the_hull() {
     // A duplicate returns the existing vertex and changes nothing.
     let tets = tri.num_tets();
     assert_eq!(tri.insert(tri.point(added[7])).unwrap(), added[7]);
-    assert_eq!(tri.insert(points[3]).unwrap(), tri.vertex_of_input(3).unwrap());
+    assert_eq!(
+        tri.insert(points[3]).unwrap(),
+        tri.vertex_of_input(3).unwrap()
+    );
     assert_eq!((tri.num_tets(), tri.num_vertices()), (tets, 2500));
-    assert_eq!(tri.insert(DVec3::new(f64::NAN, 0.0, 0.0)).unwrap_err(), DelaunayError::NonFinite { index: 2500 });
+    assert_eq!(
+        tri.insert(DVec3::new(f64::NAN, 0.0, 0.0)).unwrap_err(),
+        DelaunayError::NonFinite { index: 2500 }
+    );
     assert_valid(&tri, 2500);
 }
 
@@ -38,7 +44,12 @@ fn insert_inside_and_outside_the_hull() {
 fn insert_on_a_lattice_keeps_it_valid() {
     let mut tri = Triangulation::bulk_load(&lattice(6)).unwrap();
     // Face centres, edge midpoints and points on hull faces: all degenerate.
-    for p in [DVec3::splat(2.5), DVec3::new(2.5, 0.0, 2.5), DVec3::new(0.0, 2.5, 0.0), DVec3::new(5.0, 1.5, 2.0)] {
+    for p in [
+        DVec3::splat(2.5),
+        DVec3::new(2.5, 0.0, 2.5),
+        DVec3::new(0.0, 2.5, 0.0),
+        DVec3::new(5.0, 1.5, 2.0),
+    ] {
         tri.insert(p).unwrap();
     }
     for z in 0..6 {
@@ -70,7 +81,10 @@ fn remove_random_vertices() {
     let fresh = Triangulation::bulk_load(&kept).unwrap();
     assert_eq!(tri.num_tets(), fresh.num_tets());
     assert_close(tri.volume(), fresh.volume(), 1e-12);
-    assert_eq!(tri.remove(vertices[0]).unwrap_err(), DelaunayError::UnknownVertex(vertices[0].0));
+    assert_eq!(
+        tri.remove(vertices[0]).unwrap_err(),
+        DelaunayError::UnknownVertex(vertices[0].0)
+    );
     assert!(tri.remove(VertexId::INFINITE).is_err());
 }
 
@@ -85,7 +99,11 @@ fn remove_then_reinsert_restores_the_count() {
         tri.remove(v).unwrap();
         assert_eq!(tri.num_vertices(), 2999);
         tri.insert(p).unwrap();
-        assert_eq!((tri.num_tets(), tri.num_hull_facets()), (tets, facets), "input {i}");
+        assert_eq!(
+            (tri.num_tets(), tri.num_hull_facets()),
+            (tets, facets),
+            "input {i}"
+        );
     }
     assert_valid(&tri, 3000);
 }
@@ -129,7 +147,10 @@ fn removing_the_apex_over_a_flat_set() {
     assert_close(tri.volume(), 16.0 / 3.0, 1e-14);
     // Removing the other apex too would leave only coplanar points.
     let bottom = tri.vertex_of_input(26).unwrap();
-    assert_eq!(tri.remove(bottom).unwrap_err(), DelaunayError::RemovalWouldFlatten(bottom.0));
+    assert_eq!(
+        tri.remove(bottom).unwrap_err(),
+        DelaunayError::RemovalWouldFlatten(bottom.0)
+    );
     assert_valid(&tri, 26);
 }
 
@@ -166,7 +187,11 @@ fn incident_tets_and_neighbors_agree_with_a_scan() {
     for v in tri.vertices().step_by(13) {
         let mut found = tri.incident_tets(v);
         found.sort();
-        let mut scanned: Vec<_> = all.iter().copied().filter(|&t| tri.tet_vertices(t).contains(&v)).collect();
+        let mut scanned: Vec<_> = all
+            .iter()
+            .copied()
+            .filter(|&t| tri.tet_vertices(t).contains(&v))
+            .collect();
         scanned.sort();
         assert_eq!(found, scanned);
     }

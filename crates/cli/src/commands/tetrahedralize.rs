@@ -44,7 +44,11 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     };
     let geometry = io::read_as(&args.input, format)?;
     let points = &geometry.points.positions;
-    ctx.detail(format!("read {} points from {}", points.len(), args.input.display()));
+    ctx.detail(format!(
+        "read {} points from {}",
+        points.len(),
+        args.input.display()
+    ));
 
     let spinner = ctx.spinner("tetrahedralizing");
     let start = Instant::now();
@@ -54,7 +58,10 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     spinner.set_message("writing");
     let cells = tetrahedra_in_input_order(&tri);
     if cells.len().saturating_mul(5) > i32::MAX as usize {
-        bail!("{} tetrahedra are too many for a legacy VTK file", cells.len());
+        bail!(
+            "{} tetrahedra are too many for a legacy VTK file",
+            cells.len()
+        );
     }
     io::write_atomic(&args.output, |w| write_vtk(w, points, &cells))?;
     spinner.finish_and_clear();

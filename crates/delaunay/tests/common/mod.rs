@@ -75,7 +75,10 @@ pub fn assert_hull_convex(tri: &Triangulation) {
     for [a, b, c] in tri.hull_facets() {
         let (pa, pb, pc) = (tri.point(a), tri.point(b), tri.point(c));
         for &v in &vertices {
-            assert!(orient3d(pa, pb, pc, tri.point(v)) <= 0.0, "{v:?} beyond hull facet {a:?} {b:?} {c:?}");
+            assert!(
+                orient3d(pa, pb, pc, tri.point(v)) <= 0.0,
+                "{v:?} beyond hull facet {a:?} {b:?} {c:?}"
+            );
         }
     }
 }
