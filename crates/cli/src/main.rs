@@ -56,6 +56,8 @@ enum Command {
     Reconstruct(commands::reconstruct::Args),
     /// Morph one shape into another with an SVM warp field.
     Morph(commands::morph::Args),
+    /// Exact 3D Delaunay tetrahedralization of points, as a VTK grid.
+    Tetrahedralize(commands::tetrahedralize::Args),
 }
 
 fn main() {
@@ -82,6 +84,7 @@ fn main() {
         Command::Unshell(a) => commands::unshell::run(a, &ctx),
         Command::Reconstruct(a) => commands::reconstruct::run(a, &ctx),
         Command::Morph(a) => commands::morph::run(a, &ctx),
+        Command::Tetrahedralize(a) => commands::tetrahedralize::run(a, &ctx),
     };
     if let Err(e) = result {
         // One clear line: the chain of causes joined, no backtrace.

@@ -14,4 +14,5 @@ pub mod reconstruct_svm;
 pub mod render;
 pub mod sculpt;
 pub mod shell;
+pub mod tetrahedralize;
 pub mod unshell;

@@ -1,0 +1,448 @@
+//! Incremental insertion (Bowyer–Watson) and point location.
+//!
+//! A point is located by a visibility walk from the last created
+//! tetrahedron; the tetrahedra whose (perturbed) circumsphere contains it —
+//! the conflict cavity — are found by a search from the located one, then
+//! replaced by the cone from the new point over the cavity's boundary.
+
+use crate::error::{DelaunayError, Result};
+use crate::predicates::{insphere_sos, orient3d};
+use crate::triangulation::{
+    Cell, Location, TetId, Triangulation, VertexId, FACET, INF, MAX_TETS, MAX_VERTICES, NONE,
+};
+use glam::DVec3;
+
+/// Reusable buffers of one insertion or removal, kept between calls so
+/// insertions allocate nothing.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Scratch {
+    stack: Vec<u32>,
+    /// Tetrahedra tested and found not in conflict (flag to clear).
+    rejected: Vec<u32>,
+    pub(crate) cavity: Vec<u32>,
+    /// Facets of the hole to fill: vertices ordered with the hole on their
+    /// positive side, and the encoded neighbour outside the hole.
+    pub(crate) boundary: Vec<([u32; 3], u32)>,
+    edges: EdgeTable,
+}
+
+/// Open-addressing table pairing the new tetrahedra's facets through the
+/// apex: a facet `(apex, u, w)` meets the facet `(apex, w, u)` of its
+/// neighbour, so both look up the unordered edge {u, w}: the first stores
+/// itself, the second finds its partner. Cleared in O(1) by a stamp.
+#[derive(Clone, Debug, Default)]
+struct EdgeTable {
+    entries: Vec<EdgeEntry>,
+    shift: u32,
+    stamp: u32,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct EdgeEntry {
+    key: u64,
+    value: u32,
+    stamp: u32,
+}
+
+impl EdgeTable {
+    fn reset(&mut self, entries: usize) {
+        let capacity = (entries * 4).next_power_of_two().max(64);
+        if capacity > self.entries.len() || self.stamp == u32::MAX {
+            let capacity = capacity.max(self.entries.len());
+            self.entries = vec![EdgeEntry::default(); capacity];
+            self.shift = 64 - capacity.trailing_zeros();
+            self.stamp = 0;
+        }
+        self.stamp += 1;
+    }
+
+    /// The value stored for edge {u, w} if any; otherwise store `value`.
+    #[inline]
+    fn pair(&mut self, u: u32, w: u32, value: u32) -> Option<u32> {
+        let key = ((u.min(w) as u64) << 32) | u.max(w) as u64;
+        let mask = self.entries.len() - 1;
+        let mut i = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize;
+        loop {
+            let entry = &mut self.entries[i & mask];
+            if entry.stamp != self.stamp {
+                *entry = EdgeEntry {
+                    key,
+                    value,
+                    stamp: self.stamp,
+                };
+                return None;
+            }
+            if entry.key == key {
+                return Some(entry.value);
+            }
+            i += 1;
+        }
+    }
+}
+
+/// Flag on `v[0]` of a cell in the cavity being searched. Vertex ids stay
+/// below 2^30 (see `MAX_VERTICES`), so the top bit is free; slots 0 and 1
+/// never hold the infinite vertex, and dead cells are never searched.
+const IN_CAVITY: u32 = 1 << 31;
+/// Flag on `v[1]` of a cell tested and found not in conflict.
+const REJECTED: u32 = 1 << 31;
+const FLAGS: u32 = 1 << 31;
+
+/// Result of a walk: the tetrahedron where it stopped and whether the point
+/// is outside the hull (the tetrahedron is then a ghost).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Walk {
+    pub tet: u32,
+    pub outside: bool,
+}
+
+/// Cheap xorshift step for the walk's random facet order.
+#[inline]
+fn next_random(state: &mut u32) -> u32 {
+    *state ^= *state << 13;
+    *state ^= *state >> 17;
+    *state ^= *state << 5;
+    *state
+}
+
+impl Triangulation {
+    /// Insert a point; returns its new vertex, or the existing vertex at
+    /// exactly the same position (duplicates are merged).
+    pub fn insert(&mut self, p: DVec3) -> Result<VertexId> {
+        if !p.is_finite() {
+            return Err(DelaunayError::NonFinite {
+                index: self.points.len(),
+            });
+        }
+        if self.points.len() >= MAX_VERTICES {
+            return Err(DelaunayError::TooLarge);
+        }
+        let v = self.points.len() as u32;
+        self.points.push(p);
+        self.vertex_tet.push(NONE);
+        match self.insert_vertex(v) {
+            Ok(None) => Ok(VertexId(v)),
+            Ok(Some(existing)) => {
+                self.points.pop();
+                self.vertex_tet.pop();
+                Ok(VertexId(existing))
+            }
+            Err(e) => {
+                self.points.pop();
+                self.vertex_tet.pop();
+                Err(e)
+            }
+        }
+    }
+
+    /// Where `p` lies: in a finite tetrahedron or beyond a hull facet.
+    pub fn locate(&self, p: DVec3) -> Result<Location> {
+        self.locate_from(p, TetId(self.hint))
+    }
+
+    /// [`Triangulation::locate`] with the walk starting at `start` (a
+    /// tetrahedron near `p` makes it fast).
+    pub fn locate_from(&self, p: DVec3, start: TetId) -> Result<Location> {
+        if !p.is_finite() {
+            return Err(DelaunayError::NonFinite { index: 0 });
+        }
+        let start = if self
+            .cells
+            .get(start.index())
+            .is_some_and(|c| c.v[0] != NONE)
+        {
+            start.0
+        } else {
+            self.hint
+        };
+        let walk = self.walk(p, start);
+        Ok(if walk.outside {
+            Location::Outside(TetId(walk.tet))
+        } else {
+            Location::Inside(TetId(walk.tet))
+        })
+    }
+
+    /// Make vertex `v` (its point already stored) part of the triangulation.
+    /// Returns the existing vertex if `v`'s point is a duplicate.
+    pub(crate) fn insert_vertex(&mut self, v: u32) -> Result<Option<u32>> {
+        let p = self.points[v as usize];
+        let walk = self.walk(p, self.hint);
+        if !walk.outside {
+            let tv = self.cells[walk.tet as usize].v;
+            if let Some(&w) = tv.iter().find(|&&w| self.points[w as usize] == p) {
+                return Ok(Some(w));
+            }
+        }
+        self.find_cavity(walk.tet, v);
+        let created = self.scratch.boundary.len();
+        if self.cells.len() + created > MAX_TETS {
+            return Err(DelaunayError::TooLarge);
+        }
+        let cavity = std::mem::take(&mut self.scratch.cavity);
+        for &t in &cavity {
+            self.free_tet(t);
+        }
+        self.scratch.cavity = cavity;
+        self.cone(v, &[]);
+        self.live_vertices += 1;
+        Ok(None)
+    }
+
+    /// Visibility walk from `start` towards `p`: cross a facet that has
+    /// `p` strictly on its far side, trying facets in a random order and
+    /// never straight back (the remembering stochastic walk, which ends with
+    /// probability 1 whatever the triangulation). Stops in the finite
+    /// tetrahedron containing `p`, or in the first ghost reached, which
+    /// means `p` is outside the hull.
+    pub(crate) fn walk(&self, p: DVec3, start: u32) -> Walk {
+        let mut t = start as usize;
+        if self.cells[t].v[3] == INF {
+            t = (self.cells[t].n[3] >> 2) as usize;
+        }
+        let mut previous = NONE;
+        // Seeded from the point so that `locate` needs no mutable state.
+        let mut random =
+            (p.x.to_bits() ^ p.y.to_bits().rotate_left(21) ^ p.z.to_bits().rotate_left(42)) as u32
+                | 1;
+        let mut steps = 0usize;
+        'walk: loop {
+            steps += 1;
+            if steps > self.cells.len() + 16 {
+                // Unreachable for a valid triangulation; a scan is the safe
+                // answer rather than a hang.
+                return self.scan_locate(p);
+            }
+            let cell = &self.cells[t];
+            let first = next_random(&mut random) as usize;
+            for k in 0..4 {
+                let i = (first + k) & 3;
+                let n = cell.n[i] >> 2;
+                if n == previous {
+                    continue;
+                }
+                let f = &FACET[i];
+                let a = self.points[cell.v[f[0]] as usize];
+                let b = self.points[cell.v[f[1]] as usize];
+                let c = self.points[cell.v[f[2]] as usize];
+                if orient3d(a, b, c, p) < 0.0 {
+                    previous = t as u32;
+                    t = n as usize;
+                    if self.cells[t].v[3] == INF {
+                        return Walk {
+                            tet: t as u32,
+                            outside: true,
+                        };
+                    }
+                    continue 'walk;
+                }
+            }
+            return Walk {
+                tet: t as u32,
+                outside: false,
+            };
+        }
+    }
+
+    /// Locate by testing every tetrahedron (fallback only).
+    fn scan_locate(&self, p: DVec3) -> Walk {
+        let inside = |t: u32| {
+            let tv = self.cells[t as usize].v;
+            (0..4).all(|i| {
+                let [a, b, c] = FACET[i].map(|s| self.points[tv[s] as usize]);
+                orient3d(a, b, c, p) >= 0.0
+            })
+        };
+        if let Some(t) = self.finite_tets().map(|t| t.0).find(|&t| inside(t)) {
+            return Walk {
+                tet: t,
+                outside: false,
+            };
+        }
+        let beyond = |t: u32| {
+            let tv = self.cells[t as usize].v;
+            let [a, b, c] = [0, 1, 2].map(|s| self.points[tv[s] as usize]);
+            orient3d(a, b, c, p) > 0.0
+        };
+        let ghost = self
+            .ghost_tets()
+            .map(|t| t.0)
+            .find(|&t| beyond(t))
+            .unwrap_or(self.hint);
+        Walk {
+            tet: ghost,
+            outside: true,
+        }
+    }
+
+    /// Whether vertex `v` lies in the perturbed circumsphere of `t`. For a
+    /// ghost, the "sphere" is the open half-space beyond its hull facet; a
+    /// point on the facet's plane conflicts exactly when it conflicts with
+    /// the finite tetrahedron behind the facet (the limit of that sphere as
+    /// its apex goes to infinity, same perturbation).
+    #[inline]
+    pub(crate) fn in_conflict(&self, t: u32, v: u32) -> bool {
+        let cell = &self.cells[t as usize];
+        if cell.v[3] != INF {
+            return self.finite_conflict(t, v);
+        }
+        let p = self.points[v as usize];
+        let a = self.points[(cell.v[0] & !FLAGS) as usize];
+        let b = self.points[(cell.v[1] & !FLAGS) as usize];
+        let c = self.points[cell.v[2] as usize];
+        let o = orient3d(a, b, c, p);
+        if o != 0.0 {
+            return o > 0.0;
+        }
+        self.finite_conflict(cell.n[3] >> 2, v)
+    }
+
+    #[inline]
+    fn finite_conflict(&self, t: u32, v: u32) -> bool {
+        // `t` may be flagged when reached from a coplanar ghost.
+        let [i0, i1, i2, i3] = self.cells[t as usize].v;
+        let (i0, i1) = (i0 & !FLAGS, i1 & !FLAGS);
+        let pts = [
+            self.points[i0 as usize],
+            self.points[i1 as usize],
+            self.points[i2 as usize],
+            self.points[i3 as usize],
+            self.points[v as usize],
+        ];
+        insphere_sos(pts, [i0, i1, i2, i3, v])
+    }
+
+    /// Fill `scratch.cavity` with the tetrahedra in conflict with `v`
+    /// (connected, found by a search from `start`, which is in conflict) and
+    /// `scratch.boundary` with the cavity's boundary facets.
+    ///
+    /// Search state lives in the cells themselves (flag bits on vertex ids,
+    /// see [`IN_CAVITY`]): the cell is loaded anyway, a side array would
+    /// cost one more cache miss per test.
+    fn find_cavity(&mut self, start: u32, v: u32) {
+        let mut s = std::mem::take(&mut self.scratch);
+        s.stack.clear();
+        s.cavity.clear();
+        s.boundary.clear();
+        s.rejected.clear();
+        self.cells[start as usize].v[0] |= IN_CAVITY;
+        s.stack.push(start);
+        s.cavity.push(start);
+        while let Some(t) = s.stack.pop() {
+            let cell = self.cells[t as usize];
+            // Only slots 0 and 1 carry flags (slot 3 may be the infinite
+            // vertex, whose id has the top bit set).
+            let verts = [cell.v[0] & !FLAGS, cell.v[1] & !FLAGS, cell.v[2], cell.v[3]];
+            for (f, &across) in FACET.iter().zip(&cell.n) {
+                let n = across >> 2;
+                let other = &self.cells[n as usize];
+                if other.v[0] & IN_CAVITY != 0 {
+                    continue;
+                }
+                if other.v[1] & REJECTED == 0 {
+                    if self.in_conflict(n, v) {
+                        self.cells[n as usize].v[0] |= IN_CAVITY;
+                        s.stack.push(n);
+                        s.cavity.push(n);
+                        continue;
+                    }
+                    self.cells[n as usize].v[1] |= REJECTED;
+                    s.rejected.push(n);
+                }
+                let facet = [verts[f[0]], verts[f[1]], verts[f[2]]];
+                s.boundary.push((facet, across));
+            }
+        }
+        for &t in &s.rejected {
+            self.cells[t as usize].v[1] &= !REJECTED;
+        }
+        self.scratch = s;
+    }
+
+    /// Fill the hole described by `scratch.boundary` with the cone from
+    /// `apex`: one tetrahedron per boundary facet, glued to the outside
+    /// neighbour and, through the edge table, to each other. `seeds` are
+    /// existing facets through the apex on the hole's rim, given like the
+    /// boundary (hole on the positive side, outside neighbour).
+    pub(crate) fn cone(&mut self, apex: u32, seeds: &[([u32; 3], u32)]) {
+        let boundary = std::mem::take(&mut self.scratch.boundary);
+        let mut edges = std::mem::take(&mut self.scratch.edges);
+        edges.reset(3 * boundary.len() + seeds.len());
+        for &(facet, outside) in seeds {
+            let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
+            let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
+            edges.pair(u, w, outside);
+        }
+        for &([a, b, c], outside) in &boundary {
+            // (a, b, c, apex) is positive; an even permutation `slot ^ x`
+            // moves the infinite vertex, if any, to slot 3.
+            let x = if a == INF {
+                3
+            } else if b == INF {
+                2
+            } else if c == INF {
+                1
+            } else {
+                0
+            };
+            let old = [a, b, c, apex];
+            let verts = [old[x], old[1 ^ x], old[2 ^ x], old[3 ^ x]];
+            let t = self.alloc_tet(verts);
+            self.link(t * 4 + (3 ^ x) as u32, outside);
+            // The facet through the apex opposite a holds the edge {b, c}.
+            // Likewise for b and c.
+            for (slot, u, w) in [(x, b, c), (1 ^ x, a, c), (2 ^ x, a, b)] {
+                let here = t * 4 + slot as u32;
+                if let Some(there) = edges.pair(u, w, here) {
+                    self.link(here, there);
+                }
+            }
+            if self.track_vertex_tets {
+                for &y in &verts {
+                    if y != INF {
+                        self.vertex_tet[y as usize] = t;
+                    }
+                }
+            }
+            if verts[3] != INF {
+                self.hint = t;
+            }
+        }
+        self.scratch.boundary = boundary;
+        self.scratch.edges = edges;
+    }
+
+    /// Make two encoded facets neighbours of each other.
+    #[inline]
+    pub(crate) fn link(&mut self, a: u32, b: u32) {
+        self.cells[(a >> 2) as usize].n[(a & 3) as usize] = b;
+        self.cells[(b >> 2) as usize].n[(b & 3) as usize] = a;
+    }
+
+    pub(crate) fn alloc_tet(&mut self, verts: [u32; 4]) -> u32 {
+        if verts[3] == INF {
+            self.ghost_tets += 1;
+        } else {
+            self.finite_tets += 1;
+        }
+        if let Some(t) = self.free.pop() {
+            self.cells[t as usize].v = verts;
+            return t;
+        }
+        self.cells.push(Cell {
+            v: verts,
+            n: [NONE; 4],
+        });
+        (self.cells.len() - 1) as u32
+    }
+
+    pub(crate) fn free_tet(&mut self, t: u32) {
+        if self.cells[t as usize].v[3] == INF {
+            self.ghost_tets -= 1;
+        } else {
+            self.finite_tets -= 1;
+        }
+        self.cells[t as usize].v[0] = NONE;
+        self.free.push(t);
+    }
+}

@@ -1,0 +1,273 @@
+//! Exact orientation and in-sphere predicates on `DVec3`, with a symbolic
+//! perturbation that decides every cospherical case.
+//!
+//! Convention (right-handed, the same as VTK's tetra): `orient3d(a, b, c, d)`
+//! is positive when `d` lies on the side of the plane `abc` that
+//! `(b − a) × (c − a)` points to, i.e. `det[b − a, c − a, d − a] > 0`; its
+//! value is six times the signed volume of the tetrahedron. The `robust`
+//! crate uses the opposite handedness, so the wrappers swap `b` and `c`.
+
+use glam::DVec3;
+use robust::Coord3D;
+
+#[inline(always)]
+fn coord(p: DVec3) -> Coord3D<f64> {
+    Coord3D {
+        x: p.x,
+        y: p.y,
+        z: p.z,
+    }
+}
+
+/// Unit roundoff of f64 (half an ulp of 1).
+const EPS: f64 = f64::EPSILON / 2.0;
+/// Relative error bound of the floating-point orientation determinant
+/// below, in units of its permanent (Shewchuk 1997, first stage).
+const ORIENT_BOUND: f64 = (7.0 + 56.0 * EPS) * EPS;
+/// The same for the in-sphere determinant.
+const INSPHERE_BOUND: f64 = (16.0 + 224.0 * EPS) * EPS;
+
+/// Exact sign (adaptive precision) of `det[b − a, c − a, d − a]`; the value
+/// is that determinant up to rounding when it is far from zero.
+///
+/// The plain floating-point determinant decides when it exceeds its error
+/// bound (almost always); otherwise the adaptive `robust` predicate does.
+#[inline(always)]
+pub fn orient3d(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> f64 {
+    let (u, v, w) = (b - a, c - a, d - a);
+    let (uv_z, vu_z) = (u.x * v.y, v.x * u.y);
+    let (vw_z, wv_z) = (v.x * w.y, w.x * v.y);
+    let (wu_z, uw_z) = (w.x * u.y, u.x * w.y);
+    let det = w.z * (uv_z - vu_z) + u.z * (vw_z - wv_z) + v.z * (wu_z - uw_z);
+    let permanent = w.z.abs() * (uv_z.abs() + vu_z.abs())
+        + u.z.abs() * (vw_z.abs() + wv_z.abs())
+        + v.z.abs() * (wu_z.abs() + uw_z.abs());
+    if det.abs() > ORIENT_BOUND * permanent {
+        return det;
+    }
+    robust::orient3d(coord(a), coord(c), coord(b), coord(d))
+}
+
+/// Exact in-sphere test for a positively oriented tetrahedron `abcd`:
+/// positive when `e` is strictly inside its circumsphere, negative when
+/// strictly outside, zero when the five points are cospherical.
+///
+/// Filtered like [`orient3d`]: the lifted 4×4 determinant of the
+/// differences to `e`, expanded by 2×2 minors of the x, y columns, decides
+/// when it exceeds the error bound of its permanent.
+#[inline(always)]
+pub fn insphere(a: DVec3, b: DVec3, c: DVec3, d: DVec3, e: DVec3) -> f64 {
+    // Shewchuk's positive order is (a, c, b, d): rows p, q, r, s.
+    let (p, q, r, s) = (a - e, c - e, b - e, d - e);
+    let (pq, qp) = (p.x * q.y, q.x * p.y);
+    let (qr, rq) = (q.x * r.y, r.x * q.y);
+    let (rs, sr) = (r.x * s.y, s.x * r.y);
+    let (sp, ps) = (s.x * p.y, p.x * s.y);
+    let (pr, rp) = (p.x * r.y, r.x * p.y);
+    let (qs, sq) = (q.x * s.y, s.x * q.y);
+    let (m_pq, m_qr, m_rs, m_sp, m_pr, m_qs) =
+        (pq - qp, qr - rq, rs - sr, sp - ps, pr - rp, qs - sq);
+    // 3×3 minors (x, y, z) of the row triples, then the lifted expansion.
+    let pqr = p.z * m_qr - q.z * m_pr + r.z * m_pq;
+    let qrs = q.z * m_rs - r.z * m_qs + s.z * m_qr;
+    let rsp = r.z * m_sp + s.z * m_pr + p.z * m_rs;
+    let spq = s.z * m_pq + p.z * m_qs + q.z * m_sp;
+    let (lp, lq, lr, ls) = (
+        p.length_squared(),
+        q.length_squared(),
+        r.length_squared(),
+        s.length_squared(),
+    );
+    let det = (ls * pqr - lr * spq) + (lq * rsp - lp * qrs);
+    let (zp, zq, zr, zs) = (p.z.abs(), q.z.abs(), r.z.abs(), s.z.abs());
+    let (a_pq, a_qr, a_rs, a_sp) = (
+        pq.abs() + qp.abs(),
+        qr.abs() + rq.abs(),
+        rs.abs() + sr.abs(),
+        sp.abs() + ps.abs(),
+    );
+    let (a_pr, a_qs) = (pr.abs() + rp.abs(), qs.abs() + sq.abs());
+    let permanent = (a_rs * zq + a_qs * zr + a_qr * zs) * lp
+        + (a_sp * zr + a_pr * zs + a_rs * zp) * lq
+        + (a_pq * zs + a_qs * zp + a_sp * zq) * lr
+        + (a_qr * zp + a_pr * zq + a_pq * zr) * ls;
+    if det.abs() > INSPHERE_BOUND * permanent {
+        return det;
+    }
+    robust::insphere(coord(a), coord(c), coord(b), coord(d), coord(e))
+}
+
+/// In-sphere test that never ties: `true` when `e` is inside the
+/// circumsphere of the positively oriented tetrahedron `abcd`, with
+/// cospherical cases decided by a symbolic perturbation of the points'
+/// lifted coordinate (Simulation of Simplicity). `ids` are the vertex ids of
+/// `a, b, c, d, e`; a larger id gets a larger perturbation. Because the
+/// decision depends only on the point set and the ids, every tetrahedron
+/// sees the same perturbed point set and the triangulation stays consistent.
+#[inline]
+pub fn insphere_sos(pts: [DVec3; 5], ids: [u32; 5]) -> bool {
+    let [a, b, c, d, e] = pts;
+    let exact = insphere(a, b, c, d, e);
+    if exact != 0.0 {
+        return exact > 0.0;
+    }
+    perturbed_sign(pts, ids) > 0.0
+}
+
+/// Sign of the perturbed lifted determinant when its exact value is zero.
+///
+/// In Shewchuk's row order (a, c, b, d, e) the in-sphere value is the 5×5
+/// determinant with rows `[x, y, z, |p|², 1]`. Adding ε^k to the lifted
+/// coordinate of the point of k-th largest id adds ε^k times that row's
+/// cofactor, `±orient` of the other four points, alternating in sign with
+/// the row. The first non-zero cofactor in decreasing id order decides.
+/// The cofactor of `e` is ∓orient(abcd) ≠ 0, so a tie remains only if all
+/// five points are coplanar (returned as 0).
+#[cold]
+fn perturbed_sign(pts: [DVec3; 5], ids: [u32; 5]) -> f64 {
+    // Shewchuk's positive order swaps b and c.
+    let rows = [pts[0], pts[2], pts[1], pts[3], pts[4]];
+    let row_ids = [ids[0], ids[2], ids[1], ids[3], ids[4]];
+    let mut order = [0usize, 1, 2, 3, 4];
+    order.sort_unstable_by_key(|&r| std::cmp::Reverse(row_ids[r]));
+    for r in order {
+        let mut others = [DVec3::ZERO; 4];
+        let mut k = 0;
+        for (j, &p) in rows.iter().enumerate() {
+            if j != r {
+                others[k] = p;
+                k += 1;
+            }
+        }
+        let minor = robust::orient3d(
+            coord(others[0]),
+            coord(others[1]),
+            coord(others[2]),
+            coord(others[3]),
+        );
+        if minor != 0.0 {
+            // Cofactor sign (−1)^(row + lift column) with 0-based rows and
+            // the lift in column 3: negative for even rows.
+            return if r % 2 == 0 { -minor } else { minor };
+        }
+    }
+    0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube_corner(i: u32) -> DVec3 {
+        DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64)
+    }
+
+    #[test]
+    fn orient3d_is_right_handed_six_volumes() {
+        let o = orient3d(DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z);
+        assert_eq!(o, 1.0);
+        assert_eq!(orient3d(DVec3::ZERO, DVec3::Y, DVec3::X, DVec3::Z), -1.0);
+        assert_eq!(
+            orient3d(DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::X + DVec3::Y),
+            0.0
+        );
+    }
+
+    /// The filtered predicates agree in sign with the adaptive ones, on
+    /// random and on nearly degenerate inputs.
+    #[test]
+    fn filters_agree_with_robust() {
+        let mut state = 12345u64;
+        let mut random = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut point = || DVec3::new(random(), random(), random());
+        for k in 0..200_000 {
+            let (a, b, c, mut d, mut e) = (point(), point(), point(), point(), point());
+            if k % 2 == 1 {
+                // Nearly coplanar / cospherical: stress the fallback.
+                d = a + (b - a) * 0.3 + (c - a) * 0.6 + DVec3::splat(1e-17 * (k % 7) as f64);
+                e = a.lerp(b, 0.5) + DVec3::Z * 1e-16 * (k % 5) as f64;
+            }
+            let o = robust::orient3d(coord(a), coord(c), coord(b), coord(d));
+            assert_eq!(
+                orient3d(a, b, c, d).signum() * (o != 0.0) as i32 as f64,
+                o.signum() * (o != 0.0) as i32 as f64
+            );
+            assert_eq!(orient3d(a, b, c, d) == 0.0, o == 0.0);
+            let s = robust::insphere(coord(a), coord(c), coord(b), coord(d), coord(e));
+            let f = insphere(a, b, c, d, e);
+            assert_eq!(f == 0.0, s == 0.0);
+            assert!(f == 0.0 || f.signum() == s.signum(), "{k}: {f} vs {s}");
+        }
+    }
+
+    #[test]
+    fn insphere_signs() {
+        let (a, b, c, d) = (DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z);
+        assert!(insphere(a, b, c, d, DVec3::splat(0.25)) > 0.0);
+        assert!(insphere(a, b, c, d, DVec3::splat(2.0)) < 0.0);
+        assert_eq!(insphere(a, b, c, d, DVec3::ONE), 0.0);
+    }
+
+    /// The perturbed determinant is a function of the point set: swapping two
+    /// rows flips it. Checked on cospherical cube corners, where only the
+    /// perturbation decides.
+    #[test]
+    fn perturbation_is_alternating() {
+        let ids = [0u32, 3, 5, 6, 7];
+        let pts = ids.map(cube_corner);
+        let base = perturbed_sign(pts, ids);
+        assert_ne!(base, 0.0);
+        for i in 0..5 {
+            for j in (i + 1)..5 {
+                let (mut p, mut q) = (pts, ids);
+                p.swap(i, j);
+                q.swap(i, j);
+                assert_eq!(
+                    perturbed_sign(p, q).signum(),
+                    -base.signum(),
+                    "swap {i} {j}"
+                );
+            }
+        }
+    }
+
+    /// The eight cube corners split into one of the cube's triangulations:
+    /// of the two tetrahedra sharing a face, at most one may contain the
+    /// other's apex in its perturbed sphere.
+    #[test]
+    fn perturbation_decides_consistently_across_a_face() {
+        let ids: Vec<u32> = (0..8).collect();
+        for a in 0..8u32 {
+            for b in 0..8 {
+                for c in 0..8 {
+                    for d in 0..8 {
+                        for e in 0..8 {
+                            let v = [a, b, c, d, e];
+                            let distinct = (0..5).all(|i| (0..i).all(|j| v[i] != v[j]));
+                            if !distinct {
+                                continue;
+                            }
+                            let [pa, pb, pc, pd, pe] = v.map(cube_corner);
+                            if orient3d(pa, pb, pc, pd) <= 0.0 || orient3d(pb, pa, pc, pe) <= 0.0 {
+                                continue;
+                            }
+                            let idx = v.map(|i| ids[i as usize]);
+                            // abcd and bace share the face abc, apexes d and e.
+                            let e_in = insphere_sos([pa, pb, pc, pd, pe], idx);
+                            let d_in = insphere_sos(
+                                [pb, pa, pc, pe, pd],
+                                [idx[1], idx[0], idx[2], idx[4], idx[3]],
+                            );
+                            assert_eq!(e_in, d_in, "{v:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
