@@ -134,6 +134,42 @@ impl PointPlanes {
     pub fn surfels(&self) -> Vec<[DVec3; 3]> {
         crate::holes::tangent_disks(&self.points, &self.planes, &self.tree)
     }
+
+    /// The points with the corners of their tangent disks (see
+    /// [`crate::holes::tangent_disks`]) added: four times as many, in the
+    /// planes of the given unit `normals` (one per point). Each corner
+    /// keeps its point's fitted plane (the fits anchor thin parts better
+    /// than the given normals: spikes CD 0.164 against 0.185‰).
+    pub fn densified(&self, normals: &[DVec3]) -> Self {
+        let corners = crate::holes::tangent_disks(&self.points, normals, &self.tree);
+        let points: Vec<DVec3> = self
+            .points
+            .iter()
+            .copied()
+            .chain(corners.iter().flatten().copied())
+            .collect();
+        let tree = KdTree::new(&points);
+        PointPlanes {
+            points,
+            planes: with_corners(&self.planes),
+            tree,
+        }
+    }
+
+    /// The points the planes were fitted to.
+    pub fn points(&self) -> &[DVec3] {
+        &self.points
+    }
+}
+
+/// Per-point values followed by each repeated for the point's three disk
+/// corners, in the order [`PointPlanes::densified`] adds them.
+pub(crate) fn with_corners(values: &[DVec3]) -> Vec<DVec3> {
+    values
+        .iter()
+        .copied()
+        .chain(values.iter().flat_map(|&v| [v; 3]))
+        .collect()
 }
 
 /// Oriented tangent planes of the points, for the side test.

@@ -294,6 +294,7 @@ fn summarize(
         "cleaning": {"outliers_removed": report.cleaning.outliers, "projected": report.cleaning.projected, "rms_shift": report.cleaning.rms_shift},
         "epsilon": report.epsilon,
         "surfels": report.surfels,
+        "densified": report.densified,
         "tagging": {"heap_pops": report.heap_pops, "inside_nodes": report.tagged_inside, "removed_components": report.removed_components, "grown_to_points": report.grown_to_points, "restored_near_points": report.restored_near_points, "sealed_by_normals": report.sealed_nodes},
         "band_nodes": report.band_nodes,
         "band": {"nodes": report.band_nodes, "blocks": report.band_blocks, "block_nodes": surfrecon_grid::sparse::BLOCK.pow(if two_d { 2 } else { 3 })},
