@@ -24,7 +24,8 @@ pub struct Params {
     /// distance to the 6 nearest neighbours, largest of its vertices).
     pub pocket_size: f64,
     /// Close boundary loops of at most this many edges left by the
-    /// manifold clean-up (0: leave every hole open).
+    /// manifold clean-up, by ear clipping through their own vertices (0:
+    /// leave every hole open).
     pub max_hole_edges: usize,
 }
 
@@ -35,7 +36,7 @@ impl Default for Params {
             pockets: true,
             pocket_cosine: 0.5,
             pocket_size: 8.0,
-            max_hole_edges: 0,
+            max_hole_edges: 24,
         }
     }
 }

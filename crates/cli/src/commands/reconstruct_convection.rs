@@ -24,7 +24,7 @@ pub struct ConvectionArgs {
     pub rho_topo: f64,
     /// Close boundary loops of at most this many edges left where the
     /// surface pinched (0: leave them open and report them).
-    #[arg(long = "fill-holes", default_value_t = 0, value_name = "EDGES")]
+    #[arg(long = "fill-holes", default_value_t = 24, value_name = "EDGES")]
     pub fill_holes: usize,
     /// Stop at the Gabriel convection: do not open pockets with normals.
     #[arg(long)]
