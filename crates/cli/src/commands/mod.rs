@@ -9,6 +9,7 @@ pub mod info;
 pub mod morph;
 pub mod normals;
 pub mod reconstruct;
+pub mod reconstruct_convection;
 pub mod reconstruct_curves;
 pub mod reconstruct_svm;
 pub mod render;

@@ -1,7 +1,9 @@
 //! `surfrecon reconstruct`: a closed surface (2D: closed curves) from points,
 //! curves and triangle patches. Level-set method by default (no normals
-//! needed); `--method svm` fits an SVM implicit surface to oriented points.
+//! needed); `--method svm` fits an SVM implicit surface to oriented points;
+//! `--method convection` interpolates the points by geometric convection.
 
+use crate::commands::reconstruct_convection::{self, ConvectionArgs};
 use crate::commands::reconstruct_curves;
 use crate::commands::reconstruct_svm::{self, SvmArgs};
 use crate::context::Context;
@@ -19,6 +21,9 @@ pub enum Method {
     Levelset,
     /// SVM implicit surface (needs or estimates normals).
     Svm,
+    /// Geometric convection through the Delaunay tetrahedralization: a mesh
+    /// interpolating the points.
+    Convection,
 }
 
 #[derive(clap::Args)]
@@ -83,6 +88,8 @@ pub struct Args {
     pub two_d: bool,
     #[command(flatten)]
     pub svm: SvmArgs,
+    #[command(flatten)]
+    pub convection: ConvectionArgs,
 }
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
@@ -95,6 +102,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         (Some(network), _) => reconstruct_curves::run(&args, &geometry, &network, ctx),
         (None, Method::Levelset) => run_levelset(&args, &geometry, ctx),
         (None, Method::Svm) => run_svm(&args, &geometry, ctx),
+        (None, Method::Convection) => reconstruct_convection::run(&args, &geometry, ctx),
     };
     spinner.finish_and_clear();
     result

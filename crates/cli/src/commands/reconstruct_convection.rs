@@ -1,0 +1,83 @@
+//! The `--method convection` part of `surfrecon reconstruct`: geometric
+//! convection over the exact Delaunay tetrahedralization of the points
+//! (surfrecon-convection). `reconstruct.rs` flattens [`ConvectionArgs`]
+//! into its arguments and calls [`run`].
+
+use crate::commands::reconstruct::{data_fit_json, Args};
+use crate::context::Context;
+use anyhow::Context as _;
+use serde_json::json;
+use std::time::Instant;
+use surfrecon_convection::{reconstruct, Params};
+use surfrecon_geom::{io, Geometry};
+
+/// Convection-specific flags of `surfrecon reconstruct --method convection`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ConvectionArgs {
+    /// Geometric simplification radius ρ, as a fraction of the bounding-box
+    /// diagonal (0: keep every point; decimation is not implemented yet).
+    #[arg(long, default_value_t = 0.0)]
+    pub rho: f64,
+    /// Topological-disk simplification radius ρ′ (0: off; not implemented
+    /// yet).
+    #[arg(long = "rho-topo", default_value_t = 0.0)]
+    pub rho_topo: f64,
+    /// Close boundary loops of at most this many edges left where the
+    /// surface pinched (0: leave them open and report them).
+    #[arg(long = "fill-holes", default_value_t = 24, value_name = "EDGES")]
+    pub fill_holes: usize,
+    /// Stop at the Gabriel convection: do not open pockets with normals.
+    #[arg(long)]
+    pub no_pockets: bool,
+    /// Neighbours used to estimate normals (pocket test) when the input has none.
+    #[arg(long = "convection-normal-k", default_value_t = 12)]
+    pub normal_k: usize,
+}
+
+pub fn run(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()> {
+    let c = &args.convection;
+    if args.field.is_some() || args.shell.is_some() || args.two_d {
+        anyhow::bail!("--field, --shell and --2d apply to --method levelset only");
+    }
+    if c.rho != 0.0 || c.rho_topo != 0.0 {
+        anyhow::bail!("--rho and --rho-topo (decimation) are not implemented yet for --method convection; use 0");
+    }
+    let points = &geometry.points;
+    if points.positions.is_empty() {
+        anyhow::bail!("{} has no points to reconstruct from", args.input.display());
+    }
+    let params = Params {
+        normal_k: c.normal_k,
+        pockets: !c.no_pockets,
+        max_hole_edges: c.fill_holes,
+        ..Params::default()
+    };
+    let r = reconstruct(&points.positions, points.normals.as_deref(), &params)
+        .context("convection reconstruction failed")?;
+    let clock = Instant::now();
+    let (vertices, triangles) = (r.report.kept_points, r.mesh.triangles.len());
+    let fit = data_fit_json(ctx, &r.mesh, geometry);
+    io::write(&args.output, &Geometry::from_mesh(r.mesh))
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    let mut report = r.report;
+    report.seconds.output += clock.elapsed().as_secs_f64();
+    ctx.say(format!(
+        "reconstructed a surface through {vertices} of {} points, {triangles} triangles (convection{}) -> {}",
+        report.points,
+        match report.boundary_edges {
+            0 => String::new(),
+            b => format!(", {b} boundary edges"),
+        },
+        args.output.display()
+    ));
+    ctx.emit_json(&json!({
+        "command": "reconstruct",
+        "method": "convection",
+        "input": args.input,
+        "output": args.output,
+        "output_counts": {"vertices": vertices, "triangles": triangles},
+        "convection": report,
+        "data_fit": fit,
+    }));
+    Ok(())
+}

@@ -1,0 +1,84 @@
+//! End-to-end: `surfrecon reconstruct --method convection`.
+
+mod common;
+use common::{json_of, path_str as s, surfrecon};
+
+use surfrecon_geom::metrics::topology;
+use surfrecon_geom::shapes::{sample_surface, torus};
+use surfrecon_geom::{io, Geometry, PointCloud};
+
+#[test]
+fn convection_interpolates_a_torus_and_reports_its_stages() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("torus.ply");
+    let mut pc = sample_surface(&torus(1.0, 0.4, 120, 48), 4000, 7);
+    pc.normals = None;
+    io::write(&input, &Geometry::from_points(pc.clone())).unwrap();
+    let out = dir.path().join("out.obj");
+    let run = surfrecon(&[
+        "--json",
+        "reconstruct",
+        s(&input),
+        "-o",
+        s(&out),
+        "--method",
+        "convection",
+    ]);
+    let json = json_of(&run);
+    let report = &json["convection"];
+    assert_eq!(report["points"], 4000);
+    assert_eq!(report["kept_points"], 4000);
+    assert_eq!(report["boundary_edges"], 0);
+    for key in ["facets", "pockets_opened", "thin_parts", "thin_facet_pairs"] {
+        assert!(report[key].is_u64(), "{key}: {json}");
+    }
+    for stage in ["delaunay", "convection", "pockets", "output"] {
+        assert!(report["seconds"][stage].as_f64().unwrap() >= 0.0, "{json}");
+    }
+    let mesh = io::read(&out).unwrap().to_mesh();
+    let t = topology(&mesh);
+    assert!(t.watertight && t.vertex_manifold, "{t:?}");
+    assert_eq!((t.components, t.euler), (1, 0));
+    assert_eq!(report["facets"], t.faces);
+    // Vertices are the input points, in input order.
+    assert_eq!(mesh.vertices.len(), 4000);
+    for (v, p) in mesh.vertices.iter().zip(&pc.positions) {
+        assert!(v.distance(*p) < 1e-6 * (1.0 + p.length()));
+    }
+}
+
+#[test]
+fn convection_rejects_flat_input_and_unsupported_decimation() {
+    let dir = tempfile::tempdir().unwrap();
+    let flat = dir.path().join("flat.xyz");
+    let points: Vec<_> = (0..30)
+        .map(|i| glam::DVec3::new((i % 6) as f64, (i / 6) as f64, 0.5))
+        .collect();
+    io::write(&flat, &Geometry::from_points(PointCloud::new(points))).unwrap();
+    let out = dir.path().join("out.ply");
+    let run = surfrecon(&[
+        "reconstruct",
+        s(&flat),
+        "-o",
+        s(&out),
+        "--method",
+        "convection",
+    ]);
+    assert!(!run.status.success());
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("coplanar"), "{err}");
+    assert!(!out.exists(), "no output file after a failure");
+
+    let run = surfrecon(&[
+        "reconstruct",
+        s(&flat),
+        "-o",
+        s(&out),
+        "--method",
+        "convection",
+        "--rho",
+        "0.01",
+    ]);
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("--rho"));
+}

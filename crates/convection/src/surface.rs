@@ -1,0 +1,212 @@
+//! The evolving pseudo-surface: oriented Delaunay facets, opened and
+//! collapsed by the convection.
+//!
+//! An oriented facet is a (tetrahedron, slot) pair of the triangulation,
+//! facing *into* that tetrahedron (the inside of the pseudo-surface is on
+//! the tetrahedron's side). Each Delaunay facet thus has two oriented
+//! facets, one per side. Tetrahedra are *internal* (not yet reached) or
+//! *external* (swept by the surface; every ghost from the start).
+//!
+//! Invariants (kept by [`PseudoSurface::open`] and [`PseudoSurface::collapse`]):
+//! - the tetrahedron behind a surface facet is external;
+//! - a surface facet facing an external tetrahedron has its mirror facet on
+//!   the surface too: the two are *coupled* (a sheet of zero thickness).
+//!
+//! Storage: one flag per oriented facet and per tetrahedron, and a FIFO
+//! queue of facets to test (breadth-first, as in the paper); nothing is
+//! allocated per facet.
+
+use crate::gabriel::in_diametral_ball;
+use std::collections::VecDeque;
+use surfrecon_delaunay::{TetId, Triangulation, VertexId};
+use surfrecon_geom::DVec3;
+
+/// Facet `slot` of tetrahedron `tet`, facing into `tet`; stored as
+/// `4 · tet + slot`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct OrientedFacet(u32);
+
+impl OrientedFacet {
+    pub fn new(tet: TetId, slot: usize) -> Self {
+        OrientedFacet(tet.0 * 4 + slot as u32)
+    }
+
+    pub fn tet(self) -> TetId {
+        TetId(self.0 >> 2)
+    }
+
+    pub fn slot(self) -> usize {
+        (self.0 & 3) as usize
+    }
+
+    fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+/// Why a facet is opened.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Opening {
+    /// It violates the oriented Gabriel property.
+    Gabriel,
+    /// It blocks a pocket (normals test) though Gabriel holds.
+    Pocket,
+}
+
+/// The pseudo-surface over one triangulation.
+pub(crate) struct PseudoSurface<'a> {
+    tri: &'a Triangulation,
+    on_surface: Vec<bool>,
+    external: Vec<bool>,
+    queue: VecDeque<OrientedFacet>,
+    facets: usize,
+    pub tets_opened: usize,
+    pub collapses: usize,
+    pub pockets_opened: usize,
+}
+
+impl<'a> PseudoSurface<'a> {
+    /// The convex hull, facets oriented inward, all queued.
+    pub fn from_hull(tri: &'a Triangulation) -> Self {
+        let slots = tri
+            .finite_tets()
+            .chain(tri.ghost_tets())
+            .map(|t| t.index() + 1)
+            .max()
+            .unwrap_or(0);
+        let mut surface = PseudoSurface {
+            tri,
+            on_surface: vec![false; 4 * slots],
+            external: vec![false; slots],
+            queue: VecDeque::new(),
+            facets: 0,
+            tets_opened: 0,
+            collapses: 0,
+            pockets_opened: 0,
+        };
+        for g in tri.ghost_tets() {
+            surface.external[g.index()] = true;
+        }
+        for g in tri.ghost_tets() {
+            // The infinite vertex is in slot 3: its facet is the hull facet.
+            let (t, slot) = tri.mirror(g, 3);
+            surface.add(OrientedFacet::new(t, slot));
+        }
+        surface
+    }
+
+    pub fn num_facets(&self) -> usize {
+        self.facets
+    }
+
+    pub fn contains(&self, f: OrientedFacet) -> bool {
+        self.on_surface[f.index()]
+    }
+
+    /// Whether `f` faces an external tetrahedron (its mirror is on the
+    /// surface too).
+    pub fn is_coupled(&self, f: OrientedFacet) -> bool {
+        self.external[f.tet().index()]
+    }
+
+    /// The same triangle seen from the other side.
+    pub fn mirror(&self, f: OrientedFacet) -> OrientedFacet {
+        let (t, slot) = self.tri.mirror(f.tet(), f.slot());
+        OrientedFacet::new(t, slot)
+    }
+
+    /// The facets on the surface now.
+    pub fn facets(&self) -> impl Iterator<Item = OrientedFacet> + '_ {
+        self.on_surface
+            .iter()
+            .enumerate()
+            .filter(|(_, &on)| on)
+            .map(|(i, _)| OrientedFacet(i as u32))
+    }
+
+    /// Vertices of `f`, ordered so that its normal `(b − a) × (c − a)`
+    /// points into the inside (towards the tetrahedron it faces).
+    pub fn vertices(&self, f: OrientedFacet) -> [VertexId; 3] {
+        self.tri.facet(f.tet(), f.slot())
+    }
+
+    pub fn corners(&self, f: OrientedFacet) -> [DVec3; 3] {
+        self.vertices(f).map(|v| self.tri.point(v))
+    }
+
+    /// Whether `f` violates the oriented Gabriel property: the vertex of
+    /// the tetrahedron it faces lies inside its diametral ball (see
+    /// [`crate::gabriel`]). Facets facing the outside of the hull never do.
+    pub fn violates_gabriel(&self, f: OrientedFacet) -> bool {
+        if self.tri.is_ghost(f.tet()) {
+            return false;
+        }
+        let [a, b, c] = self.corners(f);
+        let apex = self.tri.tet_vertices(f.tet())[f.slot()];
+        in_diametral_ball(a, b, c, self.tri.point(apex))
+    }
+
+    /// Queue every surface facet again (a new test applies).
+    pub fn requeue_all(&mut self) {
+        let all: Vec<OrientedFacet> = self.facets().collect();
+        self.queue.extend(all);
+    }
+
+    /// Run the convection until no queued facet is opened by `test`.
+    pub fn convect(&mut self, mut test: impl FnMut(&Self, OrientedFacet) -> Option<Opening>) {
+        while let Some(f) = self.queue.pop_front() {
+            if !self.contains(f) {
+                continue;
+            }
+            if let Some(why) = test(self, f) {
+                if why == Opening::Pocket {
+                    self.pockets_opened += 1;
+                }
+                self.open(f);
+            }
+        }
+    }
+
+    /// Push the surface through `f`: replace it by the other three facets
+    /// of the tetrahedron it faces, or collapse it with its mirror if that
+    /// tetrahedron was already swept.
+    pub fn open(&mut self, f: OrientedFacet) {
+        let t = f.tet();
+        if self.external[t.index()] {
+            self.collapse(f);
+            return;
+        }
+        self.remove(f);
+        self.external[t.index()] = true;
+        self.tets_opened += 1;
+        for slot in (0..4).filter(|&s| s != f.slot()) {
+            // The neighbour was internal or is now coupled to (t, slot):
+            // either way the new facet faces it.
+            let outward = self.mirror(OrientedFacet::new(t, slot));
+            self.add(outward);
+        }
+    }
+
+    /// Remove `f` and its coupled mirror.
+    fn collapse(&mut self, f: OrientedFacet) {
+        let m = self.mirror(f);
+        debug_assert!(self.contains(m), "a coupled facet lost its mirror");
+        self.remove(f);
+        if self.contains(m) {
+            self.remove(m);
+        }
+        self.collapses += 1;
+    }
+
+    fn add(&mut self, f: OrientedFacet) {
+        debug_assert!(!self.contains(f));
+        self.on_surface[f.index()] = true;
+        self.facets += 1;
+        self.queue.push_back(f);
+    }
+
+    fn remove(&mut self, f: OrientedFacet) {
+        self.on_surface[f.index()] = false;
+        self.facets -= 1;
+    }
+}

@@ -1,0 +1,95 @@
+//! Bad and degenerate inputs give a clear error or a documented result.
+
+use surfrecon_convection::{reconstruct, ConvectionError, Params};
+use surfrecon_delaunay::DelaunayError;
+use surfrecon_geom::metrics::topology;
+use surfrecon_geom::DVec3;
+
+fn cube_corners() -> Vec<DVec3> {
+    (0..8)
+        .map(|i| DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64))
+        .collect()
+}
+
+#[test]
+fn too_few_points_is_an_error() {
+    let points = &cube_corners()[..3];
+    let e = reconstruct(points, None, &Params::default()).unwrap_err();
+    assert!(matches!(
+        e,
+        ConvectionError::Delaunay(DelaunayError::TooFewPoints { count: 3 })
+    ));
+}
+
+#[test]
+fn coplanar_and_collinear_points_are_errors() {
+    let plane: Vec<DVec3> = (0..50)
+        .map(|i| DVec3::new((i % 7) as f64, (i / 7) as f64, 2.0))
+        .collect();
+    let e = reconstruct(&plane, None, &Params::default()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ConvectionError::Delaunay(DelaunayError::AllCoplanar { .. })
+        ),
+        "{e}"
+    );
+    let line: Vec<DVec3> = (0..10).map(|i| DVec3::splat(i as f64)).collect();
+    let e = reconstruct(&line, None, &Params::default()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ConvectionError::Delaunay(DelaunayError::AllCollinear { .. })
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn non_finite_points_and_bad_normals_are_errors() {
+    let mut points = cube_corners();
+    let normals = vec![DVec3::Z; 7];
+    let e = reconstruct(&points, Some(&normals), &Params::default()).unwrap_err();
+    assert_eq!(
+        e,
+        ConvectionError::NormalCount {
+            points: 8,
+            normals: 7
+        }
+    );
+    let mut normals = vec![DVec3::Z; 8];
+    normals[5] = DVec3::ZERO;
+    let e = reconstruct(&points, Some(&normals), &Params::default()).unwrap_err();
+    assert_eq!(e, ConvectionError::BadNormal { index: 5 });
+    points[2].y = f64::NAN;
+    let e = reconstruct(&points, None, &Params::default()).unwrap_err();
+    assert!(matches!(
+        e,
+        ConvectionError::Delaunay(DelaunayError::NonFinite { index: 2 })
+    ));
+}
+
+/// A cube's corners (cospherical, all on the hull) with every point given
+/// twice: duplicates are merged, the hull is the closed result.
+#[test]
+fn duplicated_cube_corners_give_the_closed_hull() {
+    let mut points = cube_corners();
+    points.extend(cube_corners());
+    let r = reconstruct(&points, None, &Params::default()).unwrap();
+    assert_eq!(r.report.duplicates, 8);
+    assert_eq!(r.report.kept_points, 8);
+    let topo = topology(&r.mesh);
+    assert!(topo.watertight && topo.vertex_manifold, "{topo:?}");
+    assert_eq!((topo.faces, topo.euler), (12, 2));
+    // One copy of each corner is used.
+    let mut used: Vec<u32> = r.mesh.triangles.iter().flatten().copied().collect();
+    used.sort_unstable();
+    used.dedup();
+    let mut corners: Vec<[i64; 3]> = used
+        .iter()
+        .map(|&v| r.mesh.vertices[v as usize].to_array().map(|x| x as i64))
+        .collect();
+    corners.sort_unstable();
+    corners.dedup();
+    assert_eq!(corners.len(), 8);
+}
