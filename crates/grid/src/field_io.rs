@@ -664,7 +664,11 @@ fn parse_vtk(bytes: &[u8], src: &Source) -> Result<RawField, GridError> {
         );
     }
     let raw = vtk_geometry(&h).map_err(|m| src.err(m))?;
-    let count: usize = raw.dims.iter().product();
+    let count = raw
+        .dims
+        .iter()
+        .try_fold(1usize, |c, &n| c.checked_mul(n))
+        .ok_or_else(|| src.err(format!("DIMENSIONS {:?} overflow the grid size", raw.dims)))?;
     if h.points != Some(count) {
         return Err(src.err(format!(
             "POINT_DATA {:?} does not match {count} grid points",
@@ -916,6 +920,9 @@ mod tests {
             "POLYDATA",
         );
         assert_fails("q.vtk", b"hello", "legacy VTK");
+        // Dimensions whose product passes 2^64 (wrapped to 0 before).
+        let huge = "# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 4294967296 4294967296 4294967296\nPOINT_DATA 3375\nSCALARS v double 1\nLOOKUP_TABLE default\n1 2 3\n";
+        assert_fails("o.vtk", huge.as_bytes(), "overflow");
         assert_fails("z.vtk", b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 1\nPOINT_DATA 4\nSCALARS v double\nLOOKUP_TABLE default\n\x00\x01", "truncated");
         assert_fails("k.raw", b"", "unknown field format");
     }

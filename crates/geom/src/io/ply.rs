@@ -379,7 +379,9 @@ impl VertexData {
     }
 
     fn row_is_finite(&self, row: usize) -> bool {
-        self.positions[row].is_finite() && self.normals.as_ref().is_none_or(|n| n[row].is_finite())
+        self.positions[row].is_finite()
+            && self.normals.as_ref().is_none_or(|n| n[row].is_finite())
+            && self.scalars.as_ref().is_none_or(|s| s[row].is_finite())
     }
 
     fn into_cloud(self) -> PointCloud {
@@ -648,7 +650,7 @@ impl<'a, 's> Body<'a, 's> {
             self.end_row(el)?;
             if !data.row_is_finite(row) {
                 return Err(self.row_error(format!(
-                    "vertex {row} has a non-finite coordinate or normal"
+                    "vertex {row} has a non-finite coordinate, normal or scalar"
                 )));
             }
         }
@@ -689,11 +691,15 @@ impl<'a, 's> Body<'a, 's> {
         let bad = [
             cloud.positions.iter().position(|p| !p.is_finite()),
             cloud.normals.as_ref().and_then(bad_normal),
+            cloud
+                .scalars
+                .as_ref()
+                .and_then(|s| s.iter().position(|x| !x.is_finite())),
         ];
         if let Some(row) = bad.into_iter().flatten().min() {
             return Err(self.src.byte(
                 self.pos + row * row_size,
-                format!("vertex {row} has a non-finite coordinate or normal"),
+                format!("vertex {row} has a non-finite coordinate, normal or scalar"),
             ));
         }
         self.pos += len;

@@ -527,3 +527,30 @@ fn ply_vertex_rows_with_lists_take_the_general_path() {
         assert_eq!(g.points.normals, Some(vec![DVec3::Z, DVec3::Y]));
     }
 }
+
+/// A NaN or infinite scalar (a scanner's quality) is refused when read,
+/// in binary as in ascii: the writer refuses it, so every file the reader
+/// accepts can be written back.
+#[test]
+fn ply_non_finite_scalars_are_refused_in_every_encoding() {
+    let head = |format: &str| {
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+             property float z\nproperty float quality\nend_header\n"
+        )
+    };
+    let mut binary = head("binary_little_endian").into_bytes();
+    let body = binary.len();
+    for v in [[0.0f32, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, f32::NAN]] {
+        v.iter().for_each(|x| binary.extend(x.to_le_bytes()));
+    }
+    expect(
+        &binary,
+        Format::Ply,
+        Byte((body + 16) as u64),
+        "vertex 1 has a non-finite",
+    );
+    let ascii = format!("{}0 0 0 1\n1 0 0 inf\n", head("ascii"));
+    let (_, message) = parse_error(ascii.as_bytes(), Format::Ply);
+    assert!(message.contains("non-finite"), "{message}");
+}
