@@ -23,6 +23,10 @@ pub struct Params {
     /// ... and its longest edge exceeds this many local spacings (mean
     /// distance to the 6 nearest neighbours, largest of its vertices).
     pub pocket_size: f64,
+    /// Thin parts: swept tetrahedra next to a sheet of coupled facets (left
+    /// or collapsed) whose circumradius is at most this many local spacings
+    /// are put back inside, so thin parts stay solid and attached (0: off).
+    pub thin_size: f64,
     /// Close boundary loops of at most this many edges left by the
     /// manifold clean-up, by ear clipping through their own vertices (0:
     /// leave every hole open).
@@ -36,6 +40,7 @@ impl Default for Params {
             pockets: true,
             pocket_cosine: 0.5,
             pocket_size: 8.0,
+            thin_size: 1.5,
             max_hole_edges: 24,
         }
     }
@@ -75,6 +80,8 @@ pub struct Report {
     pub thin_facet_pairs: usize,
     /// Connected sheets those pairs form.
     pub thin_parts: usize,
+    /// Swept tetrahedra put back inside at thin parts.
+    pub thin_tets_restored: usize,
     /// Faces removed where parts of the surface pinch (non-manifold edges
     /// or vertices).
     pub nonmanifold_faces_removed: usize,
@@ -120,16 +127,22 @@ pub fn reconstruct(
     surface.convect(|s, f| s.violates_gabriel(f).then_some(Opening::Gabriel));
     report.seconds.convection = clock.elapsed().as_secs_f64();
 
-    if params.pockets {
+    let thin_parts = params.thin_size > 0.0;
+    let (mut unit_normals, mut spacing) = (Vec::new(), Vec::new());
+    if params.pockets || thin_parts {
         let clock = Instant::now();
-        let unit_normals = vertex_normals(&tri, points, normals, params.normal_k)?;
+        unit_normals = vertex_normals(&tri, points, normals, params.normal_k)?;
         report.seconds.normals = clock.elapsed().as_secs_f64();
         let clock = Instant::now();
-        let spacing = vertex_spacing(&tri, points);
-        open_pockets(&mut surface, &unit_normals, &spacing, params);
+        spacing = vertex_spacing(&tri, points);
         report.seconds.pockets = clock.elapsed().as_secs_f64();
     } else if let Some(n) = normals {
         check_normals(points, n)?;
+    }
+    if params.pockets {
+        let clock = Instant::now();
+        open_pockets(&mut surface, &unit_normals, &spacing, params);
+        report.seconds.pockets += clock.elapsed().as_secs_f64();
     }
     report.tets_opened = surface.tets_opened;
     report.collapses = surface.collapses;
@@ -137,7 +150,12 @@ pub fn reconstruct(
     report.pseudo_surface_facets = surface.num_facets();
 
     let clock = Instant::now();
-    let mesh = extract_mesh(&surface, &tri, points, params, &mut report);
+    let solid = match thin_parts {
+        true => restore_thin_parts(&surface, &tri, &unit_normals, &spacing, params.thin_size),
+        false => Vec::new(),
+    };
+    report.thin_tets_restored = solid.iter().filter(|&&s| s).count();
+    let mesh = extract_mesh(&surface, &tri, &solid, points, params, &mut report);
     report.seconds.output = clock.elapsed().as_secs_f64();
     Ok(Reconstruction { mesh, report })
 }
@@ -245,24 +263,31 @@ fn open_pockets(surface: &mut PseudoSurface, normals: &[DVec3], spacing: &[f64],
 fn extract_mesh(
     surface: &PseudoSurface,
     tri: &Triangulation,
+    restored: &[bool],
     points: &[DVec3],
     params: &Params,
     report: &mut Report,
 ) -> TriMesh {
+    let sheet: Vec<OrientedFacet> = surface
+        .facets()
+        .filter(|&f| surface.is_coupled(f) && f < surface.mirror(f))
+        .collect();
+    let solid = |t: surfrecon_delaunay::TetId| {
+        !surface.is_external(t) || restored.get(t.index()).copied().unwrap_or(false)
+    };
+    // The boundary of the solid tetrahedra (those never swept plus those
+    // restored): without restoring, exactly the uncoupled surface facets.
     let mut triangles = Vec::with_capacity(surface.num_facets());
-    let mut sheet = Vec::new();
-    for f in surface.facets() {
-        if surface.is_coupled(f) {
-            if f < surface.mirror(f) {
-                sheet.push(f);
+    for t in tri.finite_tets().filter(|&t| solid(t)) {
+        for (slot, u) in tri.neighbors(t).into_iter().enumerate() {
+            if solid(u) && !tri.is_ghost(u) {
+                continue;
             }
-            continue;
-        }
-        let v = surface.vertices(f);
-        let input = v.map(|v| tri.input_of_vertex(v));
-        if let [Some(a), Some(b), Some(c)] = input {
-            // Facets face inward: swap two corners to face out.
-            triangles.push([a as u32, c as u32, b as u32]);
+            let input = tri.facet(t, slot).map(|v| tri.input_of_vertex(v));
+            if let [Some(a), Some(b), Some(c)] = input {
+                // Facets face inward: swap two corners to face out.
+                triangles.push([a as u32, c as u32, b as u32]);
+            }
         }
     }
     report.thin_facet_pairs = sheet.len();
@@ -281,6 +306,98 @@ fn extract_mesh(
         triangles,
         normals: None,
     }
+}
+
+/// Thin parts: where two fronts met (coupled facets left, or collapsed),
+/// the tetrahedra swept on either side are put back when they are small
+/// against the sampling (circumradius at most `size` local spacings, the
+/// largest at their vertices): their sweep went through a part thinner than
+/// the spacing, not through a cavity (whose meeting tetrahedra are large).
+/// Returns a flag per tetrahedron slot.
+fn restore_thin_parts(
+    surface: &PseudoSurface,
+    tri: &Triangulation,
+    normals: &[DVec3],
+    spacing: &[f64],
+    size: f64,
+) -> Vec<bool> {
+    let slots = tri.finite_tets().chain(tri.ghost_tets()).map(|t| t.index() + 1).max().unwrap_or(0);
+    let mut restored = vec![false; slots];
+    let met = surface
+        .facets()
+        .filter(|&f| surface.is_coupled(f))
+        .chain(surface.collapsed.iter().copied());
+    for f in met {
+        for t in [f.tet(), surface.mirror(f).tet()] {
+            if tri.is_ghost(t) || !surface.is_external(t) {
+                continue;
+            }
+            let widest = tri
+                .tet_vertices(t)
+                .iter()
+                .map(|v| spacing[v.index()])
+                .fold(0.0, f64::max);
+            if circumradius(tri.tet_points(t)) <= size * widest && spans_thin_part(tri, t, normals) {
+                restored[t.index()] = true;
+            }
+        }
+    }
+    keep_attached(surface, tri, restored)
+}
+
+/// Whether `t` reaches across a thin part: two of its corners face each
+/// other (parallel normals, the edge between them along the normal). A
+/// tetrahedron swept in a concave crease or lying flat on the surface joins
+/// corners whose normals differ or whose edge is tangent.
+fn spans_thin_part(tri: &Triangulation, t: surfrecon_delaunay::TetId, normals: &[DVec3]) -> bool {
+    const COSINE: f64 = 0.8;
+    let v = tri.tet_vertices(t);
+    (0..4).any(|i| {
+        (i + 1..4).any(|j| {
+            let (ni, nj) = (normals[v[i].index()], normals[v[j].index()]);
+            let edge = (tri.point(v[j]) - tri.point(v[i])).normalize_or_zero();
+            ni.dot(nj).abs() >= COSINE
+                && ni.dot(edge).abs() >= COSINE
+                && nj.dot(edge).abs() >= COSINE
+        })
+    })
+}
+
+/// Only the restored tetrahedra joined (through facets, over restored ones)
+/// to the unswept solid: a lone restored island would be a separate piece.
+fn keep_attached(surface: &PseudoSurface, tri: &Triangulation, candidate: Vec<bool>) -> Vec<bool> {
+    let mut attached = vec![false; candidate.len()];
+    let mut stack: Vec<surfrecon_delaunay::TetId> = tri
+        .finite_tets()
+        .filter(|&t| candidate[t.index()])
+        .filter(|&t| tri.neighbors(t).iter().any(|&u| !surface.is_external(u)))
+        .collect();
+    for &t in &stack {
+        attached[t.index()] = true;
+    }
+    while let Some(t) = stack.pop() {
+        for u in tri.neighbors(t) {
+            if candidate[u.index()] && !attached[u.index()] {
+                attached[u.index()] = true;
+                stack.push(u);
+            }
+        }
+    }
+    attached
+}
+
+/// Radius of the sphere through the four corners (infinite when flat).
+fn circumradius([a, b, c, d]: [DVec3; 4]) -> f64 {
+    let (u, v, w) = (b - a, c - a, d - a);
+    let det = 2.0 * u.dot(v.cross(w));
+    if det == 0.0 {
+        return f64::INFINITY;
+    }
+    let centre = (v.cross(w) * u.length_squared()
+        + w.cross(u) * v.length_squared()
+        + u.cross(v) * w.length_squared())
+        / det;
+    centre.length()
 }
 
 /// Connected components of the coupled facets, joined through edges.
