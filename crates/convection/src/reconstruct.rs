@@ -327,22 +327,25 @@ fn restore_thin_parts(
         .facets()
         .filter(|&f| surface.is_coupled(f))
         .chain(surface.collapsed.iter().copied());
+    let thin = |t: surfrecon_delaunay::TetId| {
+        if tri.is_ghost(t) || !surface.is_external(t) {
+            return false;
+        }
+        let widest = tri
+            .tet_vertices(t)
+            .iter()
+            .map(|v| spacing[v.index()])
+            .fold(0.0, f64::max);
+        circumradius(tri.tet_points(t)) <= size * widest && spans_thin_part(tri, t, normals)
+    };
     for f in met {
         for t in [f.tet(), surface.mirror(f).tet()] {
-            if tri.is_ghost(t) || !surface.is_external(t) {
-                continue;
-            }
-            let widest = tri
-                .tet_vertices(t)
-                .iter()
-                .map(|v| spacing[v.index()])
-                .fold(0.0, f64::max);
-            if circumradius(tri.tet_points(t)) <= size * widest && spans_thin_part(tri, t, normals) {
+            if thin(t) {
                 restored[t.index()] = true;
             }
         }
     }
-    keep_attached(surface, tri, restored)
+    keep_attached(surface, tri, restored, thin)
 }
 
 /// Whether `t` reaches across a thin part: two of its corners face each
@@ -365,7 +368,12 @@ fn spans_thin_part(tri: &Triangulation, t: surfrecon_delaunay::TetId, normals: &
 
 /// Only the restored tetrahedra joined (through facets, over restored ones)
 /// to the unswept solid: a lone restored island would be a separate piece.
-fn keep_attached(surface: &PseudoSurface, tri: &Triangulation, candidate: Vec<bool>) -> Vec<bool> {
+fn keep_attached(
+    surface: &PseudoSurface,
+    tri: &Triangulation,
+    candidate: Vec<bool>,
+    grows: impl Fn(surfrecon_delaunay::TetId) -> bool,
+) -> Vec<bool> {
     let mut attached = vec![false; candidate.len()];
     let mut stack: Vec<surfrecon_delaunay::TetId> = tri
         .finite_tets()
@@ -377,7 +385,7 @@ fn keep_attached(surface: &PseudoSurface, tri: &Triangulation, candidate: Vec<bo
     }
     while let Some(t) = stack.pop() {
         for u in tri.neighbors(t) {
-            if candidate[u.index()] && !attached[u.index()] {
+            if !attached[u.index()] && (candidate[u.index()] || grows(u)) {
                 attached[u.index()] = true;
                 stack.push(u);
             }
