@@ -258,8 +258,9 @@ fn open_pockets(surface: &mut PseudoSurface, normals: &[DVec3], spacing: &[f64],
     });
 }
 
-/// The manifold output mesh: coupled sheets left out, pinches removed,
-/// short holes closed.
+/// The manifold output mesh: coupled sheets left out, thin parts restored
+/// when that leaves fewer pieces and no more boundary edges, pinches
+/// removed, short holes closed.
 fn extract_mesh(
     surface: &PseudoSurface,
     tri: &Triangulation,
@@ -272,11 +273,58 @@ fn extract_mesh(
         .facets()
         .filter(|&f| surface.is_coupled(f) && f < surface.mirror(f))
         .collect();
+    report.thin_facet_pairs = sheet.len();
+    report.thin_parts = count_sheets(surface, &sheet);
+    let mut best = closed_boundary(surface, tri, &[], points, params);
+    report.thin_tets_restored = 0;
+    if restored.iter().any(|&r| r) {
+        // Restoring can pinch the surface where a thin part meets the rest;
+        // keep it only where it pays off as a whole.
+        let thick = closed_boundary(surface, tri, restored, points, params);
+        if thick.boundary_edges <= best.boundary_edges && thick.pieces < best.pieces {
+            report.thin_tets_restored = restored.iter().filter(|&&r| r).count();
+            best = thick;
+        }
+    }
+    let triangles = best.triangles;
+    report.nonmanifold_faces_removed = best.removed;
+    report.holes_filled = best.filled;
+    report.boundary_edges = best.boundary_edges;
+    report.facets = triangles.len();
+    let mut used = vec![false; points.len()];
+    for &v in triangles.iter().flatten() {
+        used[v as usize] = true;
+    }
+    report.kept_points = used.iter().filter(|&&u| u).count();
+    TriMesh {
+        vertices: points.to_vec(),
+        triangles,
+        normals: None,
+    }
+}
+
+/// Output faces by input index and what the clean-up did to them.
+struct Boundary {
+    triangles: Vec<[u32; 3]>,
+    removed: usize,
+    filled: usize,
+    boundary_edges: usize,
+    pieces: usize,
+}
+
+/// The boundary of the solid tetrahedra (never swept, or `restored`),
+/// made manifold with short holes closed. With nothing restored these are
+/// exactly the uncoupled surface facets.
+fn closed_boundary(
+    surface: &PseudoSurface,
+    tri: &Triangulation,
+    restored: &[bool],
+    points: &[DVec3],
+    params: &Params,
+) -> Boundary {
     let solid = |t: surfrecon_delaunay::TetId| {
         !surface.is_external(t) || restored.get(t.index()).copied().unwrap_or(false)
     };
-    // The boundary of the solid tetrahedra (those never swept plus those
-    // restored): without restoring, exactly the uncoupled surface facets.
     let mut triangles = Vec::with_capacity(surface.num_facets());
     for t in tri.finite_tets().filter(|&t| solid(t)) {
         for (slot, u) in tri.neighbors(t).into_iter().enumerate() {
@@ -290,22 +338,41 @@ fn extract_mesh(
             }
         }
     }
-    report.thin_facet_pairs = sheet.len();
-    report.thin_parts = count_sheets(surface, &sheet);
-    report.nonmanifold_faces_removed = make_manifold(&mut triangles);
-    report.holes_filled = fill_small_holes(&mut triangles, points, params.max_hole_edges);
-    report.boundary_edges = boundary_edges(&triangles);
-    report.facets = triangles.len();
-    let mut used = vec![false; points.len()];
+    let removed = make_manifold(&mut triangles);
+    let filled = fill_small_holes(&mut triangles, points, params.max_hole_edges);
+    Boundary {
+        boundary_edges: boundary_edges(&triangles),
+        pieces: count_pieces(&triangles, points.len()),
+        triangles,
+        removed,
+        filled,
+    }
+}
+
+/// Connected components of the faces, joined through shared vertices.
+fn count_pieces(triangles: &[[u32; 3]], vertices: usize) -> usize {
+    let mut parent: Vec<usize> = (0..vertices).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for &[a, b, c] in triangles {
+        let ra = root(&mut parent, a as usize);
+        for v in [b, c] {
+            let rv = root(&mut parent, v as usize);
+            parent[rv] = ra;
+        }
+    }
+    let mut used = vec![false; vertices];
     for &v in triangles.iter().flatten() {
         used[v as usize] = true;
     }
-    report.kept_points = used.iter().filter(|&&u| u).count();
-    TriMesh {
-        vertices: points.to_vec(),
-        triangles,
-        normals: None,
-    }
+    (0..vertices)
+        .filter(|&v| used[v] && root(&mut parent, v) == v)
+        .count()
 }
 
 /// Thin parts: where two fronts met (coupled facets left, or collapsed),
