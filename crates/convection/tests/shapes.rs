@@ -133,3 +133,40 @@ fn bunny_scan_vertices_give_a_closed_surface() {
         fit.chamfer_l1 / fit.diagonal
     );
 }
+
+/// A sphere with a thin fin through its equator, thinner than the sample
+/// spacing on the fin: the plain convection sweeps the inside of the fin and
+/// cuts it up; putting the thin part back leaves fewer pieces, every one
+/// closed, and never more than without.
+#[test]
+fn thin_fin_stays_in_fewer_pieces() {
+    use surfrecon_geom::shapes::cuboid;
+    let sphere = icosphere(DVec3::ZERO, 1.0, 4);
+    let fin = cuboid(DVec3::new(-1.8, -1.8, -0.02), DVec3::new(1.8, 1.8, 0.02));
+    let mut points: Vec<DVec3> = sample_surface(&sphere, 4000, 7)
+        .positions
+        .into_iter()
+        .filter(|p| p.z.abs() > 0.02)
+        .collect();
+    points.extend(
+        sample_surface(&fin, 6000, 8)
+            .positions
+            .into_iter()
+            .filter(|p| p.length() > 1.0),
+    );
+    let plain = reconstruct(
+        &points,
+        None,
+        &Params {
+            thin_size: 0.0,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    let thin = run(&points);
+    let (before, after) = (topology(&plain.mesh), topology(&thin.mesh));
+    eprintln!("{:?}\n{before:?}\n{:?}\n{after:?}", plain.report, thin.report);
+    assert!(after.watertight && after.vertex_manifold, "{after:?}");
+    assert!(after.components < before.components, "{before:?} {after:?}");
+    assert!(thin.report.thin_tets_restored > 0);
+}
