@@ -1,5 +1,6 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
+use crate::decimate::{decimate, Decimation};
 use crate::error::{ConvectionError, Result};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::surface::{Opening, OrientedFacet, PseudoSurface};
@@ -27,6 +28,14 @@ pub struct Params {
     /// or collapsed) whose circumradius is at most this many local spacings
     /// are put back inside, so thin parts stay solid and attached (0: off).
     pub thin_size: f64,
+    /// Decimation ball radius as a fraction of the bounding-box diagonal
+    /// (0: keep every point). See [`crate::decimate`].
+    pub rho: f64,
+    /// The geometric criterion's cosine: neighbours whose normal is within
+    /// it of the kept point's are removed (the paper's ρ).
+    pub rho_geometric: f64,
+    /// The topological-disk criterion's cosine ρ′ (1: off).
+    pub rho_topo: f64,
     /// Close boundary loops of at most this many edges left by the
     /// manifold clean-up, by ear clipping through their own vertices (0:
     /// leave every hole open).
@@ -41,6 +50,9 @@ impl Default for Params {
             pocket_cosine: 0.5,
             pocket_size: 8.0,
             thin_size: 1.5,
+            rho: 0.0,
+            rho_geometric: 0.9,
+            rho_topo: 0.95,
             max_hole_edges: 24,
         }
     }
@@ -49,6 +61,7 @@ impl Default for Params {
 /// Seconds spent in each stage.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Timings {
+    pub decimation: f64,
     pub delaunay: f64,
     pub normals: f64,
     pub convection: f64,
@@ -61,6 +74,8 @@ pub struct Timings {
 pub struct Report {
     /// Input points.
     pub points: usize,
+    /// Input points removed by the decimation (`rho`).
+    pub decimated: usize,
     /// Input points that are exact duplicates of an earlier one.
     pub duplicates: usize,
     /// Points used by the output faces.
@@ -113,6 +128,58 @@ pub fn reconstruct(
     params: &Params,
 ) -> Result<Reconstruction> {
     check_params(params)?;
+    if let Some(n) = normals {
+        check_normals(points, n)?;
+    }
+    if params.rho == 0.0 || points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
+        // Bad points get their error from the triangulation.
+        return reconstruct_all(points, normals, params);
+    }
+    let clock = Instant::now();
+    let unit: Vec<DVec3> = match normals {
+        Some(n) => n.iter().map(|v| v.normalize()).collect(),
+        None => estimate_normals(points, params.normal_k),
+    };
+    let settings = Decimation {
+        radius: params.rho * bounding_diagonal(points),
+        geometric: params.rho_geometric,
+        topological: params.rho_topo,
+    };
+    let keep = decimate(points, &unit, &settings);
+    let kept: Vec<usize> = (0..points.len()).filter(|&i| keep[i]).collect();
+    let sub_points: Vec<DVec3> = kept.iter().map(|&i| points[i]).collect();
+    // Estimated normals can vanish on degenerate neighbourhoods.
+    let sub_normals: Vec<DVec3> = kept
+        .iter()
+        .map(|&i| match unit[i] {
+            n if n.is_finite() && n != DVec3::ZERO => n,
+            _ => DVec3::Z,
+        })
+        .collect();
+    let seconds = clock.elapsed().as_secs_f64();
+    let mut r = reconstruct_all(&sub_points, Some(&sub_normals), params)?;
+    for t in &mut r.mesh.triangles {
+        *t = t.map(|v| kept[v as usize] as u32);
+    }
+    r.mesh.vertices = points.to_vec();
+    r.report.points = points.len();
+    r.report.decimated = points.len() - kept.len();
+    r.report.seconds.decimation = seconds;
+    Ok(r)
+}
+
+fn bounding_diagonal(points: &[DVec3]) -> f64 {
+    let lo = points.iter().fold(DVec3::splat(f64::MAX), |a, &p| a.min(p));
+    let hi = points.iter().fold(DVec3::splat(f64::MIN), |a, &p| a.max(p));
+    lo.distance(hi)
+}
+
+/// [`reconstruct`] through every point.
+fn reconstruct_all(
+    points: &[DVec3],
+    normals: Option<&[DVec3]>,
+    params: &Params,
+) -> Result<Reconstruction> {
     let mut report = Report {
         points: points.len(),
         ..Default::default()
@@ -161,6 +228,25 @@ pub fn reconstruct(
 }
 
 fn check_params(params: &Params) -> Result<()> {
+    for (name, value) in [
+        ("rho_geometric", params.rho_geometric),
+        ("rho_topo", params.rho_topo),
+    ] {
+        if !(0.0..=1.0).contains(&value) {
+            return Err(ConvectionError::BadParameter {
+                name,
+                value,
+                range: "0 to 1",
+            });
+        }
+    }
+    if !(0.0..1.0).contains(&params.rho) {
+        return Err(ConvectionError::BadParameter {
+            name: "rho",
+            value: params.rho,
+            range: "0 to 1 (fraction of the diagonal)",
+        });
+    }
     let c = params.pocket_cosine;
     if !(0.0..=1.0).contains(&c) {
         return Err(ConvectionError::BadParameter {
@@ -388,7 +474,12 @@ fn restore_thin_parts(
     spacing: &[f64],
     size: f64,
 ) -> Vec<bool> {
-    let slots = tri.finite_tets().chain(tri.ghost_tets()).map(|t| t.index() + 1).max().unwrap_or(0);
+    let slots = tri
+        .finite_tets()
+        .chain(tri.ghost_tets())
+        .map(|t| t.index() + 1)
+        .max()
+        .unwrap_or(0);
     let mut restored = vec![false; slots];
     let met = surface
         .facets()

@@ -165,8 +165,34 @@ fn thin_fin_stays_in_fewer_pieces() {
     .unwrap();
     let thin = run(&points);
     let (before, after) = (topology(&plain.mesh), topology(&thin.mesh));
-    eprintln!("{:?}\n{before:?}\n{:?}\n{after:?}", plain.report, thin.report);
+    eprintln!(
+        "{:?}\n{before:?}\n{:?}\n{after:?}",
+        plain.report, thin.report
+    );
     assert!(after.watertight && after.vertex_manifold, "{after:?}");
     assert!(after.components < before.components, "{before:?} {after:?}");
     assert!(thin.report.thin_tets_restored > 0);
+}
+
+/// Decimation: a larger ρ keeps strictly fewer points; the mesh uses only
+/// kept points and stays a closed sphere close to the truth.
+#[test]
+fn rho_controls_the_kept_count_monotonically() {
+    let truth = icosphere(DVec3::ZERO, 1.0, 5);
+    let points = sample_surface(&truth, 5000, 11).positions;
+    let mut previous = points.len() + 1;
+    for rho in [0.0, 0.01, 0.02, 0.04] {
+        let params = Params {
+            rho,
+            ..Params::default()
+        };
+        let r = reconstruct(&points, None, &params).unwrap();
+        let kept = points.len() - r.report.decimated;
+        assert!(kept < previous, "rho {rho}: {kept} kept, {previous} before");
+        assert!(r.report.kept_points <= kept, "faces use removed points");
+        assert_closed_genus(&r, points.len(), 0);
+        let cd = relative_chamfer(&r.mesh, &truth);
+        assert!(cd < 4.0 * rho.max(5e-4), "rho {rho}: chamfer {cd}");
+        previous = kept;
+    }
 }
