@@ -34,6 +34,10 @@ pub struct ConvectionArgs {
     /// Stop at the Gabriel convection: do not open pockets with normals.
     #[arg(long)]
     pub no_pockets: bool,
+    /// Never put thin parts back inside (spike tips and thin fins swept by
+    /// the convection stay cut off).
+    #[arg(long)]
+    pub no_thin_parts: bool,
     /// Neighbours used to estimate normals (pocket test) when the input has none.
     #[arg(long = "convection-normal-k", default_value_t = 12)]
     pub normal_k: usize,
@@ -51,6 +55,11 @@ pub fn run(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
     let params = Params {
         normal_k: c.normal_k,
         pockets: !c.no_pockets,
+        thin_size: if c.no_thin_parts {
+            0.0
+        } else {
+            Params::default().thin_size
+        },
         max_hole_edges: c.fill_holes,
         rho: c.rho,
         rho_geometric: c.rho_geom,
