@@ -48,7 +48,7 @@ fn convection_interpolates_a_torus_and_reports_its_stages() {
 }
 
 #[test]
-fn convection_rejects_flat_input_and_unsupported_decimation() {
+fn convection_rejects_flat_input_and_an_out_of_range_rho() {
     let dir = tempfile::tempdir().unwrap();
     let flat = dir.path().join("flat.xyz");
     let points: Vec<_> = (0..30)
@@ -77,8 +77,10 @@ fn convection_rejects_flat_input_and_unsupported_decimation() {
         "--method",
         "convection",
         "--rho",
-        "0.01",
+        "1.5",
     ]);
     assert!(!run.status.success());
-    assert!(String::from_utf8_lossy(&run.stderr).contains("--rho"));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("rho = 1.5"), "{err}");
+    assert!(!out.exists(), "no output file after a failure");
 }

@@ -15,13 +15,23 @@
 //! 3. pockets: facets nearly perpendicular to the point normals at all
 //!    three vertices (given, or estimated by a plane fit) are opened too;
 //! 4. output ([`manifold`]): sheets of coupled facets left at convergence
-//!    (thin parts) are left out, faces where the surface pinches are removed
+//!    are left out, faces where the surface pinches are removed
 //!    so the mesh is manifold, optionally short holes are closed; the
 //!    boundary edges left are reported.
 //!
-//! Not done yet (see the paper): decimation on the fly, thin parts by 2D
-//! convection, dynamic insertion and removal.
+//! 5. thin parts: where two fronts met across a part thinner than the
+//!    sampling, the small swept tetrahedra spanning it are put back inside
+//!    when that leaves fewer pieces (a stand-in for the paper's 2D
+//!    convection of the sheets).
+//!
+//! With `Params::rho > 0` the input is first decimated by the paper's
+//! geometric and topological-disk criteria ([`decimate`]), before the
+//! triangulation rather than on the fly.
+//!
+//! Not done yet (see the paper): decimation on the fly during the
+//! convection, thin parts by 2D convection, dynamic insertion and removal.
 
+pub mod decimate;
 mod error;
 pub mod gabriel;
 pub mod manifold;

@@ -1,5 +1,6 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
+use crate::decimate::{decimate, Decimation};
 use crate::error::{ConvectionError, Result};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::surface::{Opening, OrientedFacet, PseudoSurface};
@@ -23,6 +24,18 @@ pub struct Params {
     /// ... and its longest edge exceeds this many local spacings (mean
     /// distance to the 6 nearest neighbours, largest of its vertices).
     pub pocket_size: f64,
+    /// Thin parts: swept tetrahedra next to a sheet of coupled facets (left
+    /// or collapsed) whose circumradius is at most this many local spacings
+    /// are put back inside, so thin parts stay solid and attached (0: off).
+    pub thin_size: f64,
+    /// Decimation ball radius as a fraction of the bounding-box diagonal
+    /// (0: keep every point). See [`crate::decimate`].
+    pub rho: f64,
+    /// The geometric criterion's cosine: neighbours whose normal is within
+    /// it of the kept point's are removed (the paper's ρ).
+    pub rho_geometric: f64,
+    /// The topological-disk criterion's cosine ρ′ (1: off).
+    pub rho_topo: f64,
     /// Close boundary loops of at most this many edges left by the
     /// manifold clean-up, by ear clipping through their own vertices (0:
     /// leave every hole open).
@@ -36,6 +49,10 @@ impl Default for Params {
             pockets: true,
             pocket_cosine: 0.5,
             pocket_size: 8.0,
+            thin_size: 1.5,
+            rho: 0.0,
+            rho_geometric: 0.9,
+            rho_topo: 0.95,
             max_hole_edges: 24,
         }
     }
@@ -44,6 +61,7 @@ impl Default for Params {
 /// Seconds spent in each stage.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Timings {
+    pub decimation: f64,
     pub delaunay: f64,
     pub normals: f64,
     pub convection: f64,
@@ -56,6 +74,8 @@ pub struct Timings {
 pub struct Report {
     /// Input points.
     pub points: usize,
+    /// Input points removed by the decimation (`rho`).
+    pub decimated: usize,
     /// Input points that are exact duplicates of an earlier one.
     pub duplicates: usize,
     /// Points used by the output faces.
@@ -75,6 +95,8 @@ pub struct Report {
     pub thin_facet_pairs: usize,
     /// Connected sheets those pairs form.
     pub thin_parts: usize,
+    /// Swept tetrahedra put back inside at thin parts.
+    pub thin_tets_restored: usize,
     /// Faces removed where parts of the surface pinch (non-manifold edges
     /// or vertices).
     pub nonmanifold_faces_removed: usize,
@@ -106,6 +128,58 @@ pub fn reconstruct(
     params: &Params,
 ) -> Result<Reconstruction> {
     check_params(params)?;
+    if let Some(n) = normals {
+        check_normals(points, n)?;
+    }
+    if params.rho == 0.0 || points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
+        // Bad points get their error from the triangulation.
+        return reconstruct_all(points, normals, params);
+    }
+    let clock = Instant::now();
+    let unit: Vec<DVec3> = match normals {
+        Some(n) => n.iter().map(|v| v.normalize()).collect(),
+        None => estimate_normals(points, params.normal_k),
+    };
+    let settings = Decimation {
+        radius: params.rho * bounding_diagonal(points),
+        geometric: params.rho_geometric,
+        topological: params.rho_topo,
+    };
+    let keep = decimate(points, &unit, &settings);
+    let kept: Vec<usize> = (0..points.len()).filter(|&i| keep[i]).collect();
+    let sub_points: Vec<DVec3> = kept.iter().map(|&i| points[i]).collect();
+    // Estimated normals can vanish on degenerate neighbourhoods.
+    let sub_normals: Vec<DVec3> = kept
+        .iter()
+        .map(|&i| match unit[i] {
+            n if n.is_finite() && n != DVec3::ZERO => n,
+            _ => DVec3::Z,
+        })
+        .collect();
+    let seconds = clock.elapsed().as_secs_f64();
+    let mut r = reconstruct_all(&sub_points, Some(&sub_normals), params)?;
+    for t in &mut r.mesh.triangles {
+        *t = t.map(|v| kept[v as usize] as u32);
+    }
+    r.mesh.vertices = points.to_vec();
+    r.report.points = points.len();
+    r.report.decimated = points.len() - kept.len();
+    r.report.seconds.decimation = seconds;
+    Ok(r)
+}
+
+fn bounding_diagonal(points: &[DVec3]) -> f64 {
+    let lo = points.iter().fold(DVec3::splat(f64::MAX), |a, &p| a.min(p));
+    let hi = points.iter().fold(DVec3::splat(f64::MIN), |a, &p| a.max(p));
+    lo.distance(hi)
+}
+
+/// [`reconstruct`] through every point.
+fn reconstruct_all(
+    points: &[DVec3],
+    normals: Option<&[DVec3]>,
+    params: &Params,
+) -> Result<Reconstruction> {
     let mut report = Report {
         points: points.len(),
         ..Default::default()
@@ -120,16 +194,22 @@ pub fn reconstruct(
     surface.convect(|s, f| s.violates_gabriel(f).then_some(Opening::Gabriel));
     report.seconds.convection = clock.elapsed().as_secs_f64();
 
-    if params.pockets {
+    let thin_parts = params.thin_size > 0.0;
+    let (mut unit_normals, mut spacing) = (Vec::new(), Vec::new());
+    if params.pockets || thin_parts {
         let clock = Instant::now();
-        let unit_normals = vertex_normals(&tri, points, normals, params.normal_k)?;
+        unit_normals = vertex_normals(&tri, points, normals, params.normal_k)?;
         report.seconds.normals = clock.elapsed().as_secs_f64();
         let clock = Instant::now();
-        let spacing = vertex_spacing(&tri, points);
-        open_pockets(&mut surface, &unit_normals, &spacing, params);
+        spacing = vertex_spacing(&tri, points);
         report.seconds.pockets = clock.elapsed().as_secs_f64();
     } else if let Some(n) = normals {
         check_normals(points, n)?;
+    }
+    if params.pockets {
+        let clock = Instant::now();
+        open_pockets(&mut surface, &unit_normals, &spacing, params);
+        report.seconds.pockets += clock.elapsed().as_secs_f64();
     }
     report.tets_opened = surface.tets_opened;
     report.collapses = surface.collapses;
@@ -137,12 +217,36 @@ pub fn reconstruct(
     report.pseudo_surface_facets = surface.num_facets();
 
     let clock = Instant::now();
-    let mesh = extract_mesh(&surface, &tri, points, params, &mut report);
+    let solid = match thin_parts {
+        true => restore_thin_parts(&surface, &tri, &unit_normals, &spacing, params.thin_size),
+        false => Vec::new(),
+    };
+    report.thin_tets_restored = solid.iter().filter(|&&s| s).count();
+    let mesh = extract_mesh(&surface, &tri, &solid, points, params, &mut report);
     report.seconds.output = clock.elapsed().as_secs_f64();
     Ok(Reconstruction { mesh, report })
 }
 
 fn check_params(params: &Params) -> Result<()> {
+    for (name, value) in [
+        ("rho_geometric", params.rho_geometric),
+        ("rho_topo", params.rho_topo),
+    ] {
+        if !(0.0..=1.0).contains(&value) {
+            return Err(ConvectionError::BadParameter {
+                name,
+                value,
+                range: "0 to 1",
+            });
+        }
+    }
+    if !(0.0..1.0).contains(&params.rho) {
+        return Err(ConvectionError::BadParameter {
+            name: "rho",
+            value: params.rho,
+            range: "0 to 1 (fraction of the diagonal)",
+        });
+    }
     let c = params.pocket_cosine;
     if !(0.0..=1.0).contains(&c) {
         return Err(ConvectionError::BadParameter {
@@ -240,36 +344,38 @@ fn open_pockets(surface: &mut PseudoSurface, normals: &[DVec3], spacing: &[f64],
     });
 }
 
-/// The manifold output mesh: coupled sheets left out, pinches removed,
-/// short holes closed.
+/// The manifold output mesh: coupled sheets left out, thin parts restored
+/// when that leaves fewer pieces and no more boundary edges, pinches
+/// removed, short holes closed.
 fn extract_mesh(
     surface: &PseudoSurface,
     tri: &Triangulation,
+    restored: &[bool],
     points: &[DVec3],
     params: &Params,
     report: &mut Report,
 ) -> TriMesh {
-    let mut triangles = Vec::with_capacity(surface.num_facets());
-    let mut sheet = Vec::new();
-    for f in surface.facets() {
-        if surface.is_coupled(f) {
-            if f < surface.mirror(f) {
-                sheet.push(f);
-            }
-            continue;
-        }
-        let v = surface.vertices(f);
-        let input = v.map(|v| tri.input_of_vertex(v));
-        if let [Some(a), Some(b), Some(c)] = input {
-            // Facets face inward: swap two corners to face out.
-            triangles.push([a as u32, c as u32, b as u32]);
-        }
-    }
+    let sheet: Vec<OrientedFacet> = surface
+        .facets()
+        .filter(|&f| surface.is_coupled(f) && f < surface.mirror(f))
+        .collect();
     report.thin_facet_pairs = sheet.len();
     report.thin_parts = count_sheets(surface, &sheet);
-    report.nonmanifold_faces_removed = make_manifold(&mut triangles);
-    report.holes_filled = fill_small_holes(&mut triangles, points, params.max_hole_edges);
-    report.boundary_edges = boundary_edges(&triangles);
+    let mut best = closed_boundary(surface, tri, &[], points, params);
+    report.thin_tets_restored = 0;
+    if restored.iter().any(|&r| r) {
+        // Restoring can pinch the surface where a thin part meets the rest;
+        // keep it only where it pays off as a whole.
+        let thick = closed_boundary(surface, tri, restored, points, params);
+        if thick.boundary_edges <= best.boundary_edges && thick.pieces < best.pieces {
+            report.thin_tets_restored = restored.iter().filter(|&&r| r).count();
+            best = thick;
+        }
+    }
+    let triangles = best.triangles;
+    report.nonmanifold_faces_removed = best.removed;
+    report.holes_filled = best.filled;
+    report.boundary_edges = best.boundary_edges;
     report.facets = triangles.len();
     let mut used = vec![false; points.len()];
     for &v in triangles.iter().flatten() {
@@ -281,6 +387,183 @@ fn extract_mesh(
         triangles,
         normals: None,
     }
+}
+
+/// Output faces by input index and what the clean-up did to them.
+struct Boundary {
+    triangles: Vec<[u32; 3]>,
+    removed: usize,
+    filled: usize,
+    boundary_edges: usize,
+    pieces: usize,
+}
+
+/// The boundary of the solid tetrahedra (never swept, or `restored`),
+/// made manifold with short holes closed. With nothing restored these are
+/// exactly the uncoupled surface facets.
+fn closed_boundary(
+    surface: &PseudoSurface,
+    tri: &Triangulation,
+    restored: &[bool],
+    points: &[DVec3],
+    params: &Params,
+) -> Boundary {
+    let solid = |t: surfrecon_delaunay::TetId| {
+        !surface.is_external(t) || restored.get(t.index()).copied().unwrap_or(false)
+    };
+    let mut triangles = Vec::with_capacity(surface.num_facets());
+    for t in tri.finite_tets().filter(|&t| solid(t)) {
+        for (slot, u) in tri.neighbors(t).into_iter().enumerate() {
+            if solid(u) && !tri.is_ghost(u) {
+                continue;
+            }
+            let input = tri.facet(t, slot).map(|v| tri.input_of_vertex(v));
+            if let [Some(a), Some(b), Some(c)] = input {
+                // Facets face inward: swap two corners to face out.
+                triangles.push([a as u32, c as u32, b as u32]);
+            }
+        }
+    }
+    let removed = make_manifold(&mut triangles);
+    let filled = fill_small_holes(&mut triangles, points, params.max_hole_edges);
+    Boundary {
+        boundary_edges: boundary_edges(&triangles),
+        pieces: count_pieces(&triangles, points.len()),
+        triangles,
+        removed,
+        filled,
+    }
+}
+
+/// Connected components of the faces, joined through shared vertices.
+fn count_pieces(triangles: &[[u32; 3]], vertices: usize) -> usize {
+    let mut parent: Vec<usize> = (0..vertices).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for &[a, b, c] in triangles {
+        let ra = root(&mut parent, a as usize);
+        for v in [b, c] {
+            let rv = root(&mut parent, v as usize);
+            parent[rv] = ra;
+        }
+    }
+    let mut used = vec![false; vertices];
+    for &v in triangles.iter().flatten() {
+        used[v as usize] = true;
+    }
+    (0..vertices)
+        .filter(|&v| used[v] && root(&mut parent, v) == v)
+        .count()
+}
+
+/// Thin parts: where two fronts met (coupled facets left, or collapsed),
+/// the tetrahedra swept on either side are put back when they are small
+/// against the sampling (circumradius at most `size` local spacings, the
+/// largest at their vertices): their sweep went through a part thinner than
+/// the spacing, not through a cavity (whose meeting tetrahedra are large).
+/// Returns a flag per tetrahedron slot.
+fn restore_thin_parts(
+    surface: &PseudoSurface,
+    tri: &Triangulation,
+    normals: &[DVec3],
+    spacing: &[f64],
+    size: f64,
+) -> Vec<bool> {
+    let slots = tri
+        .finite_tets()
+        .chain(tri.ghost_tets())
+        .map(|t| t.index() + 1)
+        .max()
+        .unwrap_or(0);
+    let mut restored = vec![false; slots];
+    let met = surface
+        .facets()
+        .filter(|&f| surface.is_coupled(f))
+        .chain(surface.collapsed.iter().copied());
+    let thin = |t: surfrecon_delaunay::TetId| {
+        if tri.is_ghost(t) || !surface.is_external(t) {
+            return false;
+        }
+        let widest = tri
+            .tet_vertices(t)
+            .iter()
+            .map(|v| spacing[v.index()])
+            .fold(0.0, f64::max);
+        circumradius(tri.tet_points(t)) <= size * widest && spans_thin_part(tri, t, normals)
+    };
+    for f in met {
+        for t in [f.tet(), surface.mirror(f).tet()] {
+            if thin(t) {
+                restored[t.index()] = true;
+            }
+        }
+    }
+    keep_attached(surface, tri, restored, thin)
+}
+
+/// Whether `t` reaches across a thin part: two of its corners face each
+/// other (parallel normals, the edge between them along the normal). A
+/// tetrahedron swept in a concave crease or lying flat on the surface joins
+/// corners whose normals differ or whose edge is tangent.
+fn spans_thin_part(tri: &Triangulation, t: surfrecon_delaunay::TetId, normals: &[DVec3]) -> bool {
+    const COSINE: f64 = 0.8;
+    let v = tri.tet_vertices(t);
+    (0..4).any(|i| {
+        (i + 1..4).any(|j| {
+            let (ni, nj) = (normals[v[i].index()], normals[v[j].index()]);
+            let edge = (tri.point(v[j]) - tri.point(v[i])).normalize_or_zero();
+            ni.dot(nj).abs() >= COSINE
+                && ni.dot(edge).abs() >= COSINE
+                && nj.dot(edge).abs() >= COSINE
+        })
+    })
+}
+
+/// Only the restored tetrahedra joined (through facets, over restored ones)
+/// to the unswept solid: a lone restored island would be a separate piece.
+fn keep_attached(
+    surface: &PseudoSurface,
+    tri: &Triangulation,
+    candidate: Vec<bool>,
+    grows: impl Fn(surfrecon_delaunay::TetId) -> bool,
+) -> Vec<bool> {
+    let mut attached = vec![false; candidate.len()];
+    let mut stack: Vec<surfrecon_delaunay::TetId> = tri
+        .finite_tets()
+        .filter(|&t| candidate[t.index()])
+        .filter(|&t| tri.neighbors(t).iter().any(|&u| !surface.is_external(u)))
+        .collect();
+    for &t in &stack {
+        attached[t.index()] = true;
+    }
+    while let Some(t) = stack.pop() {
+        for u in tri.neighbors(t) {
+            if !attached[u.index()] && (candidate[u.index()] || grows(u)) {
+                attached[u.index()] = true;
+                stack.push(u);
+            }
+        }
+    }
+    attached
+}
+
+/// Radius of the sphere through the four corners (infinite when flat).
+fn circumradius([a, b, c, d]: [DVec3; 4]) -> f64 {
+    let (u, v, w) = (b - a, c - a, d - a);
+    let det = 2.0 * u.dot(v.cross(w));
+    if det == 0.0 {
+        return f64::INFINITY;
+    }
+    let centre = (v.cross(w) * u.length_squared()
+        + w.cross(u) * v.length_squared()
+        + u.cross(v) * w.length_squared())
+        / det;
+    centre.length()
 }
 
 /// Connected components of the coupled facets, joined through edges.

@@ -62,6 +62,8 @@ pub(crate) struct PseudoSurface<'a> {
     facets: usize,
     pub tets_opened: usize,
     pub collapses: usize,
+    /// One oriented facet of every collapsed pair: where two fronts met.
+    pub collapsed: Vec<OrientedFacet>,
     pub pockets_opened: usize,
 }
 
@@ -82,6 +84,7 @@ impl<'a> PseudoSurface<'a> {
             facets: 0,
             tets_opened: 0,
             collapses: 0,
+            collapsed: Vec::new(),
             pockets_opened: 0,
         };
         for g in tri.ghost_tets() {
@@ -107,6 +110,11 @@ impl<'a> PseudoSurface<'a> {
     /// surface too).
     pub fn is_coupled(&self, f: OrientedFacet) -> bool {
         self.external[f.tet().index()]
+    }
+
+    /// Whether the surface has swept tetrahedron `t` (every ghost is).
+    pub fn is_external(&self, t: TetId) -> bool {
+        self.external[t.index()]
     }
 
     /// The same triangle seen from the other side.
@@ -196,6 +204,7 @@ impl<'a> PseudoSurface<'a> {
             self.remove(m);
         }
         self.collapses += 1;
+        self.collapsed.push(f);
     }
 
     fn add(&mut self, f: OrientedFacet) {

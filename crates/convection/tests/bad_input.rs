@@ -93,3 +93,28 @@ fn duplicated_cube_corners_give_the_closed_hull() {
     corners.dedup();
     assert_eq!(corners.len(), 8);
 }
+
+#[test]
+fn decimation_settings_out_of_range_are_errors() {
+    for (rho, rho_topo) in [(1.5, 0.95), (f64::NAN, 0.95), (-0.1, 0.95), (0.01, 2.0)] {
+        let params = Params {
+            rho,
+            rho_topo,
+            ..Params::default()
+        };
+        let e = reconstruct(&cube_corners(), None, &params).unwrap_err();
+        assert!(matches!(e, ConvectionError::BadParameter { .. }), "{e}");
+    }
+    // Decimating coplanar points still reports the flat input.
+    let plane: Vec<DVec3> = (0..50)
+        .map(|i| DVec3::new((i % 7) as f64, (i / 7) as f64, 2.0))
+        .collect();
+    let params = Params {
+        rho: 0.2,
+        ..Params::default()
+    };
+    assert!(matches!(
+        reconstruct(&plane, None, &params).unwrap_err(),
+        ConvectionError::Delaunay(_)
+    ));
+}

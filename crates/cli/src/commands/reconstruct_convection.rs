@@ -14,13 +14,18 @@ use surfrecon_geom::{io, Geometry};
 /// Convection-specific flags of `surfrecon reconstruct --method convection`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct ConvectionArgs {
-    /// Geometric simplification radius ρ, as a fraction of the bounding-box
-    /// diagonal (0: keep every point; decimation is not implemented yet).
+    /// Decimation: the largest radius of the ball over which a kept point
+    /// removes its neighbours, as a fraction of the bounding-box diagonal
+    /// (0: keep every point).
     #[arg(long, default_value_t = 0.0)]
     pub rho: f64,
-    /// Topological-disk simplification radius ρ′ (0: off; not implemented
-    /// yet).
-    #[arg(long = "rho-topo", default_value_t = 0.0)]
+    /// Decimation, geometric criterion: a neighbour is removed only while
+    /// |n_i · n(p)| exceeds this cosine (the paper's ρ, 0.9 to 0.98).
+    #[arg(long = "rho-geom", default_value_t = 0.9)]
+    pub rho_geom: f64,
+    /// Decimation, topological-disk criterion ρ′: ... and while
+    /// |n(p) · (p − p_i)/|p − p_i|| stays below this cosine (1: off).
+    #[arg(long = "rho-topo", default_value_t = 0.95)]
     pub rho_topo: f64,
     /// Close boundary loops of at most this many edges left where the
     /// surface pinched (0: leave them open and report them).
@@ -29,6 +34,10 @@ pub struct ConvectionArgs {
     /// Stop at the Gabriel convection: do not open pockets with normals.
     #[arg(long)]
     pub no_pockets: bool,
+    /// Never put thin parts back inside (spike tips and thin fins swept by
+    /// the convection stay cut off).
+    #[arg(long)]
+    pub no_thin_parts: bool,
     /// Neighbours used to estimate normals (pocket test) when the input has none.
     #[arg(long = "convection-normal-k", default_value_t = 12)]
     pub normal_k: usize,
@@ -39,9 +48,6 @@ pub fn run(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
     if args.field.is_some() || args.shell.is_some() || args.two_d {
         anyhow::bail!("--field, --shell and --2d apply to --method levelset only");
     }
-    if c.rho != 0.0 || c.rho_topo != 0.0 {
-        anyhow::bail!("--rho and --rho-topo (decimation) are not implemented yet for --method convection; use 0");
-    }
     let points = &geometry.points;
     if points.positions.is_empty() {
         anyhow::bail!("{} has no points to reconstruct from", args.input.display());
@@ -49,7 +55,15 @@ pub fn run(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
     let params = Params {
         normal_k: c.normal_k,
         pockets: !c.no_pockets,
+        thin_size: if c.no_thin_parts {
+            0.0
+        } else {
+            Params::default().thin_size
+        },
         max_hole_edges: c.fill_holes,
+        rho: c.rho,
+        rho_geometric: c.rho_geom,
+        rho_topo: c.rho_topo,
         ..Params::default()
     };
     let r = reconstruct(&points.positions, points.normals.as_deref(), &params)
