@@ -474,13 +474,7 @@ fn restore_thin_parts(
     spacing: &[f64],
     size: f64,
 ) -> Vec<bool> {
-    let slots = tri
-        .finite_tets()
-        .chain(tri.ghost_tets())
-        .map(|t| t.index() + 1)
-        .max()
-        .unwrap_or(0);
-    let mut restored = vec![false; slots];
+    let mut restored = vec![false; tri.tet_slots()];
     let met = surface
         .facets()
         .filter(|&f| surface.is_coupled(f))

@@ -70,12 +70,7 @@ pub(crate) struct PseudoSurface<'a> {
 impl<'a> PseudoSurface<'a> {
     /// The convex hull, facets oriented inward, all queued.
     pub fn from_hull(tri: &'a Triangulation) -> Self {
-        let slots = tri
-            .finite_tets()
-            .chain(tri.ghost_tets())
-            .map(|t| t.index() + 1)
-            .max()
-            .unwrap_or(0);
+        let slots = tri.tet_slots();
         let mut surface = PseudoSurface {
             tri,
             on_surface: vec![false; 4 * slots],

@@ -121,6 +121,12 @@ impl Triangulation {
         self.finite_tets
     }
 
+    /// One more than the largest tetrahedron index in use, finite or
+    /// ghost: the length of a table indexed by [`TetId::index`].
+    pub fn tet_slots(&self) -> usize {
+        self.cells.len()
+    }
+
     /// Number of convex-hull facets (= ghost tetrahedra).
     pub fn num_hull_facets(&self) -> usize {
         self.ghost_tets
