@@ -636,9 +636,9 @@ fn oriented_normals_keep_the_outside_out_of_wide_holes() {
     // missing three ball-shaped patches of radius 6% of the diagonal, as
     // in the peer harness: without normals the exterior floods the tubes
     // and the walls collapse into a crumpled double sheet. With them the
-    // result is one piece of genus 2: these clean points are densified
-    // along their normals, which keeps the flood out (before that, the
-    // normals' winding number sealed the inside: `sealed_nodes` > 0).
+    // result is one piece of genus 2: clean points are densified along
+    // their normals, which keeps the flood out; noisy ones are not, and
+    // the normals' winding number seals the inside.
     let tube =
         |v: DVec3, cx: f64| (DVec3::new(v.x - cx, v.y, 0.0).length() - 1.0).hypot(v.z) - 0.35;
     let mut points = Vec::new();
@@ -672,13 +672,30 @@ fn oriented_normals_keep_the_outside_out_of_wide_holes() {
         normals: keep.iter().map(|&i| normals[i]).collect(),
         ..Default::default()
     };
+    // Noisy, the same points are not densified: the sealing keeps them.
+    let mut g = rng(23);
+    let sigma = 0.002 * diagonal;
+    let noisy = Input {
+        points: input
+            .points
+            .iter()
+            .map(|p| *p + DVec3::new(gauss(&mut g), gauss(&mut g), gauss(&mut g)) * sigma)
+            .collect(),
+        ..input.clone()
+    };
+    let sealed = reconstruct_3d(&noisy, &ReconstructParams::default()).unwrap();
+    assert_eq!(sealed.report.densified, 0);
+    assert!(
+        sealed.report.sealed_nodes > 0,
+        "the flood got in and sealing was kept"
+    );
+    assert_eq!(
+        topology(&sealed.mesh),
+        (true, -2, 1),
+        "one closed piece of genus 2"
+    );
     let r = reconstruct_3d(&input, &ReconstructParams::default()).unwrap();
     let (watertight, euler, comps) = topology(&r.mesh);
-    eprintln!(
-        "sealed {} {:?}",
-        r.report.sealed_nodes,
-        (watertight, euler, comps)
-    );
     assert!(watertight);
     assert_eq!((euler, comps), (-2, 1), "one piece of genus 2");
     // And it fits the tori: every vertex near one of the two surfaces (the
