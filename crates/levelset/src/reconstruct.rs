@@ -402,7 +402,8 @@ fn evolve_field<const D: usize>(
     params: &ReconstructParams,
     report: &mut Report,
 ) -> Result<(BlockGrid<D>, Option<Field<D>>)> {
-    let fine = fine_grid::<D>(input, params, sampling_spacing(input))?;
+    let mut sampling = sampling_spacing(input);
+    let fine = fine_grid::<D>(input, params, sampling)?;
     let levels = params
         .levels
         .unwrap_or_else(|| auto_levels(&fine.dims))
@@ -431,7 +432,9 @@ fn evolve_field<const D: usize>(
         }
         _ => input,
     };
-    let sampling = sampling_spacing(input);
+    if report.densified > 0 {
+        sampling = sampling_spacing(input);
+    }
     let surfels = match &fits {
         Some(f) if clean && report.densified == 0 => report.time("anchors", || f.surfels()),
         _ => Vec::new(),
