@@ -119,8 +119,33 @@ pub struct CurveNetwork {
     /// good as this is small (see [`MAX_TURN`]). Infinite on curves
     /// without a crossing.
     pub turns: Vec<Vec<f64>>,
+    /// Per curve, per vertex: on planar curves that cross another, the
+    /// in-plane part of the normal (see [`InPlaneNormal`]).
+    pub in_plane: Vec<Vec<Option<InPlaneNormal>>>,
     /// Median segment length.
     pub spacing: f64,
+}
+
+/// On a planar curve (a section), the surface normal is n = s·m + t·p with
+/// m the unit normal of the curve within its plane and p the plane's
+/// normal: m is exact at every vertex, only the share s = n·m ∈ [0, 1]
+/// (the surface's tilt out of the plane) has to be interpolated between
+/// crossings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InPlaneNormal {
+    /// m, pointing out of the surface (the side the crossings' normals say).
+    pub direction: DVec3,
+    /// s, interpolated in arc length between crossings.
+    pub share: f64,
+}
+
+/// A point on a curve, with what the network says about the surface there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurveSample {
+    pub position: DVec3,
+    /// The implied normal, where the curve has turned little since a crossing.
+    pub normal: Option<DVec3>,
+    pub in_plane: Option<InPlaneNormal>,
 }
 
 /// Curves cross where they pass closer than this share of the spacing.
@@ -148,11 +173,19 @@ impl CurveNetwork {
             .map(|(k, (c, f))| interpolate_normals(k, c, f, &crossings))
             .unzip();
         make_outward(&curves, &mut normals, &mut crossings);
+        let on = crossings_by_curve(&curves, &crossings);
+        let in_plane = curves
+            .iter()
+            .zip(&frames)
+            .zip(&on)
+            .map(|((c, f), list)| in_plane_normals(c, f, list, &crossings, spacing))
+            .collect();
         CurveNetwork {
             curves,
             crossings,
             normals,
             turns,
+            in_plane,
             spacing,
         }
     }
@@ -173,31 +206,36 @@ impl CurveNetwork {
     /// Samples every `step` of arc length (and at every crossing, which
     /// come first, in the order of [`CurveNetwork::crossings`]), with the
     /// normal where the curve has one and has turned at most `max_turn`
-    /// since the nearest crossing. Samples closer than half a step to an
-    /// earlier one are left out (the fit needs distinct points); the
-    /// positions do not depend on `max_turn`.
-    pub fn samples(&self, step: f64, max_turn: f64) -> Vec<(DVec3, Option<DVec3>)> {
-        let mut out: Vec<(DVec3, Option<DVec3>)> = self
+    /// since the nearest crossing, and the in-plane normal where the curve
+    /// has one. Samples closer than half a step to an earlier one are left
+    /// out (the fit needs distinct points); the positions do not depend on
+    /// `max_turn`.
+    pub fn samples(&self, step: f64, max_turn: f64) -> Vec<CurveSample> {
+        let mut out: Vec<CurveSample> = self
             .crossings
             .iter()
-            .map(|c| (c.position, Some(c.normal)))
+            .map(|c| CurveSample {
+                position: c.position,
+                normal: Some(c.normal),
+                in_plane: None,
+            })
             .collect();
         let mut candidates = Vec::new();
-        for ((c, normals), turns) in self.curves.iter().zip(&self.normals).zip(&self.turns) {
-            let trusted: Vec<Option<DVec3>> = normals
+        for (k, c) in self.curves.iter().enumerate() {
+            let trusted: Vec<Option<DVec3>> = self.normals[k]
                 .iter()
-                .zip(turns)
+                .zip(&self.turns[k])
                 .map(|(n, &t)| n.filter(|_| t <= max_turn))
                 .collect();
-            resample(c, &trusted, step, &mut candidates);
+            resample(c, &trusted, &self.in_plane[k], step, &mut candidates);
         }
         let mut accepted = SpacedSet::new(0.5 * step);
-        for (p, _) in &out {
-            accepted.insert(*p);
+        for s in &out {
+            accepted.insert(s.position);
         }
-        for (p, n) in candidates {
-            if accepted.insert(p) {
-                out.push((p, n));
+        for s in candidates {
+            if accepted.insert(s.position) {
+                out.push(s);
             }
         }
         out
@@ -256,13 +294,14 @@ fn median_segment(curves: &[Curve]) -> f64 {
     lengths[lengths.len() / 2]
 }
 
-/// Positions and normals every `step` along `c` (normals interpolated
-/// between vertices, `None` where the curve has none).
+/// Samples every `step` along `c`, normals and in-plane normals
+/// interpolated between vertices (`None` where a vertex has none).
 fn resample(
     c: &Curve,
     normals: &[Option<DVec3>],
+    in_plane: &[Option<InPlaneNormal>],
     step: f64,
-    out: &mut Vec<(DVec3, Option<DVec3>)>,
+    out: &mut Vec<CurveSample>,
 ) {
     let s = c.arc_lengths();
     let total = *s.last().unwrap_or(&0.0);
@@ -287,12 +326,74 @@ fn resample(
         };
         let (a, b) = c.segment(seg);
         let j = (seg + 1) % c.points.len();
-        let n = match (normals[seg], normals[j]) {
+        let normal = match (normals[seg], normals[j]) {
             (Some(na), Some(nb)) => Some(na.lerp(nb, t).normalize_or(na)),
             _ => None,
         };
-        out.push((a.lerp(b, t), n));
+        let in_plane = match (in_plane[seg], in_plane[j]) {
+            (Some(ma), Some(mb)) => Some(InPlaneNormal {
+                direction: ma
+                    .direction
+                    .lerp(mb.direction, t)
+                    .normalize_or(ma.direction),
+                share: ma.share + t * (mb.share - ma.share),
+            }),
+            _ => None,
+        };
+        out.push(CurveSample {
+            position: a.lerp(b, t),
+            normal,
+            in_plane,
+        });
     }
+}
+
+/// The in-plane normals of a planar curve with crossings `list` (arc
+/// length, crossing index; sorted): m = tangent × plane normal, signed by
+/// the crossings' normals; the share n·m at the crossings, linear in arc
+/// length between them. `None` everywhere on other curves.
+fn in_plane_normals(
+    c: &Curve,
+    f: &Frames,
+    list: &[(f64, usize)],
+    crossings: &[Crossing],
+    spacing: f64,
+) -> Vec<Option<InPlaneNormal>> {
+    let plane = Plane::of(c, spacing);
+    let (Some(plane), false) = (plane, list.is_empty()) else {
+        return vec![None; c.points.len()];
+    };
+    let m: Vec<DVec3> = f
+        .tangent
+        .iter()
+        .map(|t| t.cross(plane.normal).normalize_or_zero())
+        .collect();
+    let at_crossing = |&(s, i): &(f64, usize)| crossings[i].normal.dot(m[f.vertex_at(s)]);
+    let sign = if list.iter().map(at_crossing).sum::<f64>() < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let mut keys: Vec<(f64, f64)> = list
+        .iter()
+        .map(|x| (x.0, (sign * at_crossing(x)).max(0.0)))
+        .collect();
+    let length = *f.arc.last().unwrap_or(&0.0);
+    if c.closed {
+        keys.push((keys[0].0 + length, keys[0].1));
+    }
+    (0..c.points.len())
+        .map(|i| {
+            let mut s = f.arc[i];
+            if c.closed && s < keys[0].0 {
+                s += length;
+            }
+            Some(InPlaneNormal {
+                direction: sign * m[i],
+                share: piecewise_linear(&keys, s),
+            })
+        })
+        .collect()
 }
 
 /// Rotation-minimizing frames along a curve: `normal[i]` ⟂ `tangent[i]`,
@@ -1113,8 +1214,15 @@ mod tests {
         }
         // Circles bend everywhere: trusted normals only at the crossings.
         let trusted = net.samples(net.spacing, MAX_TURN);
-        let given = trusted.iter().filter(|(_, n)| n.is_some()).count();
+        let given = trusted.iter().filter(|s| s.normal.is_some()).count();
         assert!((6..60).contains(&given), "{given} trusted normals");
+        // Great circles are sections through the centre: the normal lies in
+        // each circle's plane, so m is the radial direction and n·m = 1.
+        for s in &trusted[6..] {
+            let m = s.in_plane.expect("every circle is planar and crossed");
+            assert!(m.direction.dot(s.position.normalize()) > 0.999, "{m:?}");
+            assert!((m.share - 1.0).abs() < 1e-3, "{m:?}");
+        }
         for x in &net.crossings {
             assert!(x.normal.dot(x.position.normalize()) > 0.999);
         }

@@ -3,10 +3,10 @@
 //! [`HermiteFit`] interpolates them, and its zero set is meshed.
 
 use crate::error::{Result, SvmError};
-use crate::hermite::{HermiteFit, HermiteSample, MAX_SAMPLES};
+use crate::hermite::{Gradient, HermiteFit, HermiteSample, MAX_SAMPLES};
 use crate::mesh::{mesh_model, MeshOptions};
 use glam::DVec3;
-use surfrecon_geom::curves::{CurveNetwork, MAX_TURN};
+use surfrecon_geom::curves::{CurveNetwork, CurveSample, MAX_TURN};
 use surfrecon_geom::{Aabb, TriMesh};
 
 /// How to span a network.
@@ -38,6 +38,8 @@ pub struct CurveFitReport {
     /// Samples in the fit, and how many of them carry a normal.
     pub samples: usize,
     pub samples_with_normals: usize,
+    /// Samples on planar curves carrying the in-plane part of the normal.
+    pub samples_with_in_plane_normals: usize,
     /// Arc length between samples.
     pub sample_step: f64,
     pub resolution: usize,
@@ -69,7 +71,8 @@ pub fn reconstruct_from_curves(
         crossings: network.crossings.len(),
         curves_with_normals: network.crossed_curves(),
         samples: samples.len(),
-        samples_with_normals: samples.iter().filter(|s| s.normal.is_some()).count(),
+        samples_with_normals: count(&samples, |g| matches!(g, Gradient::Normal(_))),
+        samples_with_in_plane_normals: count(&samples, |g| matches!(g, Gradient::Component { .. })),
         sample_step: step,
         resolution,
     };
@@ -89,7 +92,7 @@ fn hermite_samples(network: &CurveNetwork) -> Result<(Vec<HermiteSample>, f64)> 
         let samples: Vec<HermiteSample> = network
             .samples(step, MAX_TURN)
             .into_iter()
-            .map(|(position, normal)| HermiteSample { position, normal })
+            .map(hermite_sample)
             .collect();
         if samples.len() <= MAX_SAMPLES {
             return Ok((samples, step));
@@ -100,6 +103,27 @@ fn hermite_samples(network: &CurveNetwork) -> Result<(Vec<HermiteSample>, f64)> 
         "the curves cross {} times, more than a Hermite fit of at most {MAX_SAMPLES} samples takes",
         network.crossings.len()
     )))
+}
+
+/// The full normal where the network trusts it, else the in-plane part on
+/// sections, else nothing.
+fn hermite_sample(s: CurveSample) -> HermiteSample {
+    let gradient = match (s.normal, s.in_plane) {
+        (Some(n), _) => Gradient::Normal(n),
+        (None, Some(m)) => Gradient::Component {
+            direction: m.direction,
+            value: m.share,
+        },
+        (None, None) => Gradient::Free,
+    };
+    HermiteSample {
+        position: s.position,
+        gradient,
+    }
+}
+
+fn count(samples: &[HermiteSample], what: impl Fn(&Gradient) -> bool) -> usize {
+    samples.iter().filter(|s| what(&s.gradient)).count()
 }
 
 fn auto_resolution(diagonal: f64, spacing: f64) -> usize {

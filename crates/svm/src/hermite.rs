@@ -13,7 +13,7 @@ use crate::error::{Result, SvmError};
 use crate::mesh::Implicit;
 use faer::linalg::solvers::Solve;
 use faer::Mat;
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
 /// The largest sample count [`HermiteFit::fit`] accepts: the system of
@@ -21,12 +21,50 @@ use rayon::prelude::*;
 /// seconds.
 pub const MAX_SAMPLES: usize = 2000;
 
-/// One interpolation constraint: f(position) = 0, and ∇f = normal (unit,
-/// outward) when given.
+/// One interpolation constraint: f(position) = 0, and what is known of
+/// ∇f there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HermiteSample {
     pub position: DVec3,
-    pub normal: Option<DVec3>,
+    pub gradient: Gradient,
+}
+
+/// What a sample says about ∇f.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Gradient {
+    /// Nothing: the smoothest interpolant decides.
+    Free,
+    /// ∇f = the unit outward normal (normalized if it is not unit).
+    Normal(DVec3),
+    /// ∇f·direction = value (direction unit): one component only, e.g. the
+    /// in-plane part of the normal on a planar section.
+    Component { direction: DVec3, value: f64 },
+}
+
+impl Gradient {
+    /// The derivative constraints: (unit direction, value) pairs.
+    fn rows(self) -> impl Iterator<Item = (DVec3, f64)> {
+        let (rows, count) = match self {
+            Gradient::Free => ([(DVec3::ZERO, 0.0); 3], 0),
+            Gradient::Normal(n) => {
+                let n = n.normalize_or_zero();
+                ([(DVec3::X, n.x), (DVec3::Y, n.y), (DVec3::Z, n.z)], 3)
+            }
+            Gradient::Component { direction, value } => {
+                let d = direction.normalize_or_zero();
+                ([(d, value), (DVec3::ZERO, 0.0), (DVec3::ZERO, 0.0)], 1)
+            }
+        };
+        rows.into_iter().take(count)
+    }
+
+    fn is_finite(self) -> bool {
+        match self {
+            Gradient::Free => true,
+            Gradient::Normal(n) => n.is_finite(),
+            Gradient::Component { direction, value } => direction.is_finite() && value.is_finite(),
+        }
+    }
 }
 
 /// A fitted Hermite interpolant (see the module docs).
@@ -35,7 +73,8 @@ pub struct HermiteFit {
     centres: Vec<DVec3>,
     /// Value coefficients a_j.
     value_weights: Vec<f64>,
-    /// Gradient coefficients b_j (zero where the sample had no normal).
+    /// Gradient coefficients b_j: the sum of each derivative row's
+    /// coefficient times its direction (zero at free samples).
     gradient_weights: Vec<DVec3>,
     constant: f64,
     linear: DVec3,
@@ -58,9 +97,7 @@ impl HermiteFit {
             .collect();
         let layout = Layout::new(samples);
         let matrix = assemble(&centres, &layout, smoothing);
-        let rhs = Mat::from_fn(layout.size, 1, |row, _| {
-            layout.right_hand_side(samples, row)
-        });
+        let rhs = Mat::from_fn(layout.size, 1, |row, _| layout.right_hand_side(row));
         let solution = matrix.partial_piv_lu().solve(&rhs);
         let x = |row: usize| solution[(row, 0)];
         if (0..layout.size).any(|r| !x(r).is_finite()) {
@@ -69,11 +106,10 @@ impl HermiteFit {
                     .into(),
             ));
         }
-        let gradient_weights = (0..samples.len())
-            .map(|j| {
-                layout.gradient_row[j].map_or(DVec3::ZERO, |r| DVec3::new(x(r), x(r + 1), x(r + 2)))
-            })
-            .collect();
+        let mut gradient_weights = vec![DVec3::ZERO; samples.len()];
+        for (k, row) in layout.derivatives.iter().enumerate() {
+            gradient_weights[row.sample] += row.direction * x(samples.len() + k);
+        }
         let p = layout.polynomial_row;
         Ok(HermiteFit {
             value_weights: (0..samples.len()).map(x).collect(),
@@ -100,14 +136,8 @@ impl HermiteFit {
     /// ∇f at `x`.
     pub fn gradient(&self, x: DVec3) -> DVec3 {
         let y = (x - self.shift) * self.scale;
-        // ∇φ = 3 r v, Hessian H = 3 (r I + v vᵀ / r) (0 at v = 0).
         self.terms(y).fold(self.linear, |g, (v, r, a, b)| {
-            let hessian_b = if r > 0.0 {
-                3.0 * (r * b + v * (v.dot(b) / r))
-            } else {
-                DVec3::ZERO
-            };
-            g + 3.0 * a * r * v - hessian_b
+            g + 3.0 * a * r * v - hessian(v, r) * b
         })
     }
 
@@ -126,6 +156,16 @@ impl HermiteFit {
     /// Number of samples (kernel centres).
     pub fn sample_count(&self) -> usize {
         self.centres.len()
+    }
+}
+
+/// The Hessian of φ = |v|³: 3 (r I + v vᵀ / r), 0 at v = 0.
+fn hessian(v: DVec3, r: f64) -> DMat3 {
+    if r > 0.0 {
+        3.0 * (DMat3::from_diagonal(DVec3::splat(r))
+            + DMat3::from_cols(v * v.x, v * v.y, v * v.z) / r)
+    } else {
+        DMat3::ZERO
     }
 }
 
@@ -152,15 +192,18 @@ fn validate(samples: &[HermiteSample], smoothing: f64) -> Result<()> {
             samples.len()
         )));
     }
-    if !samples.iter().any(|s| s.normal.is_some()) {
+    if !samples
+        .iter()
+        .any(|s| s.gradient.rows().any(|(_, value)| value != 0.0))
+    {
         return Err(SvmError::InvalidInput(
-            "a Hermite fit needs a normal at one sample at least (otherwise f = 0 fits)".into(),
+            "a Hermite fit needs a nonzero gradient at one sample at least (otherwise f = 0 fits)"
+                .into(),
         ));
     }
-    let finite = |v: DVec3| v.is_finite();
     if let Some(i) = samples
         .iter()
-        .position(|s| !finite(s.position) || s.normal.is_some_and(|n| !finite(n)))
+        .position(|s| !s.position.is_finite() || !s.gradient.is_finite())
     {
         return Err(SvmError::InvalidInput(format!("sample {i} is not finite")));
     }
@@ -184,105 +227,92 @@ fn normalization(samples: &[HermiteSample]) -> (DVec3, f64) {
     (0.5 * (lo + hi), scale)
 }
 
-/// Where each unknown sits in the system: a_j at row j, then b_j (three
-/// rows) for samples with normals, then the 4 polynomial coefficients.
+/// One derivative constraint: ∇f(sample)·direction = target.
+struct DerivativeRow {
+    sample: usize,
+    direction: DVec3,
+    target: f64,
+}
+
+/// Where each unknown sits in the system: a_j at row j, then one row per
+/// derivative constraint, then the 4 polynomial coefficients.
 struct Layout {
-    gradient_row: Vec<Option<usize>>,
+    values: usize,
+    derivatives: Vec<DerivativeRow>,
     polynomial_row: usize,
     size: usize,
 }
 
 impl Layout {
     fn new(samples: &[HermiteSample]) -> Self {
-        let mut next = samples.len();
-        let gradient_row = samples
+        let derivatives: Vec<DerivativeRow> = samples
             .iter()
-            .map(|s| {
-                s.normal.map(|_| {
-                    next += 3;
-                    next - 3
-                })
+            .enumerate()
+            .flat_map(|(sample, s)| {
+                s.gradient
+                    .rows()
+                    .map(move |(direction, target)| DerivativeRow {
+                        sample,
+                        direction,
+                        target,
+                    })
             })
             .collect();
+        let polynomial_row = samples.len() + derivatives.len();
         Layout {
-            gradient_row,
-            polynomial_row: next,
-            size: next + 4,
+            values: samples.len(),
+            derivatives,
+            polynomial_row,
+            size: polynomial_row + 4,
         }
     }
 
     /// What row `row` asks of f: 0 for values and side conditions, the
-    /// normal's component for gradient rows.
-    fn right_hand_side(&self, samples: &[HermiteSample], row: usize) -> f64 {
-        if row < samples.len() || row >= self.polynomial_row {
-            return 0.0;
+    /// target for derivative rows.
+    fn right_hand_side(&self, row: usize) -> f64 {
+        match row.checked_sub(self.values) {
+            Some(k) if k < self.derivatives.len() => self.derivatives[k].target,
+            _ => 0.0,
         }
-        let (j, axis) = self
-            .gradient_row
-            .iter()
-            .enumerate()
-            .find_map(|(j, r)| {
-                r.filter(|&r| (r..r + 3).contains(&row))
-                    .map(|r| (j, row - r))
-            })
-            .expect("every gradient row belongs to a sample");
-        let n = samples[j]
-            .normal
-            .expect("gradient rows have normals")
-            .normalize_or_zero();
-        n[axis]
     }
 }
 
 /// The symmetric interpolation matrix [[K, P], [Pᵀ, 0]] (see the module
-/// docs for the basis; rows of K are value and gradient constraints).
+/// docs for the basis; rows of K are value and derivative constraints).
 fn assemble(centres: &[DVec3], layout: &Layout, smoothing: f64) -> Mat<f64> {
     let mut m = Mat::<f64>::zeros(layout.size, layout.size);
-    let n = centres.len();
+    let n = layout.values;
+    let rows = &layout.derivatives;
     for i in 0..n {
-        let gi = layout.gradient_row[i];
         for j in 0..n {
-            let v = centres[i] - centres[j];
-            let r = v.length();
-            let grad = 3.0 * r * v;
+            let r = centres[i].distance(centres[j]);
             m[(i, j)] = r * r * r;
-            if let Some(gj) = layout.gradient_row[j] {
-                for k in 0..3 {
-                    m[(i, gj + k)] = -grad[k];
-                }
-            }
-            let Some(gi) = gi else { continue };
-            for l in 0..3 {
-                m[(gi + l, j)] = grad[l];
-            }
-            if let Some(gj) = layout.gradient_row[j] {
-                for l in 0..3 {
-                    for k in 0..3 {
-                        let outer = if r > 0.0 { v[l] * v[k] / r } else { 0.0 };
-                        let identity = if l == k { r } else { 0.0 };
-                        m[(gi + l, gj + k)] = -3.0 * (identity + outer);
-                    }
-                }
-            }
         }
-        if let Some(gi) = gi {
-            for l in 0..3 {
-                m[(gi + l, gi + l)] += smoothing;
-            }
+        for (k, d) in rows.iter().enumerate() {
+            let v = centres[i] - centres[d.sample];
+            let slope = -3.0 * v.length() * v.dot(d.direction);
+            m[(i, n + k)] = slope;
+            m[(n + k, i)] = slope;
         }
+    }
+    for (k, dk) in rows.iter().enumerate() {
+        for (l, dl) in rows.iter().enumerate() {
+            let v = centres[dk.sample] - centres[dl.sample];
+            m[(n + k, n + l)] = -dk.direction.dot(hessian(v, v.length()) * dl.direction);
+        }
+        m[(n + k, n + k)] += smoothing;
     }
     let p = layout.polynomial_row;
     for (i, c) in centres.iter().enumerate() {
-        let row = [1.0, c.x, c.y, c.z];
-        for (k, value) in row.into_iter().enumerate() {
+        for (k, value) in [1.0, c.x, c.y, c.z].into_iter().enumerate() {
             m[(i, p + k)] = value;
             m[(p + k, i)] = value;
         }
-        if let Some(gi) = layout.gradient_row[i] {
-            for l in 0..3 {
-                m[(gi + l, p + 1 + l)] = 1.0;
-                m[(p + 1 + l, gi + l)] = 1.0;
-            }
+    }
+    for (k, d) in rows.iter().enumerate() {
+        for (l, value) in d.direction.to_array().into_iter().enumerate() {
+            m[(n + k, p + 1 + l)] = value;
+            m[(p + 1 + l, n + k)] = value;
         }
     }
     m
@@ -303,10 +333,17 @@ mod tests {
                 let d = DVec3::new(r * a.cos(), r * a.sin(), z);
                 HermiteSample {
                     position: 2.0 * DVec3::ONE + radius * d,
-                    normal: Some(d),
+                    gradient: Gradient::Normal(d),
                 }
             })
             .collect()
+    }
+
+    fn normal(s: &HermiteSample) -> DVec3 {
+        match s.gradient {
+            Gradient::Normal(n) => n,
+            _ => panic!("sphere samples have normals"),
+        }
     }
 
     #[test]
@@ -320,7 +357,7 @@ mod tests {
                 fit.value(s.position)
             );
             let g = fit.gradient(s.position);
-            assert!(g.distance(s.normal.unwrap()) < 1e-6, "{g}");
+            assert!(g.distance(normal(s)) < 1e-6, "{g}");
         }
     }
 
@@ -332,11 +369,44 @@ mod tests {
         assert!(fit.value(centre) < -0.5, "inside: {}", fit.value(centre));
         // Between the samples f stays near the signed distance.
         for (i, d) in sphere_samples(500, 1.0).iter().enumerate() {
-            let dir = d.normal.unwrap();
+            let dir = normal(d);
             for t in [-0.2, 0.0, 0.2] {
                 let f = fit.value(centre + (1.0 + t) * dir);
                 assert!((f - t).abs() < 0.03, "sample {i} offset {t}: f = {f}");
             }
+        }
+    }
+
+    #[test]
+    fn in_plane_components_alone_give_the_sphere() {
+        // Only the part of the normal within horizontal planes, as sections
+        // by z-planes give it (samples near the poles carry little).
+        let samples: Vec<HermiteSample> = sphere_samples(80, 1.0)
+            .iter()
+            .map(|s| {
+                let n = normal(s);
+                let m = DVec3::new(n.x, n.y, 0.0).normalize();
+                HermiteSample {
+                    position: s.position,
+                    gradient: Gradient::Component {
+                        direction: m,
+                        value: n.dot(m),
+                    },
+                }
+            })
+            .collect();
+        let fit = HermiteFit::fit(&samples, 0.0).unwrap();
+        for s in &samples {
+            let Gradient::Component { direction, value } = s.gradient else {
+                unreachable!()
+            };
+            assert!(fit.value(s.position).abs() < 1e-8);
+            assert!((fit.gradient(s.position).dot(direction) - value).abs() < 1e-6);
+        }
+        let centre = 2.0 * DVec3::ONE;
+        for d in sphere_samples(300, 1.0) {
+            let f = fit.value(centre + 1.1 * normal(&d));
+            assert!((f - 0.1).abs() < 0.03, "f = {f} at 0.1 outside");
         }
     }
 
@@ -365,7 +435,10 @@ mod tests {
         assert!(HermiteFit::fit(&s, 0.0).is_err());
         let no_normals: Vec<HermiteSample> = sphere_samples(10, 1.0)
             .into_iter()
-            .map(|s| HermiteSample { normal: None, ..s })
+            .map(|s| HermiteSample {
+                gradient: Gradient::Free,
+                ..s
+            })
             .collect();
         assert!(HermiteFit::fit(&no_normals, 0.0).is_err());
         assert!(HermiteFit::fit(&sphere_samples(10, 1.0), -1.0).is_err());

@@ -86,6 +86,7 @@ pub fn run(
             "curves_with_normals": report.curves_with_normals,
             "samples": report.samples,
             "samples_with_normals": report.samples_with_normals,
+            "samples_with_in_plane_normals": report.samples_with_in_plane_normals,
             "sample_step": report.sample_step,
             "resolution": report.resolution,
         },
