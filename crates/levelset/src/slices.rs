@@ -259,8 +259,8 @@ impl Section {
         })
     }
 
-    fn slope(&self, at: usize) -> f64 {
-        self.slopes.as_ref().map_or(0.0, |m| m[at])
+    fn slope(&self, at: usize) -> Option<f64> {
+        self.slopes.as_ref().map(|m| m[at])
     }
 }
 
@@ -303,7 +303,7 @@ fn blend(levels: &[f64], sections: &[Section], gap: f64, at: usize, s: f64) -> f
         let section = &sections[k];
         let beyond = (s - levels[k]).abs();
         let closing = section.values[at] + beyond * section.depth.max(gap) / (0.5 * gap);
-        let along = section.values[at] + (s - levels[k]) * section.slope(at);
+        let along = section.values[at] + (s - levels[k]) * section.slope(at).unwrap_or(0.0);
         closing.max(along)
     };
     if s <= levels[0] {
@@ -316,18 +316,24 @@ fn blend(levels: &[f64], sections: &[Section], gap: f64, at: usize, s: f64) -> f
     let width = levels[k + 1] - levels[k];
     let t = (s - levels[k]) / width;
     let (a, b) = (&sections[k], &sections[k + 1]);
-    let (t2, t3) = (t * t, t * t * t);
     let (va, vb) = (a.values[at], b.values[at]);
+    let linear = (1.0 - t) * va + t * vb;
+    // Without normals nothing tells the tilt: a cubic with zero slopes
+    // would stand the surface upright at every slice (waves between them).
+    let (Some(ma), Some(mb)) = (a.slope(at), b.slope(at)) else {
+        return linear;
+    };
+    let (t2, t3) = (t * t, t * t * t);
     let cubic = va * (2.0 * t3 - 3.0 * t2 + 1.0)
         + vb * (3.0 * t2 - 2.0 * t3)
-        + width * a.slope(at) * (t3 - 2.0 * t2 + t)
-        + width * b.slope(at) * (t3 - t2);
+        + width * ma * (t3 - 2.0 * t2 + t)
+        + width * mb * (t3 - t2);
     // The slices decide the side; the slopes only move the surface where
     // they disagree. (The slopes of the nearest points, which may lie on
     // another part, otherwise carved pits and joined nearby parts by
     // handles: the sliced bunny had genus 3.)
     if (va < 0.0) == (vb < 0.0) && (cubic < 0.0) != (va < 0.0) {
-        (1.0 - t) * va + t * vb
+        linear
     } else {
         cubic
     }
@@ -589,6 +595,32 @@ mod tests {
             top > last && top <= last + 0.5 * stack.gap() + h,
             "top {top}"
         );
+    }
+
+    #[test]
+    fn slices_without_normals_interpolate_a_cone_linearly() {
+        // A frustum, radius 1 at z = 0 down to 0.4 at z = 2, on 6 slices.
+        let radius = |z: f64| 1.0 - 0.3 * z;
+        let mut points = Vec::new();
+        for k in 0..6 {
+            let z = k as f64 * 0.4;
+            for i in 0..300 {
+                let t = i as f64 / 300.0 * std::f64::consts::TAU;
+                points.push(DVec3::new(radius(z) * t.cos(), radius(z) * t.sin(), z));
+            }
+        }
+        let stack = detect_slices(&Input::from_points(points)).expect("a stack");
+        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
+        let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
+        // Nothing tells a tilt but the slices: the side wall is straight
+        // between them (zero slopes at the slices bulged it by up to 0.011).
+        let worst = mesh
+            .vertices
+            .iter()
+            .filter(|v| v.z > 0.05 && v.z < 1.95)
+            .map(|v| (v.x.hypot(v.y) - radius(v.z)).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.004, "worst {worst}, h {}", field.spec.spacing);
     }
 
     /// Points on `count` slices (perpendicular to z) of the torus with
