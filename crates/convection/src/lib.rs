@@ -37,6 +37,7 @@ pub mod gabriel;
 pub mod manifold;
 mod reconstruct;
 pub mod surface;
+pub mod thin;
 
 pub use error::{ConvectionError, Result};
 pub use reconstruct::{reconstruct, Params, Reconstruction, Report, Timings};

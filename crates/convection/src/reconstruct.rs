@@ -216,6 +216,28 @@ fn reconstruct_all(
     report.pockets_opened = surface.pockets_opened;
     report.pseudo_surface_facets = surface.num_facets();
 
+    if let Ok(path) = std::env::var("SR_DEBUG_SHEETS") {
+        let mut tris = Vec::new();
+        for f in surface.facets().filter(|&f| surface.is_coupled(f) && f < surface.mirror(f)) {
+            tris.push(surface.vertices(f).map(|v| tri.input_of_vertex(v).unwrap() as u32));
+        }
+        let n = tris.len();
+        for &f in &surface.collapsed {
+            tris.push(surface.vertices(f).map(|v| tri.input_of_vertex(v).unwrap() as u32));
+        }
+        eprintln!("debug: {n} sheet, {} collapsed", tris.len() - n);
+        let all = std::env::var("SR_ALL").is_ok();
+        let src = if all { &tris[..] } else { &tris[..n] };
+        let kept = crate::thin::convect_sheets(src, points);
+        let k: Vec<[u32;3]> = src.iter().zip(&kept).filter(|(_, &k)| k).map(|(t, _)| *t).collect();
+        eprintln!("debug: {} sheet kept", k.len());
+        let m = TriMesh { vertices: points.to_vec(), triangles: k, normals: None };
+        surfrecon_geom::io::write(format!("{path}-kept.ply"), &surfrecon_geom::Geometry::from_mesh(m)).unwrap();
+        let m = TriMesh { vertices: points.to_vec(), triangles: tris[..n].to_vec(), normals: None };
+        surfrecon_geom::io::write(format!("{path}-sheet.ply"), &surfrecon_geom::Geometry::from_mesh(m)).unwrap();
+        let m = TriMesh { vertices: points.to_vec(), triangles: tris[n..].to_vec(), normals: None };
+        surfrecon_geom::io::write(format!("{path}-collapsed.ply"), &surfrecon_geom::Geometry::from_mesh(m)).unwrap();
+    }
     let clock = Instant::now();
     let solid = match thin_parts {
         true => restore_thin_parts(&surface, &tri, &unit_normals, &spacing, params.thin_size),
@@ -367,6 +389,7 @@ fn extract_mesh(
         // Restoring can pinch the surface where a thin part meets the rest;
         // keep it only where it pays off as a whole.
         let thick = closed_boundary(surface, tri, restored, points, params);
+        eprintln!("debug: plain pieces {} be {} removed {} filled {}; thick pieces {} be {} removed {} filled {}", best.pieces, best.boundary_edges, best.removed, best.filled, thick.pieces, thick.boundary_edges, thick.removed, thick.filled);
         if thick.boundary_edges <= best.boundary_edges && thick.pieces < best.pieces {
             report.thin_tets_restored = restored.iter().filter(|&&r| r).count();
             best = thick;
@@ -475,10 +498,14 @@ fn restore_thin_parts(
     size: f64,
 ) -> Vec<bool> {
     let mut restored = vec![false; tri.tet_slots()];
-    let met = surface
+    let sheet: Vec<OrientedFacet> = surface
         .facets()
-        .filter(|&f| surface.is_coupled(f))
-        .chain(surface.collapsed.iter().copied());
+        .filter(|&f| surface.is_coupled(f) && f < surface.mirror(f))
+        .collect();
+    let triangles: Vec<[u32; 3]> = sheet.iter().map(|&f| surface.vertices(f).map(|v| v.0)).collect();
+    let kept = crate::thin::convect_sheets(&triangles, tri.points());
+    let variant = std::env::var("SR_VARIANT").unwrap_or_default();
+    let size: f64 = std::env::var("SR_SIZE").ok().and_then(|s| s.parse().ok()).unwrap_or(size);
     let thin = |t: surfrecon_delaunay::TetId| {
         if tri.is_ghost(t) || !surface.is_external(t) {
             return false;
@@ -488,16 +515,47 @@ fn restore_thin_parts(
             .iter()
             .map(|v| spacing[v.index()])
             .fold(0.0, f64::max);
-        circumradius(tri.tet_points(t)) <= size * widest && spans_thin_part(tri, t, normals)
+        let measure = if variant.contains("edge") { longest_edge(tri.tet_points(t)) } else { circumradius(tri.tet_points(t)) };
+        measure <= size * widest
+            && (!variant.contains("normals") || spans_thin_part(tri, t, normals))
     };
-    for f in met {
-        for t in [f.tet(), surface.mirror(f).tet()] {
+    for (f, _) in sheet.iter().zip(&kept).filter(|(_, &k)| k) {
+        for t in [f.tet(), surface.mirror(*f).tet()] {
             if thin(t) {
                 restored[t.index()] = true;
             }
         }
     }
-    keep_attached(surface, tri, restored, thin)
+    let mut restored = if variant.contains("nogrow") {
+        keep_attached(surface, tri, restored, |_| false)
+    } else {
+        keep_attached(surface, tri, restored, thin)
+    };
+    if variant.contains("close") {
+        let close: f64 = std::env::var("SR_CLOSE").ok().and_then(|s| s.parse().ok()).unwrap_or(3.0);
+        let mut solid: Vec<bool> = (0..restored.len()).map(|i| restored[i] || (i < tri.tet_slots() && !surface.is_external(surfrecon_delaunay::TetId(i as u32)))).collect();
+        let small = |t: surfrecon_delaunay::TetId| {
+            let widest = tri.tet_vertices(t).iter().map(|v| spacing[v.index()]).fold(0.0, f64::max);
+            circumradius(tri.tet_points(t)) <= close * widest
+        };
+        let n = crate::thin::close_pinched_edges(tri, &mut solid, small, |t| circumradius(tri.tet_points(t)), 4);
+        eprintln!("debug: closed {n}");
+        if variant.contains("attach") {
+            let thin2 = |t: surfrecon_delaunay::TetId| {
+                let widest = tri.tet_vertices(t).iter().map(|v| spacing[v.index()]).fold(0.0, f64::max);
+                longest_edge(tri.tet_points(t)) <= size * widest
+            };
+            let a = crate::thin::attach_stray_points(tri, &mut solid, thin2, 64);
+            let n = crate::thin::close_pinched_edges(tri, &mut solid, small, |t| circumradius(tri.tet_points(t)), 4);
+            eprintln!("debug: attached {a} closed {n}");
+        }
+        for t in tri.finite_tets() {
+            if solid[t.index()] && surface.is_external(t) {
+                restored[t.index()] = true;
+            }
+        }
+    }
+    restored
 }
 
 /// Whether `t` reaches across a thin part: two of its corners face each
@@ -544,6 +602,16 @@ fn keep_attached(
         }
     }
     attached
+}
+
+fn longest_edge(p: [DVec3; 4]) -> f64 {
+    let mut m: f64 = 0.0;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            m = m.max(p[i].distance(p[j]));
+        }
+    }
+    m
 }
 
 /// Radius of the sphere through the four corners (infinite when flat).

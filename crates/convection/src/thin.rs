@@ -1,0 +1,337 @@
+//! Thin parts: the convection pursued in 2D over the sheets of coupled
+//! facets left at convergence, as the paper does to tell significant thin
+//! parts from membranes spanning the outside.
+//!
+//! A sheet is a set of triangles, each seen from both sides. Its front
+//! starts at its rim (edges with one sheet triangle, or where sheets branch)
+//! facing inward, and shrinks as the 3D convection does, one dimension down:
+//! a front edge `ab` facing triangle `abc` violates the 2D oriented Gabriel
+//! property when `c` lies strictly inside the circle with diameter `ab`
+//! (the angle at `c` is obtuse); the triangle is then removed and its two
+//! other edges join the front, facing the sheet triangles beyond them. Two
+//! fronts meeting at one edge simply stop there (the 2D collapse). The
+//! triangles never removed are the thin parts kept.
+//!
+//! Membranes across the outside are made of long, skinny triangles between
+//! far-apart parts of the surface: the 2D front eats them from their rim.
+//! A sheet inside a part thinner than the sampling joins near points in
+//! well-shaped triangles, which stop it.
+
+use std::collections::{HashMap, VecDeque};
+use surfrecon_delaunay::{TetId, Triangulation, VertexId};
+use surfrecon_geom::DVec3;
+
+/// Whether `c` lies strictly inside the circle with diameter `ab`.
+fn in_diametral_circle(a: DVec3, b: DVec3, c: DVec3) -> bool {
+    (a - c).dot(b - c) < 0.0
+}
+
+/// Which `triangles` (vertex indices into `points`, any orientation) the 2D
+/// convection keeps: one flag per triangle.
+pub fn convect_sheets(triangles: &[[u32; 3]], points: &[DVec3]) -> Vec<bool> {
+    let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::with_capacity(3 * triangles.len());
+    for (i, t) in triangles.iter().enumerate() {
+        for (a, b) in edges(t) {
+            by_edge.entry(key(a, b)).or_default().push(i as u32);
+        }
+    }
+    let mut kept = vec![true; triangles.len()];
+    // (triangle, edge) pairs of the front, facing into the triangle.
+    let mut front: VecDeque<(u32, (u32, u32))> = VecDeque::new();
+    for (i, t) in triangles.iter().enumerate() {
+        for (a, b) in edges(t) {
+            if by_edge[&key(a, b)].len() != 2 {
+                front.push_back((i as u32, (a, b)));
+            }
+        }
+    }
+    while let Some((i, (a, b))) = front.pop_front() {
+        if !kept[i as usize] {
+            continue;
+        }
+        let t = triangles[i as usize];
+        let Some(&c) = t.iter().find(|&&v| v != a && v != b) else {
+            continue;
+        };
+        let [pa, pb, pc] = [a, b, c].map(|v| points[v as usize]);
+        if !in_diametral_circle(pa, pb, pc) {
+            continue;
+        }
+        kept[i as usize] = false;
+        for (u, w) in [(b, c), (c, a)] {
+            for &j in &by_edge[&key(u, w)] {
+                if j != i && kept[j as usize] {
+                    front.push_back((j, (u, w)));
+                }
+            }
+        }
+    }
+    kept
+}
+
+fn edges(&[a, b, c]: &[u32; 3]) -> [(u32, u32); 3] {
+    [(a, b), (b, c), (c, a)]
+}
+
+fn key(a: u32, b: u32) -> (u32, u32) {
+    (a.min(b), a.max(b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A strip of right isosceles triangles (a thin part's sheet): every
+    /// angle facing the rim is at most 90°, so the front stops at once.
+    #[test]
+    fn well_shaped_strip_is_kept() {
+        let mut points = Vec::new();
+        for i in 0..6 {
+            points.push(DVec3::new(i as f64, 0.0, 0.0));
+            points.push(DVec3::new(i as f64, 1.0, 0.0));
+        }
+        let mut triangles = Vec::new();
+        for i in 0..5u32 {
+            triangles.push([2 * i, 2 * i + 2, 2 * i + 1]);
+            triangles.push([2 * i + 1, 2 * i + 2, 2 * i + 3]);
+        }
+        assert!(convect_sheets(&triangles, &points).iter().all(|&k| k));
+    }
+
+    /// A fan of skinny triangles between two far-apart rows (a membrane):
+    /// the obtuse angles let the front through, all of it goes.
+    #[test]
+    fn skinny_membrane_is_eaten_from_its_rim() {
+        let mut points = Vec::new();
+        for i in 0..8 {
+            points.push(DVec3::new(i as f64 * 0.1, 0.0, 0.0));
+        }
+        points.push(DVec3::new(0.35, 0.02, 0.0));
+        let triangles: Vec<[u32; 3]> = (0..7u32).map(|i| [i, i + 1, 8]).collect();
+        let kept = convect_sheets(&triangles, &points);
+        assert!(kept.iter().all(|&k| !k), "{kept:?}");
+    }
+
+    /// A mixed sheet: the front eats the obtuse triangle whose long edge
+    /// is on the rim and stops at the well-shaped one behind it.
+    #[test]
+    fn front_stops_at_the_first_well_shaped_triangle() {
+        let points = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(0.5, 0.1, 0.0), // obtuse apex over the rim edge 0-1
+            DVec3::new(0.836, 0.48, 0.0), // nearly equilateral with 2, 1
+        ];
+        let triangles = vec![[0, 1, 2], [2, 1, 3]];
+        assert_eq!(convect_sheets(&triangles, &points), vec![false, true]);
+    }
+}
+
+/// The tetrahedra around the edge `ab` of tetrahedron `t`, in turning order
+/// starting with `t`.
+pub(crate) fn edge_ring(tri: &Triangulation, t: TetId, a: VertexId, b: VertexId) -> Vec<TetId> {
+    let mut ring = vec![t];
+    let others = |t: TetId| {
+        let v = tri.tet_vertices(t);
+        let mut o = v.iter().enumerate().filter(|(_, &x)| x != a && x != b);
+        let (i, _) = o.next().expect("edge in tetrahedron");
+        let (j, _) = o.next().expect("edge in tetrahedron");
+        (i, j)
+    };
+    // Cross the facet opposite one free corner, keeping the other: the
+    // kept corner is opposite the facet crossed next.
+    let (mut cross, _) = others(t);
+    let mut current = t;
+    loop {
+        let keep = tri.tet_vertices(current)
+            [(0..4).find(|&k| k != cross && ![a, b].contains(&tri.tet_vertices(current)[k])).expect("free corner")];
+        let (next, _) = tri.mirror(current, cross);
+        if next == t || ring.len() > 4096 {
+            return ring;
+        }
+        ring.push(next);
+        cross = tri.tet_vertices(next).iter().position(|&x| x == keep).expect("shared corner");
+        current = next;
+    }
+}
+
+/// Close pinches of the solid (`solid` per tetrahedron slot) at its edges:
+/// where the solid tetrahedra around an edge form several wedges, the
+/// gaps between them (all but the one reaching the largest tetrahedron,
+/// the outside) are filled when every tetrahedron in them passes `small`.
+/// Returns the tetrahedra added.
+pub(crate) fn close_pinched_edges(
+    tri: &Triangulation,
+    solid: &mut [bool],
+    small: impl Fn(TetId) -> bool,
+    size: impl Fn(TetId) -> f64,
+    rounds: usize,
+) -> usize {
+    let mut added = 0;
+    for _ in 0..rounds {
+        let mut uses: HashMap<(u32, u32), (u32, TetId)> = HashMap::new();
+        for t in tri.finite_tets().filter(|&t| solid[t.index()]) {
+            for (slot, u) in tri.neighbors(t).into_iter().enumerate() {
+                if solid[u.index()] && !tri.is_ghost(u) {
+                    continue;
+                }
+                let [x, y, z] = tri.facet(t, slot);
+                for (p, q) in [(x, y), (y, z), (z, x)] {
+                    uses.entry(key(p.0, q.0)).or_insert((0, t)).0 += 1;
+                }
+            }
+        }
+        let mut fill = Vec::new();
+        for (&(p, q), &(count, t)) in &uses {
+            if count <= 2 {
+                continue;
+            }
+            let ring = edge_ring(tri, t, VertexId(p), VertexId(q));
+            fill.extend(gaps_to_fill(&ring, solid, tri, &small, &size));
+        }
+        let before = added;
+        for t in fill {
+            if !solid[t.index()] {
+                solid[t.index()] = true;
+                added += 1;
+            }
+        }
+        if added == before {
+            break;
+        }
+    }
+    added
+}
+
+/// The runs of non-solid tetrahedra of `ring` to fill: every run but the
+/// one holding a ghost or the largest tetrahedron, if all are small.
+fn gaps_to_fill(
+    ring: &[TetId],
+    solid: &[bool],
+    tri: &Triangulation,
+    small: &impl Fn(TetId) -> bool,
+    size: &impl Fn(TetId) -> f64,
+) -> Vec<TetId> {
+    let Some(start) = ring.iter().position(|t| solid[t.index()]) else {
+        return Vec::new();
+    };
+    let mut runs: Vec<Vec<TetId>> = Vec::new();
+    let mut open = false;
+    for k in 0..ring.len() {
+        let t = ring[(start + k) % ring.len()];
+        if solid[t.index()] {
+            open = false;
+        } else {
+            if !open {
+                runs.push(Vec::new());
+                open = true;
+            }
+            runs.last_mut().expect("run").push(t);
+        }
+    }
+    if runs.len() < 2 {
+        return Vec::new();
+    }
+    let weight = |run: &Vec<TetId>| {
+        run.iter()
+            .map(|&t| if tri.is_ghost(t) { f64::INFINITY } else { size(t) })
+            .fold(0.0, f64::max)
+    };
+    let outside = (0..runs.len())
+        .max_by(|&i, &j| weight(&runs[i]).total_cmp(&weight(&runs[j])))
+        .expect("runs");
+    runs.into_iter()
+        .enumerate()
+        .filter(|(i, run)| *i != outside && run.iter().all(|&t| !tri.is_ghost(t) && small(t)))
+        .flat_map(|(_, run)| run)
+        .collect()
+}
+
+/// Attach the points the solid does not reach (swept from all sides: the
+/// tip of a needle, the rim of a fin): a tetrahedron with such a point as
+/// apex, passing `small`, whose opposite facet lies on the solid's
+/// boundary, is added; that keeps the boundary manifold, since the apex is
+/// new to it. Repeated, so chains of points along a needle join one by one.
+/// Returns the tetrahedra added.
+pub(crate) fn attach_stray_points(
+    tri: &Triangulation,
+    solid: &mut [bool],
+    small: impl Fn(TetId) -> bool,
+    rounds: usize,
+) -> usize {
+    let mut on_solid = vec![false; tri.points().len()];
+    for t in tri.finite_tets().filter(|&t| solid[t.index()]) {
+        for v in tri.tet_vertices(t) {
+            on_solid[v.index()] = true;
+        }
+    }
+    let mut stray: Vec<VertexId> = tri.vertices().filter(|v| !on_solid[v.index()]).collect();
+    let mut added = 0;
+    if std::env::var("SR_DBG_STRAY").is_ok() {
+        for &v in &stray {
+            let p = tri.point(v);
+            if p.x > 1.7 && p.y.abs() < 0.05 {
+                eprintln!("stray {v:?} {p:?}");
+                for t in tri.incident_tets(v) {
+                    if tri.is_ghost(t) { continue; }
+                    let slot = tri.tet_vertices(t).iter().position(|&x| x == v).unwrap();
+                    let (across, _) = tri.mirror(t, slot);
+                    eprintln!("   tet solid {} across solid {} longest {:.3} small {} verts on solid {:?}", solid[t.index()], solid[across.index()], longest_edge(tri, t), small(t), tri.tet_vertices(t).map(|x| on_solid[x.index()]));
+                }
+            }
+        }
+    }
+    if std::env::var("SR_DBG_STRAY").is_ok() {
+        for &v in &stray {
+            let p = tri.point(v);
+            if p.x > 1.7 && p.y.abs() < 0.05 {
+                eprintln!("stray {v:?} {p:?}");
+                for t in tri.incident_tets(v) {
+                    if tri.is_ghost(t) { continue; }
+                    let slot = tri.tet_vertices(t).iter().position(|&x| x == v).unwrap();
+                    let (across, _) = tri.mirror(t, slot);
+                    eprintln!("   tet solid {} across solid {} longest {:.3} small {} verts on solid {:?}", solid[t.index()], solid[across.index()], longest_edge(tri, t), small(t), tri.tet_vertices(t).map(|x| on_solid[x.index()]));
+                }
+            }
+        }
+    }
+    for _ in 0..rounds {
+        let before = added;
+        stray.retain(|&v| {
+            let joins = |t: &TetId| {
+                let slot = tri.tet_vertices(*t).iter().position(|&x| x == v);
+                let (across, _) = tri.mirror(*t, slot.expect("incident"));
+                !tri.is_ghost(*t) && !solid[t.index()] && solid[across.index()] && !tri.is_ghost(across)
+            };
+            let best = tri
+                .incident_tets(v)
+                .into_iter()
+                .filter(joins)
+                .filter(|&t| small(t))
+                .min_by(|&s, &t| longest_edge(tri, s).total_cmp(&longest_edge(tri, t)));
+            let Some(t) = best else {
+                return true;
+            };
+            solid[t.index()] = true;
+            on_solid[v.index()] = true;
+            added += 1;
+            false
+        });
+        if added == before {
+            break;
+        }
+    }
+    added
+}
+
+/// Length of the longest edge of `t`.
+pub(crate) fn longest_edge(tri: &Triangulation, t: TetId) -> f64 {
+    let p = tri.tet_points(t);
+    let mut longest: f64 = 0.0;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            longest = longest.max(p[i].distance(p[j]));
+        }
+    }
+    longest
+}
