@@ -541,13 +541,20 @@ fn restore_thin_parts(
         let n = crate::thin::close_pinched_edges(tri, &mut solid, small, |t| circumradius(tri.tet_points(t)), 4);
         eprintln!("debug: closed {n}");
         if variant.contains("attach") {
+            let attach: f64 = std::env::var("SR_ATTACH").ok().and_then(|s| s.parse().ok()).unwrap_or(size);
             let thin2 = |t: surfrecon_delaunay::TetId| {
                 let widest = tri.tet_vertices(t).iter().map(|v| spacing[v.index()]).fold(0.0, f64::max);
-                longest_edge(tri.tet_points(t)) <= size * widest
+                longest_edge(tri.tet_points(t)) <= attach * widest
             };
-            let a = crate::thin::attach_stray_points(tri, &mut solid, thin2, 64);
+            let a = crate::thin::attach_stray_points(tri, &mut solid, &thin2, 64);
             let n = crate::thin::close_pinched_edges(tri, &mut solid, small, |t| circumradius(tri.tet_points(t)), 4);
             eprintln!("debug: attached {a} closed {n}");
+            if variant.contains("bridge") {
+                let steps: usize = std::env::var("SR_STEPS").ok().and_then(|s| s.parse().ok()).unwrap_or(6);
+                let b = crate::thin::bridge_pieces(tri, &mut solid, &thin2, steps);
+                let n = crate::thin::close_pinched_edges(tri, &mut solid, small, |t| circumradius(tri.tet_points(t)), 4);
+                eprintln!("debug: bridged {b} closed {n}");
+            }
         }
         for t in tri.finite_tets() {
             if solid[t.index()] && surface.is_external(t) {

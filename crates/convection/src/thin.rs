@@ -270,13 +270,13 @@ pub(crate) fn attach_stray_points(
     if std::env::var("SR_DBG_STRAY").is_ok() {
         for &v in &stray {
             let p = tri.point(v);
-            if p.x > 1.7 && p.y.abs() < 0.05 {
+            if p.x > 1.68 && p.x < 1.78 && p.y.abs() < 0.05 {
                 eprintln!("stray {v:?} {p:?}");
                 for t in tri.incident_tets(v) {
                     if tri.is_ghost(t) { continue; }
                     let slot = tri.tet_vertices(t).iter().position(|&x| x == v).unwrap();
                     let (across, _) = tri.mirror(t, slot);
-                    eprintln!("   tet solid {} across solid {} longest {:.3} small {} verts on solid {:?}", solid[t.index()], solid[across.index()], longest_edge(tri, t), small(t), tri.tet_vertices(t).map(|x| on_solid[x.index()]));
+                    if longest_edge(tri, t) < 0.3 { eprintln!("   tet solid {} across solid {} longest {:.3} small {} verts on solid {:?}", solid[t.index()], solid[across.index()], longest_edge(tri, t), small(t), tri.tet_vertices(t).map(|x| on_solid[x.index()])); }
                 }
             }
         }
@@ -284,13 +284,13 @@ pub(crate) fn attach_stray_points(
     if std::env::var("SR_DBG_STRAY").is_ok() {
         for &v in &stray {
             let p = tri.point(v);
-            if p.x > 1.7 && p.y.abs() < 0.05 {
+            if p.x > 1.68 && p.x < 1.78 && p.y.abs() < 0.05 {
                 eprintln!("stray {v:?} {p:?}");
                 for t in tri.incident_tets(v) {
                     if tri.is_ghost(t) { continue; }
                     let slot = tri.tet_vertices(t).iter().position(|&x| x == v).unwrap();
                     let (across, _) = tri.mirror(t, slot);
-                    eprintln!("   tet solid {} across solid {} longest {:.3} small {} verts on solid {:?}", solid[t.index()], solid[across.index()], longest_edge(tri, t), small(t), tri.tet_vertices(t).map(|x| on_solid[x.index()]));
+                    if longest_edge(tri, t) < 0.3 { eprintln!("   tet solid {} across solid {} longest {:.3} small {} verts on solid {:?}", solid[t.index()], solid[across.index()], longest_edge(tri, t), small(t), tri.tet_vertices(t).map(|x| on_solid[x.index()])); }
                 }
             }
         }
@@ -334,4 +334,111 @@ pub(crate) fn longest_edge(tri: &Triangulation, t: TetId) -> f64 {
         }
     }
     longest
+}
+
+/// Join the pieces of the solid (tetrahedra connected through facets) to
+/// the largest one, each through the shortest chain of at most `steps`
+/// tetrahedra passing `small` (a gap across a needle swept through).
+/// Returns the tetrahedra added.
+pub(crate) fn bridge_pieces(
+    tri: &Triangulation,
+    solid: &mut [bool],
+    small: impl Fn(TetId) -> bool,
+    steps: usize,
+) -> usize {
+    const NONE: u32 = u32::MAX;
+    let mut piece = vec![NONE; solid.len()];
+    let mut sizes = Vec::new();
+    for t in tri.finite_tets().filter(|&t| solid[t.index()]) {
+        if piece[t.index()] != NONE {
+            continue;
+        }
+        let id = sizes.len() as u32;
+        let mut stack = vec![t];
+        piece[t.index()] = id;
+        let mut size = 0usize;
+        while let Some(s) = stack.pop() {
+            size += 1;
+            for u in tri.neighbors(s) {
+                if solid[u.index()] && !tri.is_ghost(u) && piece[u.index()] == NONE {
+                    piece[u.index()] = id;
+                    stack.push(u);
+                }
+            }
+        }
+        sizes.push(size);
+    }
+    let Some(main) = (0..sizes.len()).max_by_key(|&i| sizes[i]) else {
+        return 0;
+    };
+    let mut added = 0;
+    // Smallest pieces first: each search is over its own neighbourhood.
+    let mut order: Vec<usize> = (0..sizes.len()).filter(|&i| i != main).collect();
+    order.sort_by_key(|&i| sizes[i]);
+    for id in order {
+        let start: Vec<TetId> = tri
+            .finite_tets()
+            .filter(|&t| piece[t.index()] == id as u32)
+            .collect();
+        if start.is_empty() {
+            continue; // merged into another piece already
+        }
+        if let Some(path) = shortest_bridge(tri, solid, &piece, &start, &small, steps) {
+            let target = path.1;
+            for t in path.0 {
+                solid[t.index()] = true;
+                added += 1;
+            }
+            for t in start {
+                piece[t.index()] = target;
+            }
+        }
+    }
+    added
+}
+
+/// Breadth-first search from `start` (one piece) over non-solid small
+/// tetrahedra to one touching another piece: the chain and that piece.
+fn shortest_bridge(
+    tri: &Triangulation,
+    solid: &[bool],
+    piece: &[u32],
+    start: &[TetId],
+    small: &impl Fn(TetId) -> bool,
+    steps: usize,
+) -> Option<(Vec<TetId>, u32)> {
+    let own = piece[start[0].index()];
+    let mut parent: HashMap<TetId, Option<TetId>> = HashMap::new();
+    let mut layer: Vec<TetId> = Vec::new();
+    for &t in start {
+        for u in tri.neighbors(t) {
+            if !solid[u.index()] && !tri.is_ghost(u) && small(u) && !parent.contains_key(&u) {
+                parent.insert(u, None);
+                layer.push(u);
+            }
+        }
+    }
+    for _ in 0..steps {
+        let mut next = Vec::new();
+        for &t in &layer {
+            for u in tri.neighbors(t) {
+                let other = piece[u.index()];
+                if solid[u.index()] && !tri.is_ghost(u) && other != own && other != u32::MAX {
+                    let mut chain = vec![t];
+                    let mut at = t;
+                    while let Some(Some(p)) = parent.get(&at) {
+                        chain.push(*p);
+                        at = *p;
+                    }
+                    return Some((chain, other));
+                }
+                if !solid[u.index()] && !tri.is_ghost(u) && small(u) && !parent.contains_key(&u) {
+                    parent.insert(u, Some(t));
+                    next.push(u);
+                }
+            }
+        }
+        layer = next;
+    }
+    None
 }
