@@ -4,6 +4,7 @@ use crate::decimate::{decimate, Decimation};
 use crate::error::{ConvectionError, Result};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::surface::{Opening, OrientedFacet, PseudoSurface};
+use crate::thin::thicken;
 use serde::Serialize;
 use std::collections::HashMap;
 use std::time::Instant;
@@ -24,9 +25,11 @@ pub struct Params {
     /// ... and its longest edge exceeds this many local spacings (mean
     /// distance to the 6 nearest neighbours, largest of its vertices).
     pub pocket_size: f64,
-    /// Thin parts: swept tetrahedra next to a sheet of coupled facets (left
-    /// or collapsed) whose circumradius is at most this many local spacings
-    /// are put back inside, so thin parts stay solid and attached (0: off).
+    /// Thin parts (see [`crate::thin`]): swept tetrahedra whose longest
+    /// edge is at most this many local spacings are put back inside around
+    /// the sheets the 2D convection keeps, so thin parts stay solid and
+    /// attached (0: off). Pinches are closed up to 1.2×, stray points
+    /// attached and pieces bridged up to 1.6× this size.
     pub thin_size: f64,
     /// Decimation ball radius as a fraction of the bounding-box diagonal
     /// (0: keep every point). See [`crate::decimate`].
@@ -49,7 +52,7 @@ impl Default for Params {
             pockets: true,
             pocket_cosine: 0.5,
             pocket_size: 8.0,
-            thin_size: 1.5,
+            thin_size: 2.5,
             rho: 0.0,
             rho_geometric: 0.9,
             rho_topo: 0.95,
@@ -95,7 +98,10 @@ pub struct Report {
     pub thin_facet_pairs: usize,
     /// Connected sheets those pairs form.
     pub thin_parts: usize,
-    /// Swept tetrahedra put back inside at thin parts.
+    /// Sheet triangles the 2D convection keeps (thin parts, not membranes).
+    pub thin_sheet_kept: usize,
+    /// Swept tetrahedra put back inside at thin parts (0 when that did not
+    /// leave fewer pieces).
     pub thin_tets_restored: usize,
     /// Faces removed where parts of the surface pinch (non-manifold edges
     /// or vertices).
@@ -196,15 +202,17 @@ fn reconstruct_all(
 
     let thin_parts = params.thin_size > 0.0;
     let (mut unit_normals, mut spacing) = (Vec::new(), Vec::new());
-    if params.pockets || thin_parts {
+    if params.pockets {
         let clock = Instant::now();
         unit_normals = vertex_normals(&tri, points, normals, params.normal_k)?;
         report.seconds.normals = clock.elapsed().as_secs_f64();
+    } else if let Some(n) = normals {
+        check_normals(points, n)?;
+    }
+    if params.pockets || thin_parts {
         let clock = Instant::now();
         spacing = vertex_spacing(&tri, points);
         report.seconds.pockets = clock.elapsed().as_secs_f64();
-    } else if let Some(n) = normals {
-        check_normals(points, n)?;
     }
     if params.pockets {
         let clock = Instant::now();
@@ -216,34 +224,15 @@ fn reconstruct_all(
     report.pockets_opened = surface.pockets_opened;
     report.pseudo_surface_facets = surface.num_facets();
 
-    if let Ok(path) = std::env::var("SR_DEBUG_SHEETS") {
-        let mut tris = Vec::new();
-        for f in surface.facets().filter(|&f| surface.is_coupled(f) && f < surface.mirror(f)) {
-            tris.push(surface.vertices(f).map(|v| tri.input_of_vertex(v).unwrap() as u32));
-        }
-        let n = tris.len();
-        for &f in &surface.collapsed {
-            tris.push(surface.vertices(f).map(|v| tri.input_of_vertex(v).unwrap() as u32));
-        }
-        eprintln!("debug: {n} sheet, {} collapsed", tris.len() - n);
-        let all = std::env::var("SR_ALL").is_ok();
-        let src = if all { &tris[..] } else { &tris[..n] };
-        let kept = crate::thin::convect_sheets(src, points);
-        let k: Vec<[u32;3]> = src.iter().zip(&kept).filter(|(_, &k)| k).map(|(t, _)| *t).collect();
-        eprintln!("debug: {} sheet kept", k.len());
-        let m = TriMesh { vertices: points.to_vec(), triangles: k, normals: None };
-        surfrecon_geom::io::write(format!("{path}-kept.ply"), &surfrecon_geom::Geometry::from_mesh(m)).unwrap();
-        let m = TriMesh { vertices: points.to_vec(), triangles: tris[..n].to_vec(), normals: None };
-        surfrecon_geom::io::write(format!("{path}-sheet.ply"), &surfrecon_geom::Geometry::from_mesh(m)).unwrap();
-        let m = TriMesh { vertices: points.to_vec(), triangles: tris[n..].to_vec(), normals: None };
-        surfrecon_geom::io::write(format!("{path}-collapsed.ply"), &surfrecon_geom::Geometry::from_mesh(m)).unwrap();
-    }
     let clock = Instant::now();
     let solid = match thin_parts {
-        true => restore_thin_parts(&surface, &tri, &unit_normals, &spacing, params.thin_size),
+        true => {
+            let thick = thicken(&surface, &tri, &spacing, params.thin_size);
+            report.thin_sheet_kept = thick.sheet_kept;
+            thick.restored
+        }
         false => Vec::new(),
     };
-    report.thin_tets_restored = solid.iter().filter(|&&s| s).count();
     let mesh = extract_mesh(&surface, &tri, &solid, points, params, &mut report);
     report.seconds.output = clock.elapsed().as_secs_f64();
     Ok(Reconstruction { mesh, report })
@@ -386,10 +375,9 @@ fn extract_mesh(
     let mut best = closed_boundary(surface, tri, &[], points, params);
     report.thin_tets_restored = 0;
     if restored.iter().any(|&r| r) {
-        // Restoring can pinch the surface where a thin part meets the rest;
-        // keep it only where it pays off as a whole.
+        // Restoring can still pinch the surface where a thin part meets the
+        // rest; keep it only where it pays off as a whole.
         let thick = closed_boundary(surface, tri, restored, points, params);
-        eprintln!("debug: plain pieces {} be {} removed {} filled {}; thick pieces {} be {} removed {} filled {}", best.pieces, best.boundary_edges, best.removed, best.filled, thick.pieces, thick.boundary_edges, thick.removed, thick.filled);
         if thick.boundary_edges <= best.boundary_edges && thick.pieces < best.pieces {
             report.thin_tets_restored = restored.iter().filter(|&&r| r).count();
             best = thick;
@@ -482,157 +470,6 @@ fn count_pieces(triangles: &[[u32; 3]], vertices: usize) -> usize {
     (0..vertices)
         .filter(|&v| used[v] && root(&mut parent, v) == v)
         .count()
-}
-
-/// Thin parts: where two fronts met (coupled facets left, or collapsed),
-/// the tetrahedra swept on either side are put back when they are small
-/// against the sampling (circumradius at most `size` local spacings, the
-/// largest at their vertices): their sweep went through a part thinner than
-/// the spacing, not through a cavity (whose meeting tetrahedra are large).
-/// Returns a flag per tetrahedron slot.
-fn restore_thin_parts(
-    surface: &PseudoSurface,
-    tri: &Triangulation,
-    normals: &[DVec3],
-    spacing: &[f64],
-    size: f64,
-) -> Vec<bool> {
-    let mut restored = vec![false; tri.tet_slots()];
-    let sheet: Vec<OrientedFacet> = surface
-        .facets()
-        .filter(|&f| surface.is_coupled(f) && f < surface.mirror(f))
-        .collect();
-    let triangles: Vec<[u32; 3]> = sheet.iter().map(|&f| surface.vertices(f).map(|v| v.0)).collect();
-    let kept = crate::thin::convect_sheets(&triangles, tri.points());
-    let variant = std::env::var("SR_VARIANT").unwrap_or_default();
-    let size: f64 = std::env::var("SR_SIZE").ok().and_then(|s| s.parse().ok()).unwrap_or(size);
-    let thin = |t: surfrecon_delaunay::TetId| {
-        if tri.is_ghost(t) || !surface.is_external(t) {
-            return false;
-        }
-        let widest = tri
-            .tet_vertices(t)
-            .iter()
-            .map(|v| spacing[v.index()])
-            .fold(0.0, f64::max);
-        let measure = if variant.contains("edge") { longest_edge(tri.tet_points(t)) } else { circumradius(tri.tet_points(t)) };
-        measure <= size * widest
-            && (!variant.contains("normals") || spans_thin_part(tri, t, normals))
-    };
-    for (f, _) in sheet.iter().zip(&kept).filter(|(_, &k)| k) {
-        for t in [f.tet(), surface.mirror(*f).tet()] {
-            if thin(t) {
-                restored[t.index()] = true;
-            }
-        }
-    }
-    let mut restored = if variant.contains("nogrow") {
-        keep_attached(surface, tri, restored, |_| false)
-    } else {
-        keep_attached(surface, tri, restored, thin)
-    };
-    if variant.contains("close") {
-        let close: f64 = std::env::var("SR_CLOSE").ok().and_then(|s| s.parse().ok()).unwrap_or(3.0);
-        let mut solid: Vec<bool> = (0..restored.len()).map(|i| restored[i] || (i < tri.tet_slots() && !surface.is_external(surfrecon_delaunay::TetId(i as u32)))).collect();
-        let small = |t: surfrecon_delaunay::TetId| {
-            let widest = tri.tet_vertices(t).iter().map(|v| spacing[v.index()]).fold(0.0, f64::max);
-            circumradius(tri.tet_points(t)) <= close * widest
-        };
-        let n = crate::thin::close_pinched_edges(tri, &mut solid, small, |t| circumradius(tri.tet_points(t)), 4);
-        eprintln!("debug: closed {n}");
-        if variant.contains("attach") {
-            let attach: f64 = std::env::var("SR_ATTACH").ok().and_then(|s| s.parse().ok()).unwrap_or(size);
-            let thin2 = |t: surfrecon_delaunay::TetId| {
-                let widest = tri.tet_vertices(t).iter().map(|v| spacing[v.index()]).fold(0.0, f64::max);
-                longest_edge(tri.tet_points(t)) <= attach * widest
-            };
-            let a = crate::thin::attach_stray_points(tri, &mut solid, &thin2, 64);
-            let n = crate::thin::close_pinched_edges(tri, &mut solid, small, |t| circumradius(tri.tet_points(t)), 4);
-            eprintln!("debug: attached {a} closed {n}");
-            if variant.contains("bridge") {
-                let steps: usize = std::env::var("SR_STEPS").ok().and_then(|s| s.parse().ok()).unwrap_or(6);
-                let b = crate::thin::bridge_pieces(tri, &mut solid, &thin2, steps);
-                let n = crate::thin::close_pinched_edges(tri, &mut solid, small, |t| circumradius(tri.tet_points(t)), 4);
-                eprintln!("debug: bridged {b} closed {n}");
-            }
-        }
-        for t in tri.finite_tets() {
-            if solid[t.index()] && surface.is_external(t) {
-                restored[t.index()] = true;
-            }
-        }
-    }
-    restored
-}
-
-/// Whether `t` reaches across a thin part: two of its corners face each
-/// other (parallel normals, the edge between them along the normal). A
-/// tetrahedron swept in a concave crease or lying flat on the surface joins
-/// corners whose normals differ or whose edge is tangent.
-fn spans_thin_part(tri: &Triangulation, t: surfrecon_delaunay::TetId, normals: &[DVec3]) -> bool {
-    const COSINE: f64 = 0.8;
-    let v = tri.tet_vertices(t);
-    (0..4).any(|i| {
-        (i + 1..4).any(|j| {
-            let (ni, nj) = (normals[v[i].index()], normals[v[j].index()]);
-            let edge = (tri.point(v[j]) - tri.point(v[i])).normalize_or_zero();
-            ni.dot(nj).abs() >= COSINE
-                && ni.dot(edge).abs() >= COSINE
-                && nj.dot(edge).abs() >= COSINE
-        })
-    })
-}
-
-/// Only the restored tetrahedra joined (through facets, over restored ones)
-/// to the unswept solid: a lone restored island would be a separate piece.
-fn keep_attached(
-    surface: &PseudoSurface,
-    tri: &Triangulation,
-    candidate: Vec<bool>,
-    grows: impl Fn(surfrecon_delaunay::TetId) -> bool,
-) -> Vec<bool> {
-    let mut attached = vec![false; candidate.len()];
-    let mut stack: Vec<surfrecon_delaunay::TetId> = tri
-        .finite_tets()
-        .filter(|&t| candidate[t.index()])
-        .filter(|&t| tri.neighbors(t).iter().any(|&u| !surface.is_external(u)))
-        .collect();
-    for &t in &stack {
-        attached[t.index()] = true;
-    }
-    while let Some(t) = stack.pop() {
-        for u in tri.neighbors(t) {
-            if !attached[u.index()] && (candidate[u.index()] || grows(u)) {
-                attached[u.index()] = true;
-                stack.push(u);
-            }
-        }
-    }
-    attached
-}
-
-fn longest_edge(p: [DVec3; 4]) -> f64 {
-    let mut m: f64 = 0.0;
-    for i in 0..4 {
-        for j in i + 1..4 {
-            m = m.max(p[i].distance(p[j]));
-        }
-    }
-    m
-}
-
-/// Radius of the sphere through the four corners (infinite when flat).
-fn circumradius([a, b, c, d]: [DVec3; 4]) -> f64 {
-    let (u, v, w) = (b - a, c - a, d - a);
-    let det = 2.0 * u.dot(v.cross(w));
-    if det == 0.0 {
-        return f64::INFINITY;
-    }
-    let centre = (v.cross(w) * u.length_squared()
-        + w.cross(u) * v.length_squared()
-        + u.cross(v) * w.length_squared())
-        / det;
-    centre.length()
 }
 
 /// Connected components of the coupled facets, joined through edges.
