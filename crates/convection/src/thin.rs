@@ -79,11 +79,11 @@ pub(crate) fn thicken(
         let joining = |t: TetId| swept(t) && longest_edge(tri, t) <= 1.6 * size * widest(t);
         let by_radius = |t: TetId| circumradius(tri.tet_points(t));
         const ROUNDS: usize = 4;
-        close_pinched_edges(tri, &mut solid, closing, by_radius, ROUNDS);
+        close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
         attach_stray_points(tri, &mut solid, joining, 64);
-        close_pinched_edges(tri, &mut solid, closing, by_radius, ROUNDS);
+        close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
         bridge_pieces(tri, &mut solid, joining, 6);
-        close_pinched_edges(tri, &mut solid, closing, by_radius, ROUNDS);
+        close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
     }
     Thickening {
         restored: (0..solid.len())
@@ -228,29 +228,31 @@ pub(crate) fn edge_ring(tri: &Triangulation, t: TetId, a: VertexId, b: VertexId)
 pub(crate) fn close_pinched_edges(
     tri: &Triangulation,
     solid: &mut [bool],
+    swept: impl Fn(TetId) -> bool,
     small: impl Fn(TetId) -> bool,
     size: impl Fn(TetId) -> f64,
     rounds: usize,
 ) -> usize {
     let mut added = 0;
     for _ in 0..rounds {
-        let mut uses: HashMap<(u32, u32), (u32, TetId)> = HashMap::new();
-        for t in tri.finite_tets().filter(|&t| solid[t.index()]) {
+        // Only edges of put-back tetrahedra: elsewhere the surface is the
+        // convection's own, and its pinches are left to the mesh clean-up.
+        let mut edges: HashMap<(u32, u32), TetId> = HashMap::new();
+        for t in tri.finite_tets().filter(|&t| solid[t.index()] && swept(t)) {
             for (slot, u) in tri.neighbors(t).into_iter().enumerate() {
                 if solid[u.index()] && !tri.is_ghost(u) {
                     continue;
                 }
                 let [x, y, z] = tri.facet(t, slot);
                 for (p, q) in [(x, y), (y, z), (z, x)] {
-                    uses.entry(key(p.0, q.0)).or_insert((0, t)).0 += 1;
+                    edges.entry(key(p.0, q.0)).or_insert(t);
                 }
             }
         }
+        let mut sorted: Vec<((u32, u32), TetId)> = edges.into_iter().collect();
+        sorted.sort_unstable();
         let mut fill = Vec::new();
-        for (&(p, q), &(count, t)) in &uses {
-            if count <= 2 {
-                continue;
-            }
+        for ((p, q), t) in sorted {
             let ring = edge_ring(tri, t, VertexId(p), VertexId(q));
             fill.extend(gaps_to_fill(&ring, solid, tri, &small, &size));
         }
