@@ -32,6 +32,7 @@
 //! convection, thin parts by 2D convection, dynamic insertion and removal.
 
 pub mod decimate;
+pub mod dynamic;
 mod error;
 pub mod gabriel;
 pub mod manifold;
@@ -39,6 +40,7 @@ mod reconstruct;
 pub mod surface;
 pub mod thin;
 
+pub use dynamic::{DynamicSurface, UpdateStats};
 pub use error::{ConvectionError, Result};
 pub use reconstruct::{reconstruct, Params, Reconstruction, Report, Timings};
 pub use surface::OrientedFacet;

@@ -25,8 +25,8 @@
 //!    (a needle swept through over a short stretch) are bridged by the
 //!    shortest chain of small tetrahedra.
 
-use std::collections::{HashMap, VecDeque};
 use crate::surface::{OrientedFacet, PseudoSurface};
+use std::collections::{HashMap, VecDeque};
 use surfrecon_delaunay::{TetId, Triangulation, VertexId};
 use surfrecon_geom::DVec3;
 
@@ -75,7 +75,8 @@ pub(crate) fn thicken(
         .map(|i| restored[i] || !surface.is_external(TetId(i as u32)))
         .collect();
     if restored.iter().any(|&r| r) {
-        let closing = |t: TetId| swept(t) && circumradius(tri.tet_points(t)) <= 1.2 * size * widest(t);
+        let closing =
+            |t: TetId| swept(t) && circumradius(tri.tet_points(t)) <= 1.2 * size * widest(t);
         let joining = |t: TetId| swept(t) && longest_edge(tri, t) <= 1.6 * size * widest(t);
         let by_radius = |t: TetId| circumradius(tri.tet_points(t));
         const ROUNDS: usize = 4;
@@ -208,14 +209,19 @@ pub(crate) fn edge_ring(tri: &Triangulation, t: TetId, a: VertexId, b: VertexId)
     let (mut cross, _) = others(t);
     let mut current = t;
     loop {
-        let keep = tri.tet_vertices(current)
-            [(0..4).find(|&k| k != cross && ![a, b].contains(&tri.tet_vertices(current)[k])).expect("free corner")];
+        let keep = tri.tet_vertices(current)[(0..4)
+            .find(|&k| k != cross && ![a, b].contains(&tri.tet_vertices(current)[k]))
+            .expect("free corner")];
         let (next, _) = tri.mirror(current, cross);
         if next == t || ring.len() > 4096 {
             return ring;
         }
         ring.push(next);
-        cross = tri.tet_vertices(next).iter().position(|&x| x == keep).expect("shared corner");
+        cross = tri
+            .tet_vertices(next)
+            .iter()
+            .position(|&x| x == keep)
+            .expect("shared corner");
         current = next;
     }
 }
@@ -301,7 +307,13 @@ fn gaps_to_fill(
     }
     let weight = |run: &Vec<TetId>| {
         run.iter()
-            .map(|&t| if tri.is_ghost(t) { f64::INFINITY } else { size(t) })
+            .map(|&t| {
+                if tri.is_ghost(t) {
+                    f64::INFINITY
+                } else {
+                    size(t)
+                }
+            })
             .fold(0.0, f64::max)
     };
     let outside = (0..runs.len())
@@ -340,7 +352,10 @@ pub(crate) fn attach_stray_points(
             let joins = |t: &TetId| {
                 let slot = tri.tet_vertices(*t).iter().position(|&x| x == v);
                 let (across, _) = tri.mirror(*t, slot.expect("incident"));
-                !tri.is_ghost(*t) && !solid[t.index()] && solid[across.index()] && !tri.is_ghost(across)
+                !tri.is_ghost(*t)
+                    && !solid[t.index()]
+                    && solid[across.index()]
+                    && !tri.is_ghost(across)
             };
             let best = tri
                 .incident_tets(v)

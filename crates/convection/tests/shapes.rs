@@ -267,7 +267,10 @@ fn needle_on_a_sphere_is_one_closed_piece_through_its_points() {
     );
     assert!(r_thin.report.thin_sheet_kept > 0);
     assert_closed_genus(&r_thin, points.len(), 0);
-    assert!(used(&r_thin.mesh) * 100 >= needle * 95, "needle points lost");
+    assert!(
+        used(&r_thin.mesh) * 100 >= needle * 95,
+        "needle points lost"
+    );
     // The plain convection cuts the needle or loses its tip.
     let plain_topo = topology(&plain.mesh);
     assert!(
