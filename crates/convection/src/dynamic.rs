@@ -25,10 +25,11 @@
 //! size of the orphaned subtrees. Pockets (which need normals and the
 //! sampling spacing of all points) are not part of the dynamic update.
 
-use crate::error::Result;
+use crate::decimate::{redecimate_region, Decimation};
+use crate::error::{ConvectionError, Result};
 use crate::gabriel::in_diametral_ball;
 use std::collections::VecDeque;
-use surfrecon_delaunay::{TetId, Triangulation, VertexId};
+use surfrecon_delaunay::{DelaunayError, Location, TetId, Triangulation, VertexId};
 use surfrecon_geom::DVec3;
 
 const NONE: u32 = u32::MAX;
@@ -102,6 +103,29 @@ impl DynamicSurface {
         self.tri.remove(v)?;
         self.update();
         Ok(())
+    }
+
+    /// Remove the vertex at exactly `p` and update the surface.
+    pub fn remove_point(&mut self, p: DVec3) -> Result<()> {
+        let v =
+            self.vertex_at(p)
+                .ok_or(ConvectionError::Delaunay(DelaunayError::UnknownVertex(
+                    u32::MAX,
+                )))?;
+        self.remove(v)
+    }
+
+    /// The vertex at exactly `p`: the located tetrahedron has it as a
+    /// corner (no vertex lies inside a Delaunay tetrahedron), or one of its
+    /// neighbours does when `p` is on a shared facet.
+    fn vertex_at(&self, p: DVec3) -> Option<VertexId> {
+        let t = match self.tri.locate(p).ok()? {
+            Location::Inside(t) | Location::Outside(t) => t,
+        };
+        std::iter::once(t)
+            .chain(self.tri.neighbors(t))
+            .flat_map(|u| self.tri.tet_vertices(u))
+            .find(|&v| !v.is_infinite() && self.tri.point(v) == p)
     }
 
     /// The converged pseudo-surface: every oriented facet, vertices ordered
@@ -273,6 +297,43 @@ impl DynamicSurface {
     }
 }
 
+/// The paper's interactive refinement (§4.3): decide again the points of
+/// `points` within the reach of `settings.brush` with its local radius, and
+/// insert or remove them in `surface`, each a local update. `keep` says
+/// which of `points` the surface holds, and is updated; `normals` are unit
+/// vectors, one per point. Returns (inserted, removed).
+pub fn apply_brush(
+    surface: &mut DynamicSurface,
+    points: &[DVec3],
+    normals: &[DVec3],
+    keep: &mut [bool],
+    settings: &Decimation,
+) -> Result<(usize, usize)> {
+    if normals.len() != points.len() || keep.len() != points.len() {
+        return Err(ConvectionError::NormalCount {
+            points: points.len(),
+            normals: normals.len().min(keep.len()),
+        });
+    }
+    let next = redecimate_region(points, normals, keep, settings);
+    let (mut inserted, mut removed) = (0, 0);
+    for i in 0..points.len() {
+        match (keep[i], next[i]) {
+            (false, true) => {
+                surface.insert(points[i])?;
+                inserted += 1;
+            }
+            (true, false) => {
+                surface.remove_point(points[i])?;
+                removed += 1;
+            }
+            _ => {}
+        }
+        keep[i] = next[i];
+    }
+    Ok((inserted, removed))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -367,5 +428,62 @@ mod tests {
             total_swept < edits * full / 20,
             "updates are not local: {total_swept} swept in {edits} edits of {full}"
         );
+    }
+
+    /// A flat-ish sampled sphere with its normals.
+    fn sphere_with_normals(n: usize, seed: u64) -> (Vec<DVec3>, Vec<DVec3>) {
+        let points = shell(n, seed);
+        let normals = points.iter().map(|p| p.normalize()).collect();
+        (points, normals)
+    }
+
+    /// A refining brush inserts points only within its reach, and the
+    /// updated surface is the one a run from scratch on the new kept points
+    /// gives; a coarsening brush removes points there.
+    #[test]
+    fn brush_updates_locally_and_matches_a_run_from_scratch() {
+        use crate::decimate::{decimate, Brush};
+        let (points, normals) = sphere_with_normals(3000, 3);
+        let mut settings = Decimation {
+            radius: 0.12,
+            geometric: 0.9,
+            topological: 0.95,
+            brush: None,
+        };
+        let mut keep = decimate(&points, &normals, &settings);
+        let kept = |keep: &[bool]| -> Vec<DVec3> {
+            (0..points.len())
+                .filter(|&i| keep[i])
+                .map(|i| points[i])
+                .collect()
+        };
+        let mut surface = DynamicSurface::new(&kept(&keep)).unwrap();
+        let centre = DVec3::new(0.0, 0.0, 1.0);
+        let inside = |i: usize| points[i].distance(centre) < 0.5;
+        let count_inside =
+            |keep: &[bool]| (0..points.len()).filter(|&i| inside(i) && keep[i]).count();
+        for (rho_c, refines) in [(0.03, true), (0.25, false)] {
+            settings.brush = Some(Brush {
+                centre,
+                radius: 0.5,
+                rho_centre: rho_c,
+                exponent: 2,
+            });
+            let before = keep.clone();
+            let (inserted, removed) =
+                apply_brush(&mut surface, &points, &normals, &mut keep, &settings).unwrap();
+            eprintln!("rho_c {rho_c}: {inserted} inserted, {removed} removed");
+            assert!((0..points.len()).all(|i| inside(i) || keep[i] == before[i]));
+            if refines {
+                assert!(count_inside(&keep) > count_inside(&before) && inserted > 0);
+            } else {
+                assert!(count_inside(&keep) < count_inside(&before) && removed > 0);
+            }
+            let scratch = DynamicSurface::new(&kept(&keep)).unwrap();
+            assert_eq!(
+                keyed(scratch.triangulation(), &scratch.facets()),
+                keyed(surface.triangulation(), &surface.facets())
+            );
+        }
     }
 }

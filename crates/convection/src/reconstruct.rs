@@ -1,6 +1,6 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
-use crate::decimate::{decimate, Decimation};
+use crate::decimate::{decimate, Brush, Decimation};
 use crate::error::{ConvectionError, Result};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::surface::{Opening, OrientedFacet, PseudoSurface};
@@ -39,6 +39,10 @@ pub struct Params {
     pub rho_geometric: f64,
     /// The topological-disk criterion's cosine ρ′ (1: off).
     pub rho_topo: f64,
+    /// The paper's brush: the decimation radius varies from `rho_centre`
+    /// at the centre to `rho` at the brush's reach. Centre and reach in the
+    /// points' units, `rho_centre` like `rho` a fraction of the diagonal.
+    pub brush: Option<Brush>,
     /// Close boundary loops of at most this many edges left by the
     /// manifold clean-up, by ear clipping through their own vertices (0:
     /// leave every hole open).
@@ -56,6 +60,7 @@ impl Default for Params {
             rho: 0.0,
             rho_geometric: 0.9,
             rho_topo: 0.95,
+            brush: None,
             max_hole_edges: 24,
         }
     }
@@ -137,7 +142,8 @@ pub fn reconstruct(
     if let Some(n) = normals {
         check_normals(points, n)?;
     }
-    if params.rho == 0.0 || points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
+    let decimates = params.rho > 0.0 || params.brush.is_some_and(|b| b.rho_centre > 0.0);
+    if !decimates || points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
         // Bad points get their error from the triangulation.
         return reconstruct_all(points, normals, params);
     }
@@ -146,10 +152,15 @@ pub fn reconstruct(
         Some(n) => n.iter().map(|v| v.normalize()).collect(),
         None => estimate_normals(points, params.normal_k),
     };
+    let diagonal = bounding_diagonal(points);
     let settings = Decimation {
-        radius: params.rho * bounding_diagonal(points),
+        radius: params.rho * diagonal,
         geometric: params.rho_geometric,
         topological: params.rho_topo,
+        brush: params.brush.map(|b| Brush {
+            rho_centre: b.rho_centre * diagonal,
+            ..b
+        }),
     };
     let keep = decimate(points, &unit, &settings);
     let kept: Vec<usize> = (0..points.len()).filter(|&i| keep[i]).collect();
@@ -258,6 +269,9 @@ fn check_params(params: &Params) -> Result<()> {
             range: "0 to 1 (fraction of the diagonal)",
         });
     }
+    if let Some(b) = &params.brush {
+        check_brush(b)?;
+    }
     let c = params.pocket_cosine;
     if !(0.0..=1.0).contains(&c) {
         return Err(ConvectionError::BadParameter {
@@ -273,6 +287,27 @@ fn check_params(params: &Params) -> Result<()> {
             value: size,
             range: "0 or more",
         });
+    }
+    Ok(())
+}
+
+fn check_brush(b: &Brush) -> Result<()> {
+    let bad = |name, value, range| Err(ConvectionError::BadParameter { name, value, range });
+    if !b.centre.is_finite() {
+        return bad("brush centre", f64::NAN, "finite coordinates");
+    }
+    if !(b.radius.is_finite() && b.radius > 0.0) {
+        return bad("brush radius", b.radius, "more than 0");
+    }
+    if !(0.0..1.0).contains(&b.rho_centre) {
+        return bad(
+            "brush rho_c",
+            b.rho_centre,
+            "0 to 1 (fraction of the diagonal)",
+        );
+    }
+    if b.exponent < 2 {
+        return bad("brush exponent", b.exponent as f64, "2 or more");
     }
     Ok(())
 }
