@@ -33,7 +33,7 @@ pub struct ConvectionArgs {
     /// diagonal, like --rho) back to --rho at distance R, as
     /// ρ + (ρ_c − ρ)/R²·(R² − d²). RHO_C below --rho keeps more detail there.
     #[arg(long, value_name = "X,Y,Z,R,RHO_C", value_parser = parse_brush, allow_hyphen_values = true)]
-    pub brush: Option<Brush>,
+    pub brush: Option<Box<Brush>>,
     /// Close boundary loops of at most this many edges left where the
     /// surface pinched (0: leave them open and report them).
     #[arg(long = "fill-holes", default_value_t = 24, value_name = "EDGES")]
@@ -71,7 +71,7 @@ pub fn run(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
         rho: c.rho,
         rho_geometric: c.rho_geom,
         rho_topo: c.rho_topo,
-        brush: c.brush,
+        brush: c.brush.as_deref().copied(),
         ..Params::default()
     };
     let r = reconstruct(&points.positions, points.normals.as_deref(), &params)
@@ -105,7 +105,7 @@ pub fn run(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
 }
 
 /// `X,Y,Z,R,RHO_C`: five numbers; R above 0, RHO_C from 0 to 1.
-fn parse_brush(s: &str) -> Result<Brush, String> {
+fn parse_brush(s: &str) -> Result<Box<Brush>, String> {
     let bad = || format!("expected X,Y,Z,R,RHO_C (five numbers, e.g. 0,0,1,0.3,0.001), got {s:?}");
     let v: Vec<f64> = s
         .split(',')
@@ -114,7 +114,7 @@ fn parse_brush(s: &str) -> Result<Brush, String> {
     let [x, y, z, r, rho_c] = v[..] else {
         return Err(bad());
     };
-    if !(x.is_finite() && y.is_finite() && z.is_finite()) || !(r.is_finite() && r > 0.0) {
+    if !(x.is_finite() && y.is_finite() && z.is_finite() && r.is_finite() && r > 0.0) {
         return Err(format!(
             "brush centre must be finite and R above 0, got {s:?}"
         ));
@@ -124,10 +124,11 @@ fn parse_brush(s: &str) -> Result<Brush, String> {
             "brush RHO_C must be from 0 to 1 (fraction of the diagonal), got {s:?}"
         ));
     }
-    Ok(Brush {
+    // Boxed: the reconstruct arguments stay small next to other commands'.
+    Ok(Box::new(Brush {
         centre: surfrecon_geom::DVec3::new(x, y, z),
         radius: r,
         rho_centre: rho_c,
         exponent: 2,
-    })
+    }))
 }
