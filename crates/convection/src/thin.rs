@@ -14,7 +14,7 @@
 //!    surface and are eaten from their rim (on the harness bunny all 1,660
 //!    sheet triangles go); sheets inside a thin part join near points in
 //!    well-shaped triangles, which stop the front.
-//! 2. A closed manifold instead of a double-sided sheet ([`thicken`]): the
+//! 2. A closed manifold instead of a double-sided sheet (`thicken`): the
 //!    output must stay a manifold through the input points, so the kept
 //!    sheets are thickened with the swept Delaunay tetrahedra around them
 //!    rather than doubled: the small ones (longest edge within a few local

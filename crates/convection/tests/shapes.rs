@@ -11,6 +11,15 @@ fn run(points: &[DVec3]) -> Reconstruction {
     reconstruct(points, None, &Params::default()).unwrap()
 }
 
+/// The convection with thin parts left out (as before they were handled).
+fn run_without_thin_parts(points: &[DVec3]) -> Reconstruction {
+    let params = Params {
+        thin_size: 0.0,
+        ..Params::default()
+    };
+    reconstruct(points, None, &params).unwrap()
+}
+
 /// Chamfer L1 between the reconstruction and the true surface, relative to
 /// the true surface's bounding-box diagonal.
 fn relative_chamfer(mesh: &TriMesh, truth: &TriMesh) -> f64 {
@@ -155,15 +164,7 @@ fn thin_fin_is_one_closed_piece() {
             .into_iter()
             .filter(|p| p.length() > 1.0),
     );
-    let plain = reconstruct(
-        &points,
-        None,
-        &Params {
-            thin_size: 0.0,
-            ..Params::default()
-        },
-    )
-    .unwrap();
+    let plain = run_without_thin_parts(&points);
     let thin = run(&points);
     let (before, after) = (topology(&plain.mesh), topology(&thin.mesh));
     eprintln!(
@@ -243,15 +244,7 @@ fn needle_on_a_sphere_is_one_closed_piece_through_its_points() {
             .filter(|p| p.length() > 1.0),
     );
     let r_thin = run(&points);
-    let plain = reconstruct(
-        &points,
-        None,
-        &Params {
-            thin_size: 0.0,
-            ..Params::default()
-        },
-    )
-    .unwrap();
+    let plain = run_without_thin_parts(&points);
     let used = |mesh: &TriMesh| {
         let mut used = vec![false; points.len()];
         for &v in mesh.triangles.iter().flatten() {
