@@ -411,9 +411,14 @@ fn extract_mesh(
     report.thin_tets_restored = 0;
     if restored.iter().any(|&r| r) {
         // Restoring can still pinch the surface where a thin part meets the
-        // rest; keep it only where it pays off as a whole.
+        // rest, or (on noisy samples, whose sheets pass for thin parts) fill
+        // a volume that swallows points: keep it only where it pays off as
+        // a whole.
         let thick = closed_boundary(surface, tri, restored, points, params);
-        if thick.boundary_edges <= best.boundary_edges && thick.pieces < best.pieces {
+        if thick.boundary_edges <= best.boundary_edges
+            && thick.pieces < best.pieces
+            && thick.points_used >= best.points_used
+        {
             report.thin_tets_restored = restored.iter().filter(|&&r| r).count();
             best = thick;
         }
@@ -423,11 +428,7 @@ fn extract_mesh(
     report.holes_filled = best.filled;
     report.boundary_edges = best.boundary_edges;
     report.facets = triangles.len();
-    let mut used = vec![false; points.len()];
-    for &v in triangles.iter().flatten() {
-        used[v as usize] = true;
-    }
-    report.kept_points = used.iter().filter(|&&u| u).count();
+    report.kept_points = best.points_used;
     TriMesh {
         vertices: points.to_vec(),
         triangles,
@@ -442,6 +443,8 @@ struct Boundary {
     filled: usize,
     boundary_edges: usize,
     pieces: usize,
+    /// Input points some face uses.
+    points_used: usize,
 }
 
 /// The boundary of the solid tetrahedra (never swept, or `restored`),
@@ -475,10 +478,19 @@ fn closed_boundary(
     Boundary {
         boundary_edges: boundary_edges(&triangles),
         pieces: count_pieces(&triangles, points.len()),
+        points_used: points_used(&triangles, points.len()),
         triangles,
         removed,
         filled,
     }
+}
+
+fn points_used(triangles: &[[u32; 3]], points: usize) -> usize {
+    let mut used = vec![false; points];
+    for &v in triangles.iter().flatten() {
+        used[v as usize] = true;
+    }
+    used.iter().filter(|&&u| u).count()
 }
 
 /// Connected components of the faces, joined through shared vertices.
