@@ -429,24 +429,29 @@ pub(crate) fn bridge_pieces(
     // Smallest pieces first: each search is over its own neighbourhood.
     let mut order: Vec<usize> = (0..sizes.len()).filter(|&i| i != main).collect();
     order.sort_by_key(|&i| sizes[i]);
+    let mut members: Vec<Vec<TetId>> = vec![Vec::new(); sizes.len()];
+    for t in tri.finite_tets().filter(|&t| piece[t.index()] != NONE) {
+        members[piece[t.index()] as usize].push(t);
+    }
     for id in order {
-        let start: Vec<TetId> = tri
-            .finite_tets()
-            .filter(|&t| piece[t.index()] == id as u32)
-            .collect();
+        let start = std::mem::take(&mut members[id]);
         if start.is_empty() {
-            continue; // merged into another piece already
+            continue;
         }
-        if let Some(path) = shortest_bridge(tri, solid, &piece, &start, &small, steps) {
-            let target = path.1;
-            for t in path.0 {
-                solid[t.index()] = true;
-                added += 1;
-            }
-            for t in start {
-                piece[t.index()] = target;
-            }
+        let Some((chain, target)) = shortest_bridge(tri, solid, &piece, &start, &small, steps)
+        else {
+            members[id] = start;
+            continue;
+        };
+        for &t in &chain {
+            solid[t.index()] = true;
+            added += 1;
         }
+        // The joined piece (and its chain) now belongs to the target.
+        for &t in start.iter().chain(&chain) {
+            piece[t.index()] = target;
+        }
+        members[target as usize].extend(start.into_iter().chain(chain));
     }
     added
 }
