@@ -84,3 +84,57 @@ fn convection_rejects_flat_input_and_an_out_of_range_rho() {
     assert!(err.contains("rho = 1.5"), "{err}");
     assert!(!out.exists(), "no output file after a failure");
 }
+
+/// `--brush`: a finer radius around a spot keeps more points (all of the
+/// extra ones within the brush); a malformed brush is one clear error.
+#[test]
+fn convection_brush_keeps_more_points_where_it_refines() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("torus.ply");
+    let mut pc = sample_surface(&torus(1.0, 0.4, 120, 48), 4000, 9);
+    pc.normals = None;
+    io::write(&input, &Geometry::from_points(pc.clone())).unwrap();
+    let run = |out: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![
+            "--json",
+            "reconstruct",
+            s(&input),
+            "-o",
+            s(out),
+            "--method",
+            "convection",
+            "--rho",
+            "0.03",
+        ];
+        args.extend_from_slice(extra);
+        surfrecon(&args)
+    };
+    let (plain, brushed) = (dir.path().join("plain.ply"), dir.path().join("brush.ply"));
+    let kept = |json: &serde_json::Value| {
+        json["convection"]["points"].as_u64().unwrap()
+            - json["convection"]["decimated"].as_u64().unwrap()
+    };
+    let a = json_of(&run(&plain, &[]));
+    let b = json_of(&run(&brushed, &["--brush", "1.4,0,0,0.5,0.002"]));
+    assert!(kept(&b) > kept(&a), "{} vs {}", kept(&b), kept(&a));
+    let mesh = io::read(&brushed).unwrap().to_mesh();
+    let used_near = |mesh: &surfrecon_geom::TriMesh| {
+        let mut used = vec![false; mesh.vertices.len()];
+        for &v in mesh.triangles.iter().flatten() {
+            used[v as usize] = true;
+        }
+        let centre = glam::DVec3::new(1.4, 0.0, 0.0);
+        (0..used.len())
+            .filter(|&i| used[i] && mesh.vertices[i].distance(centre) < 0.5)
+            .count()
+    };
+    let plain_mesh = io::read(&plain).unwrap().to_mesh();
+    assert!(used_near(&mesh) > 2 * used_near(&plain_mesh));
+    let t = topology(&mesh);
+    assert!(t.watertight && t.vertex_manifold, "{t:?}");
+
+    let bad = run(&dir.path().join("bad.ply"), &["--brush", "1,0,0,0.5"]);
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("X,Y,Z,R,RHO_C"), "{err}");
+}

@@ -12,6 +12,10 @@
 //!
 //! The growth stops at the first neighbour failing either, so the removed
 //! points form a disk around `p` on its own side of the surface.
+//!
+//! A [`Brush`] varies the ball radius around a centre (the paper's
+//! interactive refinement, §4.3); [`redecimate_region`] decides again only
+//! the points inside a brush, for a local update of a reconstruction.
 
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::DVec3;
@@ -25,6 +29,45 @@ pub struct Decimation {
     pub geometric: f64,
     /// The topological-disk criterion's cosine ρ′ (paper: 0.95; 1: off).
     pub topological: f64,
+    /// A local change of the radius.
+    pub brush: Option<Brush>,
+}
+
+impl Decimation {
+    /// The decimation ball radius around `p`.
+    pub fn radius_at(&self, p: DVec3) -> f64 {
+        match &self.brush {
+            Some(b) => b.radius_at(p, self.radius),
+            None => self.radius,
+        }
+    }
+}
+
+/// The paper's brush: the decimation radius becomes
+/// `ρ_loc(p) = ρ + (ρ_c − ρ)/rⁿ · (rⁿ − |p − c|ⁿ)` within distance `r` of
+/// the centre `c` (`ρ_c` at the centre, back to `ρ` at distance `r`,
+/// smoothly for `n ≥ 2`). `ρ_c > ρ` coarsens, `ρ_c < ρ` refines.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Brush {
+    pub centre: DVec3,
+    /// Reach `r` (absolute length).
+    pub radius: f64,
+    /// `ρ_c`, the radius at the centre (absolute length).
+    pub rho_centre: f64,
+    /// `n`, at least 2.
+    pub exponent: i32,
+}
+
+impl Brush {
+    /// `ρ_loc(p)` for the radius `rho` outside the brush.
+    pub fn radius_at(&self, p: DVec3, rho: f64) -> f64 {
+        let d = p.distance(self.centre);
+        if d >= self.radius {
+            return rho;
+        }
+        let rn = self.radius.powi(self.exponent);
+        rho + (self.rho_centre - rho) / rn * (rn - d.powi(self.exponent))
+    }
 }
 
 /// Which points to keep (one flag per point). `normals` are unit vectors,
@@ -33,12 +76,49 @@ pub fn decimate(points: &[DVec3], normals: &[DVec3], settings: &Decimation) -> V
     let tree = KdTree::new(points);
     let mut keep = vec![true; points.len()];
     let mut decided = vec![false; points.len()];
+    grow_disks(&tree, points, normals, settings, &mut keep, &mut decided);
+    keep
+}
+
+/// Decide again the points within the brush's reach (`settings.brush`,
+/// which must be set), given the decision `keep` for all: points outside
+/// keep theirs, and kept ones there still stop the disks grown inside.
+pub fn redecimate_region(
+    points: &[DVec3],
+    normals: &[DVec3],
+    keep: &[bool],
+    settings: &Decimation,
+) -> Vec<bool> {
+    let Some(brush) = settings.brush else {
+        return keep.to_vec();
+    };
+    let inside = |i: usize| points[i].distance(brush.centre) < brush.radius;
+    let mut keep = keep.to_vec();
+    let mut decided: Vec<bool> = (0..points.len()).map(|i| !inside(i)).collect();
+    for i in (0..points.len()).filter(|&i| inside(i)) {
+        keep[i] = true;
+    }
+    let tree = KdTree::new(points);
+    grow_disks(&tree, points, normals, settings, &mut keep, &mut decided);
+    keep
+}
+
+/// Every undecided point, in input order, is kept and removes its
+/// undecided neighbours by the two criteria.
+fn grow_disks(
+    tree: &KdTree,
+    points: &[DVec3],
+    normals: &[DVec3],
+    settings: &Decimation,
+    keep: &mut [bool],
+    decided: &mut [bool],
+) {
     for p in 0..points.len() {
         if decided[p] {
             continue;
         }
         decided[p] = true;
-        let mut near = tree.within(points[p], settings.radius);
+        let mut near = tree.within(points[p], settings.radius_at(points[p]));
         near.sort_by(|a, b| {
             a.distance
                 .total_cmp(&b.distance)
@@ -56,7 +136,6 @@ pub fn decimate(points: &[DVec3], normals: &[DVec3], settings: &Decimation) -> V
             decided[q] = true;
         }
     }
-    keep
 }
 
 fn removable(points: &[DVec3], normals: &[DVec3], p: usize, q: usize, s: &Decimation) -> bool {
@@ -88,6 +167,7 @@ mod tests {
             radius: 2.5,
             geometric: 0.9,
             topological: 0.95,
+            brush: None,
         };
         let keep = decimate(&points, &normals, &settings);
         let kept: Vec<DVec3> = (0..points.len())
@@ -117,6 +197,7 @@ mod tests {
             radius: 0.6,
             geometric: 0.9,
             topological: 0.95,
+            brush: None,
         };
         let keep = decimate(&points, &normals, &settings);
         assert!(keep[n..].iter().all(|&k| k), "the upper sheet lost points");
@@ -126,5 +207,26 @@ mod tests {
         };
         let keep = decimate(&points, &normals, &off);
         assert!(keep[n..].iter().any(|&k| !k), "without ρ′ it is decimated");
+    }
+
+    #[test]
+    fn brush_radius_goes_from_the_centre_value_to_rho() {
+        let b = Brush {
+            centre: DVec3::ZERO,
+            radius: 2.0,
+            rho_centre: 0.1,
+            exponent: 2,
+        };
+        assert!((b.radius_at(DVec3::ZERO, 0.5) - 0.1).abs() < 1e-12);
+        assert_eq!(b.radius_at(DVec3::new(2.0, 0.0, 0.0), 0.5), 0.5);
+        assert_eq!(b.radius_at(DVec3::new(0.0, 3.0, 0.0), 0.5), 0.5);
+        // 0.5 + (0.1 − 0.5)/4 · (4 − 1) = 0.2 at distance 1.
+        assert!((b.radius_at(DVec3::new(0.0, 0.0, 1.0), 0.5) - 0.2).abs() < 1e-12);
+        let mut last = 0.0;
+        for k in 0..=20 {
+            let r = b.radius_at(DVec3::new(k as f64 * 0.1, 0.0, 0.0), 0.5);
+            assert!(r >= last, "monotone from the centre out");
+            last = r;
+        }
     }
 }

@@ -19,25 +19,36 @@
 //!    so the mesh is manifold, optionally short holes are closed; the
 //!    boundary edges left are reported.
 //!
-//! 5. thin parts: where two fronts met across a part thinner than the
-//!    sampling, the small swept tetrahedra spanning it are put back inside
-//!    when that leaves fewer pieces (a stand-in for the paper's 2D
-//!    convection of the sheets).
+//! 5. thin parts ([`thin`]): the paper's 2D convection over the sheets of
+//!    coupled facets keeps the sheets of parts thinner than the sampling
+//!    and eats membranes across the outside; the kept sheets are thickened
+//!    with the small swept tetrahedra around them (pinches closed, stray
+//!    points attached, pieces bridged), kept when that leaves fewer pieces.
 //!
 //! With `Params::rho > 0` the input is first decimated by the paper's
 //! geometric and topological-disk criteria ([`decimate`]), before the
-//! triangulation rather than on the fly.
+//! triangulation rather than on the fly; a [`decimate::Brush`] varies the
+//! radius locally.
+//!
+//! Dynamic correction ([`dynamic`]): a [`DynamicSurface`] inserts and
+//! removes points and updates the Gabriel pseudo-surface locally (the same
+//! facets as a run from scratch); [`dynamic::apply_brush`] re-decides the
+//! points under a brush and applies the difference.
 //!
 //! Not done yet (see the paper): decimation on the fly during the
-//! convection, thin parts by 2D convection, dynamic insertion and removal.
+//! convection, triangle-quality refinement, pockets and thin parts in the
+//! dynamic update.
 
 pub mod decimate;
+pub mod dynamic;
 mod error;
 pub mod gabriel;
 pub mod manifold;
 mod reconstruct;
 pub mod surface;
+pub mod thin;
 
+pub use dynamic::{DynamicSurface, UpdateStats};
 pub use error::{ConvectionError, Result};
 pub use reconstruct::{reconstruct, Params, Reconstruction, Report, Timings};
 pub use surface::OrientedFacet;

@@ -1,9 +1,10 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
-use crate::decimate::{decimate, Decimation};
+use crate::decimate::{decimate, Brush, Decimation};
 use crate::error::{ConvectionError, Result};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::surface::{Opening, OrientedFacet, PseudoSurface};
+use crate::thin::thicken;
 use serde::Serialize;
 use std::collections::HashMap;
 use std::time::Instant;
@@ -24,9 +25,11 @@ pub struct Params {
     /// ... and its longest edge exceeds this many local spacings (mean
     /// distance to the 6 nearest neighbours, largest of its vertices).
     pub pocket_size: f64,
-    /// Thin parts: swept tetrahedra next to a sheet of coupled facets (left
-    /// or collapsed) whose circumradius is at most this many local spacings
-    /// are put back inside, so thin parts stay solid and attached (0: off).
+    /// Thin parts (see [`crate::thin`]): swept tetrahedra whose longest
+    /// edge is at most this many local spacings are put back inside around
+    /// the sheets the 2D convection keeps, so thin parts stay solid and
+    /// attached (0: off). Pinches are closed up to 1.2×, stray points
+    /// attached and pieces bridged up to 1.6× this size.
     pub thin_size: f64,
     /// Decimation ball radius as a fraction of the bounding-box diagonal
     /// (0: keep every point). See [`crate::decimate`].
@@ -36,6 +39,10 @@ pub struct Params {
     pub rho_geometric: f64,
     /// The topological-disk criterion's cosine ρ′ (1: off).
     pub rho_topo: f64,
+    /// The paper's brush: the decimation radius varies from `rho_centre`
+    /// at the centre to `rho` at the brush's reach. Centre and reach in the
+    /// points' units, `rho_centre` like `rho` a fraction of the diagonal.
+    pub brush: Option<Brush>,
     /// Close boundary loops of at most this many edges left by the
     /// manifold clean-up, by ear clipping through their own vertices (0:
     /// leave every hole open).
@@ -49,10 +56,11 @@ impl Default for Params {
             pockets: true,
             pocket_cosine: 0.5,
             pocket_size: 8.0,
-            thin_size: 1.5,
+            thin_size: 2.5,
             rho: 0.0,
             rho_geometric: 0.9,
             rho_topo: 0.95,
+            brush: None,
             max_hole_edges: 24,
         }
     }
@@ -95,7 +103,10 @@ pub struct Report {
     pub thin_facet_pairs: usize,
     /// Connected sheets those pairs form.
     pub thin_parts: usize,
-    /// Swept tetrahedra put back inside at thin parts.
+    /// Sheet triangles the 2D convection keeps (thin parts, not membranes).
+    pub thin_sheet_kept: usize,
+    /// Swept tetrahedra put back inside at thin parts (0 when that did not
+    /// leave fewer pieces).
     pub thin_tets_restored: usize,
     /// Faces removed where parts of the surface pinch (non-manifold edges
     /// or vertices).
@@ -131,7 +142,8 @@ pub fn reconstruct(
     if let Some(n) = normals {
         check_normals(points, n)?;
     }
-    if params.rho == 0.0 || points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
+    let decimates = params.rho > 0.0 || params.brush.is_some_and(|b| b.rho_centre > 0.0);
+    if !decimates || points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
         // Bad points get their error from the triangulation.
         return reconstruct_all(points, normals, params);
     }
@@ -140,10 +152,15 @@ pub fn reconstruct(
         Some(n) => n.iter().map(|v| v.normalize()).collect(),
         None => estimate_normals(points, params.normal_k),
     };
+    let diagonal = bounding_diagonal(points);
     let settings = Decimation {
-        radius: params.rho * bounding_diagonal(points),
+        radius: params.rho * diagonal,
         geometric: params.rho_geometric,
         topological: params.rho_topo,
+        brush: params.brush.map(|b| Brush {
+            rho_centre: b.rho_centre * diagonal,
+            ..b
+        }),
     };
     let keep = decimate(points, &unit, &settings);
     let kept: Vec<usize> = (0..points.len()).filter(|&i| keep[i]).collect();
@@ -196,15 +213,17 @@ fn reconstruct_all(
 
     let thin_parts = params.thin_size > 0.0;
     let (mut unit_normals, mut spacing) = (Vec::new(), Vec::new());
-    if params.pockets || thin_parts {
+    if params.pockets {
         let clock = Instant::now();
         unit_normals = vertex_normals(&tri, points, normals, params.normal_k)?;
         report.seconds.normals = clock.elapsed().as_secs_f64();
+    } else if let Some(n) = normals {
+        check_normals(points, n)?;
+    }
+    if params.pockets || thin_parts {
         let clock = Instant::now();
         spacing = vertex_spacing(&tri, points);
         report.seconds.pockets = clock.elapsed().as_secs_f64();
-    } else if let Some(n) = normals {
-        check_normals(points, n)?;
     }
     if params.pockets {
         let clock = Instant::now();
@@ -218,10 +237,13 @@ fn reconstruct_all(
 
     let clock = Instant::now();
     let solid = match thin_parts {
-        true => restore_thin_parts(&surface, &tri, &unit_normals, &spacing, params.thin_size),
+        true => {
+            let thick = thicken(&surface, &tri, &spacing, params.thin_size);
+            report.thin_sheet_kept = thick.sheet_kept;
+            thick.restored
+        }
         false => Vec::new(),
     };
-    report.thin_tets_restored = solid.iter().filter(|&&s| s).count();
     let mesh = extract_mesh(&surface, &tri, &solid, points, params, &mut report);
     report.seconds.output = clock.elapsed().as_secs_f64();
     Ok(Reconstruction { mesh, report })
@@ -247,6 +269,9 @@ fn check_params(params: &Params) -> Result<()> {
             range: "0 to 1 (fraction of the diagonal)",
         });
     }
+    if let Some(b) = &params.brush {
+        check_brush(b)?;
+    }
     let c = params.pocket_cosine;
     if !(0.0..=1.0).contains(&c) {
         return Err(ConvectionError::BadParameter {
@@ -262,6 +287,27 @@ fn check_params(params: &Params) -> Result<()> {
             value: size,
             range: "0 or more",
         });
+    }
+    Ok(())
+}
+
+fn check_brush(b: &Brush) -> Result<()> {
+    let bad = |name, value, range| Err(ConvectionError::BadParameter { name, value, range });
+    if !b.centre.is_finite() {
+        return bad("brush centre", f64::NAN, "finite coordinates");
+    }
+    if !(b.radius.is_finite() && b.radius > 0.0) {
+        return bad("brush radius", b.radius, "more than 0");
+    }
+    if !(0.0..1.0).contains(&b.rho_centre) {
+        return bad(
+            "brush rho_c",
+            b.rho_centre,
+            "0 to 1 (fraction of the diagonal)",
+        );
+    }
+    if b.exponent < 2 {
+        return bad("brush exponent", b.exponent as f64, "2 or more");
     }
     Ok(())
 }
@@ -364,10 +410,15 @@ fn extract_mesh(
     let mut best = closed_boundary(surface, tri, &[], points, params);
     report.thin_tets_restored = 0;
     if restored.iter().any(|&r| r) {
-        // Restoring can pinch the surface where a thin part meets the rest;
-        // keep it only where it pays off as a whole.
+        // Restoring can still pinch the surface where a thin part meets the
+        // rest, or (on noisy samples, whose sheets pass for thin parts) fill
+        // a volume that swallows points: keep it only where it pays off as
+        // a whole.
         let thick = closed_boundary(surface, tri, restored, points, params);
-        if thick.boundary_edges <= best.boundary_edges && thick.pieces < best.pieces {
+        if thick.boundary_edges <= best.boundary_edges
+            && thick.pieces < best.pieces
+            && thick.points_used >= best.points_used
+        {
             report.thin_tets_restored = restored.iter().filter(|&&r| r).count();
             best = thick;
         }
@@ -377,11 +428,7 @@ fn extract_mesh(
     report.holes_filled = best.filled;
     report.boundary_edges = best.boundary_edges;
     report.facets = triangles.len();
-    let mut used = vec![false; points.len()];
-    for &v in triangles.iter().flatten() {
-        used[v as usize] = true;
-    }
-    report.kept_points = used.iter().filter(|&&u| u).count();
+    report.kept_points = best.points_used;
     TriMesh {
         vertices: points.to_vec(),
         triangles,
@@ -396,6 +443,8 @@ struct Boundary {
     filled: usize,
     boundary_edges: usize,
     pieces: usize,
+    /// Input points some face uses.
+    points_used: usize,
 }
 
 /// The boundary of the solid tetrahedra (never swept, or `restored`),
@@ -429,10 +478,19 @@ fn closed_boundary(
     Boundary {
         boundary_edges: boundary_edges(&triangles),
         pieces: count_pieces(&triangles, points.len()),
+        points_used: points_used(&triangles, points.len()),
         triangles,
         removed,
         filled,
     }
+}
+
+fn points_used(triangles: &[[u32; 3]], points: usize) -> usize {
+    let mut used = vec![false; points];
+    for &v in triangles.iter().flatten() {
+        used[v as usize] = true;
+    }
+    used.iter().filter(|&&u| u).count()
 }
 
 /// Connected components of the faces, joined through shared vertices.
@@ -459,105 +517,6 @@ fn count_pieces(triangles: &[[u32; 3]], vertices: usize) -> usize {
     (0..vertices)
         .filter(|&v| used[v] && root(&mut parent, v) == v)
         .count()
-}
-
-/// Thin parts: where two fronts met (coupled facets left, or collapsed),
-/// the tetrahedra swept on either side are put back when they are small
-/// against the sampling (circumradius at most `size` local spacings, the
-/// largest at their vertices): their sweep went through a part thinner than
-/// the spacing, not through a cavity (whose meeting tetrahedra are large).
-/// Returns a flag per tetrahedron slot.
-fn restore_thin_parts(
-    surface: &PseudoSurface,
-    tri: &Triangulation,
-    normals: &[DVec3],
-    spacing: &[f64],
-    size: f64,
-) -> Vec<bool> {
-    let mut restored = vec![false; tri.tet_slots()];
-    let met = surface
-        .facets()
-        .filter(|&f| surface.is_coupled(f))
-        .chain(surface.collapsed.iter().copied());
-    let thin = |t: surfrecon_delaunay::TetId| {
-        if tri.is_ghost(t) || !surface.is_external(t) {
-            return false;
-        }
-        let widest = tri
-            .tet_vertices(t)
-            .iter()
-            .map(|v| spacing[v.index()])
-            .fold(0.0, f64::max);
-        circumradius(tri.tet_points(t)) <= size * widest && spans_thin_part(tri, t, normals)
-    };
-    for f in met {
-        for t in [f.tet(), surface.mirror(f).tet()] {
-            if thin(t) {
-                restored[t.index()] = true;
-            }
-        }
-    }
-    keep_attached(surface, tri, restored, thin)
-}
-
-/// Whether `t` reaches across a thin part: two of its corners face each
-/// other (parallel normals, the edge between them along the normal). A
-/// tetrahedron swept in a concave crease or lying flat on the surface joins
-/// corners whose normals differ or whose edge is tangent.
-fn spans_thin_part(tri: &Triangulation, t: surfrecon_delaunay::TetId, normals: &[DVec3]) -> bool {
-    const COSINE: f64 = 0.8;
-    let v = tri.tet_vertices(t);
-    (0..4).any(|i| {
-        (i + 1..4).any(|j| {
-            let (ni, nj) = (normals[v[i].index()], normals[v[j].index()]);
-            let edge = (tri.point(v[j]) - tri.point(v[i])).normalize_or_zero();
-            ni.dot(nj).abs() >= COSINE
-                && ni.dot(edge).abs() >= COSINE
-                && nj.dot(edge).abs() >= COSINE
-        })
-    })
-}
-
-/// Only the restored tetrahedra joined (through facets, over restored ones)
-/// to the unswept solid: a lone restored island would be a separate piece.
-fn keep_attached(
-    surface: &PseudoSurface,
-    tri: &Triangulation,
-    candidate: Vec<bool>,
-    grows: impl Fn(surfrecon_delaunay::TetId) -> bool,
-) -> Vec<bool> {
-    let mut attached = vec![false; candidate.len()];
-    let mut stack: Vec<surfrecon_delaunay::TetId> = tri
-        .finite_tets()
-        .filter(|&t| candidate[t.index()])
-        .filter(|&t| tri.neighbors(t).iter().any(|&u| !surface.is_external(u)))
-        .collect();
-    for &t in &stack {
-        attached[t.index()] = true;
-    }
-    while let Some(t) = stack.pop() {
-        for u in tri.neighbors(t) {
-            if !attached[u.index()] && (candidate[u.index()] || grows(u)) {
-                attached[u.index()] = true;
-                stack.push(u);
-            }
-        }
-    }
-    attached
-}
-
-/// Radius of the sphere through the four corners (infinite when flat).
-fn circumradius([a, b, c, d]: [DVec3; 4]) -> f64 {
-    let (u, v, w) = (b - a, c - a, d - a);
-    let det = 2.0 * u.dot(v.cross(w));
-    if det == 0.0 {
-        return f64::INFINITY;
-    }
-    let centre = (v.cross(w) * u.length_squared()
-        + w.cross(u) * v.length_squared()
-        + u.cross(v) * w.length_squared())
-        / det;
-    centre.length()
 }
 
 /// Connected components of the coupled facets, joined through edges.

@@ -97,6 +97,7 @@ impl Triangulation {
             finite_tets: 0,
             ghost_tets: 0,
             track_vertex_tets: false,
+            changes: None,
             hint: 0,
             scratch: Scratch::default(),
         };

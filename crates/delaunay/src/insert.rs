@@ -425,15 +425,23 @@ impl Triangulation {
         } else {
             self.finite_tets += 1;
         }
-        if let Some(t) = self.free.pop() {
-            self.cells[t as usize].v = verts;
-            return t;
+        let t = match self.free.pop() {
+            Some(t) => {
+                self.cells[t as usize].v = verts;
+                t
+            }
+            None => {
+                self.cells.push(Cell {
+                    v: verts,
+                    n: [NONE; 4],
+                });
+                (self.cells.len() - 1) as u32
+            }
+        };
+        if let Some(c) = &mut self.changes {
+            c.created.push(TetId(t));
         }
-        self.cells.push(Cell {
-            v: verts,
-            n: [NONE; 4],
-        });
-        (self.cells.len() - 1) as u32
+        t
     }
 
     pub(crate) fn free_tet(&mut self, t: u32) {
@@ -444,5 +452,8 @@ impl Triangulation {
         }
         self.cells[t as usize].v[0] = NONE;
         self.free.push(t);
+        if let Some(c) = &mut self.changes {
+            c.freed.push(TetId(t));
+        }
     }
 }

@@ -30,4 +30,4 @@ mod validate;
 pub use error::{DelaunayError, Result};
 pub use glam::DVec3;
 pub use order::brio_order;
-pub use triangulation::{Location, TetId, Triangulation, VertexId};
+pub use triangulation::{Changes, Location, TetId, Triangulation, VertexId};

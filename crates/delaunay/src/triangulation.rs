@@ -107,10 +107,37 @@ pub struct Triangulation {
     pub(crate) track_vertex_tets: bool,
     /// Where the next walk starts: the last tetrahedron created.
     pub(crate) hint: u32,
+    /// Tetrahedra freed and created since the last [`Triangulation::take_changes`],
+    /// when [`Triangulation::track_changes`] turned it on (off while building).
+    pub(crate) changes: Option<Changes>,
     pub(crate) scratch: crate::insert::Scratch,
 }
 
+/// Tetrahedron slots an edit freed and created (a slot can be in both: it
+/// was freed, then reused for a new tetrahedron).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Changes {
+    pub freed: Vec<TetId>,
+    pub created: Vec<TetId>,
+}
+
 impl Triangulation {
+    /// Record which tetrahedra later edits ([`Triangulation::insert`],
+    /// [`Triangulation::remove`]) free and create, for callers that keep
+    /// data per tetrahedron and update it locally.
+    pub fn track_changes(&mut self, on: bool) {
+        self.changes = on.then(Changes::default);
+    }
+
+    /// The tetrahedra freed and created since the last call (empty when
+    /// tracking is off).
+    pub fn take_changes(&mut self) -> Changes {
+        match &mut self.changes {
+            Some(c) => std::mem::take(c),
+            None => Changes::default(),
+        }
+    }
+
     /// Number of vertices (merged duplicates and removed vertices excluded).
     pub fn num_vertices(&self) -> usize {
         self.live_vertices
@@ -173,6 +200,11 @@ impl Triangulation {
     }
 
     /// The finite tetrahedra, each positively oriented.
+    /// Whether slot `t` holds a tetrahedron (finite or ghost) now.
+    pub fn is_live(&self, t: TetId) -> bool {
+        self.cells.get(t.index()).is_some_and(|c| c.v[0] != NONE)
+    }
+
     pub fn finite_tets(&self) -> impl Iterator<Item = TetId> + '_ {
         self.live_slots()
             .filter(|&t| self.cells[t as usize].v[3] != INF)

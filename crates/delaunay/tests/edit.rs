@@ -203,3 +203,46 @@ fn incident_tets_and_neighbors_agree_with_a_scan() {
         }
     }
 }
+
+/// With change tracking on, the tetrahedra live after an edit are exactly
+/// those live before, minus the freed ones, plus the created ones (a slot
+/// freed and reused counts as created); the freed ones around an inserted
+/// point all had it in their circumsphere.
+#[test]
+fn tracked_changes_account_for_every_tetrahedron() {
+    use std::collections::BTreeSet;
+    let points = uniform(1500, 31);
+    let mut tri = Triangulation::bulk_load(&points).unwrap();
+    let live = |tri: &Triangulation| -> BTreeSet<u32> {
+        tri.finite_tets()
+            .chain(tri.ghost_tets())
+            .map(|t| t.0)
+            .collect()
+    };
+    assert!(tri.take_changes().created.is_empty(), "off by default");
+    tri.track_changes(true);
+    let mut r = rng(32);
+    for step in 0..200 {
+        let before = live(&tri);
+        if step % 3 == 2 {
+            let v = tri.vertices().nth(r.random_range(0..1000)).unwrap();
+            tri.remove(v).unwrap();
+        } else {
+            let p = DVec3::new(r.random(), r.random(), r.random()) * 1.2 - 0.1;
+            tri.insert(p).unwrap();
+        }
+        let changes = tri.take_changes();
+        assert!(!changes.freed.is_empty() && !changes.created.is_empty());
+        let mut expected: BTreeSet<u32> = before;
+        for t in &changes.freed {
+            assert!(expected.remove(&t.0), "freed a dead tetrahedron");
+        }
+        for t in &changes.created {
+            assert!(expected.insert(t.0), "created twice");
+            assert!(tri.is_live(*t));
+        }
+        assert_eq!(expected, live(&tri), "step {step}");
+    }
+    assert_valid(&tri, tri.num_vertices());
+    assert!(tri.take_changes().freed.is_empty(), "taken");
+}

@@ -8,6 +8,7 @@ use crate::context::Context;
 use anyhow::Context as _;
 use serde_json::json;
 use std::time::Instant;
+use surfrecon_convection::decimate::Brush;
 use surfrecon_convection::{reconstruct, Params};
 use surfrecon_geom::{io, Geometry};
 
@@ -27,6 +28,12 @@ pub struct ConvectionArgs {
     /// |n(p) · (p − p_i)/|p − p_i|| stays below this cosine (1: off).
     #[arg(long = "rho-topo", default_value_t = 0.95)]
     pub rho_topo: f64,
+    /// The paper's brush: within distance R of (X,Y,Z) (the points' units)
+    /// the decimation radius goes from RHO_C at the centre (fraction of the
+    /// diagonal, like --rho) back to --rho at distance R, as
+    /// ρ + (ρ_c − ρ)/R²·(R² − d²). RHO_C below --rho keeps more detail there.
+    #[arg(long, value_name = "X,Y,Z,R,RHO_C", value_parser = parse_brush, allow_hyphen_values = true)]
+    pub brush: Option<Box<Brush>>,
     /// Close boundary loops of at most this many edges left where the
     /// surface pinched (0: leave them open and report them).
     #[arg(long = "fill-holes", default_value_t = 24, value_name = "EDGES")]
@@ -64,6 +71,7 @@ pub fn run(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
         rho: c.rho,
         rho_geometric: c.rho_geom,
         rho_topo: c.rho_topo,
+        brush: c.brush.as_deref().copied(),
         ..Params::default()
     };
     let r = reconstruct(&points.positions, points.normals.as_deref(), &params)
@@ -94,4 +102,33 @@ pub fn run(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()
         "data_fit": fit,
     }));
     Ok(())
+}
+
+/// `X,Y,Z,R,RHO_C`: five numbers; R above 0, RHO_C from 0 to 1.
+fn parse_brush(s: &str) -> Result<Box<Brush>, String> {
+    let bad = || format!("expected X,Y,Z,R,RHO_C (five numbers, e.g. 0,0,1,0.3,0.001), got {s:?}");
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().map_err(|_| bad()))
+        .collect::<Result<_, _>>()?;
+    let [x, y, z, r, rho_c] = v[..] else {
+        return Err(bad());
+    };
+    if !(x.is_finite() && y.is_finite() && z.is_finite() && r.is_finite() && r > 0.0) {
+        return Err(format!(
+            "brush centre must be finite and R above 0, got {s:?}"
+        ));
+    }
+    if !(0.0..1.0).contains(&rho_c) {
+        return Err(format!(
+            "brush RHO_C must be from 0 to 1 (fraction of the diagonal), got {s:?}"
+        ));
+    }
+    // Boxed: the reconstruct arguments stay small next to other commands'.
+    Ok(Box::new(Brush {
+        centre: surfrecon_geom::DVec3::new(x, y, z),
+        radius: r,
+        rho_centre: rho_c,
+        exponent: 2,
+    }))
 }
