@@ -85,6 +85,54 @@ impl TriMesh {
             })
             .sum()
     }
+
+    /// The mesh without its specks: connected pieces (through shared
+    /// vertices) whose bounding-box diagonal is below `min_extent`; with
+    /// how many were removed. Vertices are renumbered in their old order.
+    pub fn without_specks(&self, min_extent: f64) -> (TriMesh, usize) {
+        let mut sets = crate::metrics::DisjointSets::new(self.vertices.len());
+        for &[a, b, c] in &self.triangles {
+            sets.union(a as usize, b as usize);
+            sets.union(b as usize, c as usize);
+        }
+        let root: Vec<usize> = (0..self.vertices.len()).map(|v| sets.find(v)).collect();
+        let mut extent: std::collections::HashMap<usize, Aabb> = Default::default();
+        for t in &self.triangles {
+            let piece = extent.entry(root[t[0] as usize]).or_insert(Aabb::EMPTY);
+            for &v in t {
+                *piece = piece.grow(self.vertices[v as usize]);
+            }
+        }
+        let kept = |v: usize| {
+            extent
+                .get(&root[v])
+                .is_some_and(|b| b.diagonal() >= min_extent)
+        };
+        let specks = extent
+            .values()
+            .filter(|b| b.diagonal() < min_extent)
+            .count();
+        if specks == 0 {
+            return (self.clone(), 0);
+        }
+        let mut new_index = vec![u32::MAX; self.vertices.len()];
+        let mut mesh = TriMesh::default();
+        for v in (0..self.vertices.len()).filter(|&v| kept(v)) {
+            new_index[v] = mesh.vertices.len() as u32;
+            mesh.vertices.push(self.vertices[v]);
+        }
+        mesh.normals = self
+            .normals
+            .as_ref()
+            .map(|n| (0..n.len()).filter(|&v| kept(v)).map(|v| n[v]).collect());
+        mesh.triangles = self
+            .triangles
+            .iter()
+            .filter(|t| kept(t[0] as usize))
+            .map(|t| t.map(|v| new_index[v as usize]))
+            .collect();
+        (mesh, specks)
+    }
 }
 
 /// Everything one file can hold: vertices (with optional per-vertex normals
@@ -147,5 +195,30 @@ impl Geometry {
             vertices: self.points.positions.clone(),
             lines: self.lines.clone(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shapes::icosphere;
+
+    #[test]
+    fn specks_are_removed_and_the_rest_kept_whole() {
+        let body = icosphere(DVec3::ZERO, 1.0, 3);
+        let mut mesh = body.clone();
+        for (centre, radius) in [(DVec3::splat(3.0), 0.01), (DVec3::splat(-3.0), 0.02)] {
+            let speck = icosphere(centre, radius, 1);
+            let offset = mesh.vertices.len() as u32;
+            mesh.vertices.extend(speck.vertices);
+            mesh.triangles
+                .extend(speck.triangles.iter().map(|t| t.map(|v| v + offset)));
+        }
+        let (clean, removed) = mesh.without_specks(0.1);
+        assert_eq!(removed, 2);
+        assert_eq!(clean.vertices, body.vertices);
+        assert_eq!(clean.triangles, body.triangles);
+        // Nothing under the size: the mesh comes back as it was.
+        assert_eq!(mesh.without_specks(0.01), (mesh.clone(), 0));
     }
 }

@@ -46,7 +46,15 @@ pub struct MeshReport {
     pub cells_visited: usize,
     /// Grid nodes where f was evaluated.
     pub nodes_evaluated: usize,
+    /// Closed pieces smaller than [`SPECK_CELLS`] dropped from the mesh.
+    pub specks_removed: usize,
 }
+
+/// A closed piece whose bounding-box diagonal is under this many cells is
+/// a speck: a blob of f a cell or two wide (a stray sample's, or one
+/// beyond where a thin tip narrows under a cell), which the mesh cannot
+/// show faithfully and a user would not want.
+pub const SPECK_CELLS: f64 = 3.0;
 
 /// An implicit function the mesher can follow: negative inside, and near
 /// its zero set close to a signed distance (growth stops a cell diagonal
@@ -87,16 +95,19 @@ pub fn mesh_model(
         1,
     )?;
     let values = follow_surface(model, seeds, &spec)?;
-    let report = MeshReport {
-        grid_dims: spec.dims,
-        spacing: spec.spacing,
-        cells_visited: values.cells_visited,
-        nodes_evaluated: values.nodes.len(),
-    };
+    let (cells_visited, nodes_evaluated) = (values.cells_visited, values.nodes.len());
     let background = 2.0 * spec.spacing;
     let nodes = outside_on_the_rim(values.nodes, spec.dims, background);
     let grid = BlockGrid::from_nodes(spec, background, nodes)?;
-    let mut mesh = marching_cubes_sparse(&grid, 0.0);
+    let (mut mesh, specks_removed) =
+        marching_cubes_sparse(&grid, 0.0).without_specks(SPECK_CELLS * spec.spacing);
+    let report = MeshReport {
+        grid_dims: spec.dims,
+        spacing: spec.spacing,
+        cells_visited,
+        nodes_evaluated,
+        specks_removed,
+    };
     mesh.normals = Some(
         model
             .gradients(&mesh.vertices)

@@ -21,6 +21,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::time::Instant;
+use surfrecon_geom::spatial::KdTree;
 
 /// Parameters of the multi-scale fit. Lengths are relative: `epsilon` and
 /// `accuracy` to the bounding-box diagonal, the rest to each level's width.
@@ -294,7 +295,9 @@ fn fit_level(
     let inconsistent = if first {
         0
     } else {
-        mark_inconsistent(&groups, &mut residuals, opts.consistency_ratio * width)
+        let reach = opts.consistency_ratio * width;
+        let link = CHAIN_LINK * opts.cell_ratio * width;
+        mark_inconsistent(&groups, &candidates, &mut residuals, reach, link)
     };
     let local = local_median_residuals(&positions, &residuals, opts.cell_ratio * width);
     // Per-point C factor: box constraints are in distance units (scaled by
@@ -423,17 +426,53 @@ fn median(v: &[f64]) -> f64 {
     *m.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
+/// Longest link, in base-point boxes, of a chain of surface samples that
+/// joins a far sample to the fitted surface (see [`mark_inconsistent`]):
+/// representatives of neighbouring boxes are at most this far apart
+/// along an axis.
+const CHAIN_LINK: f64 = 2.0;
+/// Least sample support (a candidate's weight, see `propose`) of a far
+/// sample that joins a chain: a thin part is sampled as densely as the
+/// rest (a spike's boxes hold as many samples as a sheet's, their
+/// neighbourhoods a third as many), a stray cluster of outliers is not.
+const CHAIN_SUPPORT: f64 = 0.3;
+
 /// Leave out every candidate of a group (a surface sample, first, and its
 /// off-surface points) whose surface sample's residual exceeds `reach`, by
 /// setting their residuals to NaN; returns how many groups were left out.
+/// A far sample stays in when a chain of surface samples, each within
+/// `link` of the next, joins it to one within reach: a thin part (a spike,
+/// a tail) is sampled all the way out from the body that the coarser
+/// levels fitted, while a stray cluster floats apart from it and is
+/// sampled more thinly.
 fn mark_inconsistent(
     groups: &[std::ops::Range<usize>],
+    candidates: &[TrainingPoint],
     residuals: &mut [f64],
     reach: f64,
+    link: f64,
 ) -> usize {
+    let surface: Vec<DVec3> = groups
+        .iter()
+        .map(|g| candidates[g.start].position)
+        .collect();
+    let mut joined: Vec<bool> = groups
+        .iter()
+        .map(|g| residuals[g.start].abs() <= reach)
+        .collect();
+    let tree = KdTree::new(&surface);
+    let mut stack: Vec<usize> = (0..groups.len()).filter(|&i| joined[i]).collect();
+    while let Some(i) = stack.pop() {
+        for n in tree.within(surface[i], link) {
+            if !joined[n.index] && candidates[groups[n.index].start].weight >= CHAIN_SUPPORT {
+                joined[n.index] = true;
+                stack.push(n.index);
+            }
+        }
+    }
     let mut count = 0;
-    for g in groups {
-        if residuals[g.start].abs() > reach {
+    for (g, joined) in groups.iter().zip(joined) {
+        if !joined {
             residuals[g.clone()].fill(f64::NAN);
             count += 1;
         }

@@ -139,3 +139,70 @@ fn box_with_sharp_edges_is_fitted_within_one_percent_and_meshed_closed() {
         euler: 2,
     });
 }
+
+/// A unit sphere sampled with 20,000 points, and a thin cone (0.1 wide
+/// at the sphere, 1 long) standing on its north pole, sampled as densely.
+const SPIKE: (f64, f64, f64) = (0.99, 2.0, 0.05);
+
+fn sphere_with_spike() -> (Vec<DVec3>, Vec<DVec3>) {
+    let (base, tip, radius) = SPIKE;
+    let cone_radius = |z: f64| radius * (tip - z) / (tip - base);
+    let sphere = sample_surface(&icosphere(DVec3::ZERO, 1.0, 5), 20_000, 3);
+    let (mut points, mut normals): (Vec<DVec3>, Vec<DVec3>) = sphere
+        .positions
+        .iter()
+        .zip(sphere.normals.unwrap())
+        .filter(|(p, _)| p.z < base || p.x.hypot(p.y) > cone_radius(p.z))
+        .map(|(p, n)| (*p, n))
+        .unzip();
+    let slope = radius / (tip - base);
+    for i in 0..60 {
+        let z = base + (tip - base) * i as f64 / 60.0;
+        let r = cone_radius(z);
+        let around = ((std::f64::consts::TAU * r / 0.025).ceil() as usize).max(6);
+        for j in 0..around {
+            let t = std::f64::consts::TAU * (j as f64 + 0.5 * (i % 2) as f64) / around as f64;
+            let p = DVec3::new(r * t.cos(), r * t.sin(), z);
+            if p.length() > 1.0 {
+                points.push(p);
+                normals.push(DVec3::new(t.cos(), t.sin(), slope).normalize());
+            }
+        }
+    }
+    (points, normals)
+}
+
+/// The coarse levels miss a thin part; the finer levels must still fit it
+/// (its samples join the body through a chain of samples), not leave it out.
+#[test]
+fn a_thin_spike_is_kept() {
+    let (points, normals) = sphere_with_spike();
+    let (model, report) = fit(&points, &normals, &FitOptions::default()).expect("fit");
+    let bounds = surfrecon_geom::Aabb::from_points(&points);
+    let opts = MeshOptions {
+        resolution: 256,
+        ..Default::default()
+    };
+    let (mesh, _) = mesh_model(&model, &points, bounds, &opts).expect("mesh");
+    let topo = topology(&mesh);
+    assert!(topo.watertight, "{topo:?}");
+    // Every sample is reached but those of the cone's last tenth, which is
+    // thinner than a mesh cell.
+    let reached: Vec<DVec3> = points
+        .iter()
+        .copied()
+        .filter(|p| p.z < SPIKE.1 - 0.1 * (SPIKE.1 - SPIKE.0))
+        .collect();
+    let fit = surfrecon_geom::data_fit::data_fit(&mesh, &reached).unwrap();
+    assert!(
+        fit.max <= 0.005,
+        "a sample {:.2}% of the diagonal off at {:?}; inconsistent per level {:?}",
+        100.0 * fit.max,
+        fit.farthest,
+        report
+            .levels
+            .iter()
+            .map(|l| l.inconsistent)
+            .collect::<Vec<_>>()
+    );
+}

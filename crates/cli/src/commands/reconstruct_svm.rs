@@ -142,6 +142,7 @@ pub fn reconstruct_with_resolution(
             "grid_dims": mesh_report.grid_dims,
             "spacing": mesh_report.spacing,
             "cells_visited": mesh_report.cells_visited,
+            "specks_removed": mesh_report.specks_removed,
             "nodes_evaluated": mesh_report.nodes_evaluated,
             "vertices": mesh.vertices.len(),
             "triangles": mesh.triangles.len(),
