@@ -21,6 +21,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::time::Instant;
+use surfrecon_geom::progress::{no_progress, Hook, Progress};
 
 /// Parameters of the multi-scale fit. Lengths are relative: `epsilon` and
 /// `accuracy` to the bounding-box diagonal, the rest to each level's width.
@@ -199,6 +200,17 @@ pub fn fit(
     normals: &[DVec3],
     opts: &FitOptions,
 ) -> Result<(SvmModel, FitReport)> {
+    fit_with(points, normals, opts, &no_progress)
+}
+
+/// [`fit`] reporting each level to `hook` ("fit level", levels done out of
+/// at most `max_levels`); [`SvmError::Cancelled`] when the hook cancels.
+pub fn fit_with(
+    points: &[DVec3],
+    normals: &[DVec3],
+    opts: &FitOptions,
+    hook: Hook,
+) -> Result<(SvmModel, FitReport)> {
     opts.validate()?;
     let start = Instant::now();
     let mut samples = SurfaceSamples::new(points, normals)?;
@@ -222,7 +234,15 @@ pub fn fit(
     let isolated = samples.points.len() - active.len();
     samples.exclude_from_consistency(&active);
     samples.set_noise(noise);
-    for _ in 0..opts.max_levels {
+    for done in 0..opts.max_levels {
+        let at = Progress {
+            stage: "fit level",
+            done,
+            total: opts.max_levels,
+        };
+        if hook(at).is_break() {
+            return Err(SvmError::Cancelled);
+        }
         let first = reports.is_empty();
         let (level, base, report) =
             fit_level(&samples, &active, &model, width, first, &scales, opts);
