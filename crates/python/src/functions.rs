@@ -78,9 +78,7 @@ fn input_geometry(
     }
     if let Some(t) = triangles {
         let Shape::Mesh(m) = shape(t, "triangles")? else {
-            return Err(value_error(
-                "triangles must be a (vertices, faces) tuple",
-            ));
+            return Err(value_error("triangles must be a (vertices, faces) tuple"));
         };
         let start = g.points.positions.len() as u32;
         g.triangles
@@ -115,11 +113,9 @@ fn method_options(method: &str, m: MethodArgs) -> PyResult<Method> {
         "levelset" => Method::LevelSet(m.levelset),
         "svm" => Method::Svm(m.svm),
         "convection" => Method::Convection(m.convection),
-        other => {
-            return Err(value_error(format!(
-                "invalid value {other:?} for method: expected \"levelset\", \"svm\" or \"convection\""
-            )))
-        }
+        other => return Err(value_error(format!(
+            "invalid value {other:?} for method: expected \"levelset\", \"svm\" or \"convection\""
+        ))),
     })
 }
 
@@ -408,7 +404,10 @@ fn distance_field(
         Shape::Mesh(mesh) if signed => {
             if !allow_open {
                 check_closed(&mesh).map_err(|e| {
-                    errors::grid("cannot sign the mesh (allow_open=True signs it by winding number anyway)", e)
+                    errors::grid(
+                        "cannot sign the mesh (allow_open=True signs it by winding number anyway)",
+                        e,
+                    )
                 })?;
             }
             let data = DataSet::<3>::from_mesh(&mesh).map_err(grid)?;
@@ -510,7 +509,12 @@ fn grid_values(field: &Bound<'_, PyAny>) -> PyResult<([usize; 3], Vec<f64>)> {
     let values: Vec<f64> = if let Ok(a) = arr.cast::<PyArray3<f64>>() {
         a.readonly().as_array().t().iter().copied().collect()
     } else if let Ok(a) = arr.cast::<PyArray3<f32>>() {
-        a.readonly().as_array().t().iter().map(|&v| v as f64).collect()
+        a.readonly()
+            .as_array()
+            .t()
+            .iter()
+            .map(|&v| v as f64)
+            .collect()
     } else {
         return Err(value_error("field must be a float32 or float64 array"));
     };
@@ -556,9 +560,8 @@ pub fn evaluate<'py>(
         let scores = metrics::evaluate(&Surface::Mesh(candidate.clone()), &reference, &options);
         (scores, fit)
     });
-    let scores = scores.map_err(|e| {
-        value_error(format!("cannot compare the mesh with the reference: {e}"))
-    })?;
+    let scores = scores
+        .map_err(|e| value_error(format!("cannot compare the mesh with the reference: {e}")))?;
     let out = json_to_py(py, &scores)?;
     if let Some(fit) = fit {
         let fit = fit.map_err(|e| value_error(format!("cannot measure the data: {e}")))?;

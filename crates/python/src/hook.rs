@@ -58,9 +58,6 @@ impl Watch {
 
     /// The exception that stopped the run, if Python raised one.
     pub fn take_raised(&self) -> Option<PyErr> {
-        self.raised
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .take()
+        self.raised.lock().unwrap_or_else(|p| p.into_inner()).take()
     }
 }

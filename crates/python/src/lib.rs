@@ -17,10 +17,7 @@ use pyo3::prelude::*;
 #[pyo3(name = "surfrecon")]
 fn surfrecon_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add(
-        "Cancelled",
-        m.py().get_type::<errors::Cancelled>(),
-    )?;
+    m.add("Cancelled", m.py().get_type::<errors::Cancelled>())?;
     m.add_function(wrap_pyfunction!(functions::reconstruct, m)?)?;
     m.add_function(wrap_pyfunction!(functions::distance, m)?)?;
     m.add_function(wrap_pyfunction!(functions::extract, m)?)?;

@@ -93,11 +93,7 @@ pub(crate) fn run(
 }
 
 /// Normals, parameters (given or selected), the fit, and the optional save.
-fn fit_model(
-    points: &PointCloud,
-    o: &SvmOptions,
-    hook: Hook,
-) -> Result<(SvmModel, SvmFitReport)> {
+fn fit_model(points: &PointCloud, o: &SvmOptions, hook: Hook) -> Result<(SvmModel, SvmFitReport)> {
     check(hook, "normals")?;
     let normals = normals_for(points, o.normal_k);
     let mut opts = FitOptions {

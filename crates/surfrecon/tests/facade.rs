@@ -23,7 +23,10 @@ fn sphere_points(n: usize, normals: bool) -> Geometry {
 /// Closed, manifold, genus 0, and every vertex within `tol` of the sphere.
 fn assert_sphere(mesh: &surfrecon::Mesh, tol: f64) {
     let t = topology(mesh);
-    assert!(t.watertight && t.edge_manifold && t.vertex_manifold, "{t:?}");
+    assert!(
+        t.watertight && t.edge_manifold && t.vertex_manifold,
+        "{t:?}"
+    );
     assert_eq!((t.components, t.euler), (1, 2), "{t:?}");
     let worst = mesh
         .vertices
