@@ -113,9 +113,11 @@ fn method_options(method: &str, m: MethodArgs) -> PyResult<Method> {
         "levelset" => Method::LevelSet(m.levelset),
         "svm" => Method::Svm(m.svm),
         "convection" => Method::Convection(m.convection),
-        other => return Err(value_error(format!(
+        other => {
+            return Err(value_error(format!(
             "invalid value {other:?} for method: expected \"levelset\", \"svm\" or \"convection\""
-        ))),
+        )))
+        }
     })
 }
 
@@ -348,6 +350,7 @@ fn json_to_py<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<B
 /// fastest, no copy), the grid origin as a tuple and the spacing.
 #[pyfunction]
 #[pyo3(signature = (data, *, resolution=None, spacing=None, padding=4, signed=false, allow_open=false, band=None))]
+#[allow(clippy::too_many_arguments)] // the keyword arguments of the Python API
 pub fn distance<'py>(
     py: Python<'py>,
     data: &Bound<'py, PyAny>,
@@ -357,7 +360,7 @@ pub fn distance<'py>(
     signed: bool,
     allow_open: bool,
     band: Option<f64>,
-) -> PyResult<(Bound<'py, PyArray3<f64>>, (f64, f64, f64), f64)> {
+) -> PyResult<GridField<'py>> {
     let size = match (resolution, spacing) {
         (Some(_), Some(_)) => return Err(value_error("give resolution or spacing, not both")),
         (_, Some(h)) if !(h.is_finite() && h > 0.0) => {
@@ -386,6 +389,9 @@ pub fn distance<'py>(
         .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
     Ok((array.into_pyarray(py), (origin[0], origin[1], origin[2]), h))
 }
+
+/// (values with shape (nx, ny, nz), origin, spacing).
+type GridField<'py> = (Bound<'py, PyArray3<f64>>, (f64, f64, f64), f64);
 
 fn distance_field(
     shape: Shape,
