@@ -106,3 +106,11 @@ def write(
     lines: Optional[Sequence[_Ints]] = None,
 ) -> None:
     """Write points, a mesh or polylines (format by extension), atomically."""
+
+def write_shell(
+    path: _Path, field: _Floats, origin: Tuple[float, float, float], spacing: float
+) -> None:
+    """Store a signed distance field as a thin shell file (`surfrecon shell`)."""
+
+def read_shell(path: _Path) -> Tuple[npt.NDArray[np.float64], Tuple[float, float, float], float]:
+    """(field, origin, spacing) rebuilt from a thin shell file (`surfrecon unshell`)."""

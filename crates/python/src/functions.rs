@@ -382,12 +382,7 @@ pub fn distance<'py>(
     }
     let shape = shape(data, "data")?;
     let field = py.detach(|| distance_field(shape, size, padding, signed, allow_open, band))?;
-    let [nx, ny, nz] = field.spec.dims;
-    let origin = field.spec.origin;
-    let h = field.spec.spacing;
-    let array = Array3::from_shape_vec((nx, ny, nz).f(), field.values)
-        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
-    Ok((array.into_pyarray(py), (origin[0], origin[1], origin[2]), h))
+    grid_field(py, field)
 }
 
 /// (values with shape (nx, ny, nz), origin, spacing).
@@ -474,24 +469,10 @@ pub fn extract<'py>(
     spacing: f64,
     iso: f64,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    if !(spacing.is_finite() && spacing > 0.0) {
-        return Err(value_error(format!(
-            "spacing must be a positive number, not {spacing}"
-        )));
-    }
     if !iso.is_finite() {
         return Err(value_error(format!("iso must be finite, not {iso}")));
     }
-    let values = grid_values(field)?;
-    let spec = surfrecon::GridSpec {
-        origin: [origin.0, origin.1, origin.2],
-        spacing,
-        dims: values.0,
-    };
-    let field = surfrecon::Field3 {
-        spec,
-        values: values.1,
-    };
+    let field = field3(field, origin, spacing)?;
     let mesh = py.detach(|| surfrecon::grid::marching::marching_cubes(&field, iso));
     Ok((
         to_vertices(py, &mesh.vertices).into_any(),
@@ -650,4 +631,76 @@ pub fn write(
     }
     py.detach(|| surfrecon::io::write(&path, &g))
         .map_err(errors::geom)
+}
+
+/// A thin shell file (`surfrecon shell`): only the nodes next to the
+/// surface of `field` (where it changes sign), from which `read_shell`
+/// rebuilds the signed distance everywhere.
+///
+///   path     output file (the command line's shell format).
+///   field    3D float32/float64 signed distance, field[i, j, k] at
+///            origin + spacing * (i, j, k).
+#[pyfunction]
+pub fn write_shell(
+    py: Python<'_>,
+    path: PathBuf,
+    field: &Bound<'_, PyAny>,
+    origin: (f64, f64, f64),
+    spacing: f64,
+) -> PyResult<()> {
+    let field = field3(field, origin, spacing)?;
+    py.detach(|| {
+        let shell = surfrecon::shell::Shell::from_field(&field);
+        surfrecon::shell::write_shell(&path, &shell)
+            .map_err(|e| errors::grid(&format!("cannot write shell {}", path.display()), e))
+    })
+}
+
+/// The signed distance field rebuilt from a thin shell file (`surfrecon
+/// unshell`): (field, origin, spacing) as `distance` returns them.
+#[pyfunction]
+pub fn read_shell<'py>(py: Python<'py>, path: PathBuf) -> PyResult<GridField<'py>> {
+    use surfrecon::shell::AnyShell;
+    let context = format!("cannot rebuild {}", path.display());
+    let field = py.detach(|| match surfrecon::shell::read_shell(&path) {
+        Ok(AnyShell::D3(s)) => s.rebuild().map_err(|e| errors::grid(&context, e)),
+        Ok(AnyShell::D2(_)) => Err(value_error(format!(
+            "{}: a 2D shell; the Python package reads 3D ones",
+            path.display()
+        ))),
+        Err(e) => Err(errors::grid(&context, e)),
+    })?;
+    grid_field(py, field)
+}
+
+/// A checked 3D field from a numpy array and its grid.
+fn field3(
+    field: &Bound<'_, PyAny>,
+    origin: (f64, f64, f64),
+    spacing: f64,
+) -> PyResult<surfrecon::Field3> {
+    if !(spacing.is_finite() && spacing > 0.0) {
+        return Err(value_error(format!(
+            "spacing must be a positive number, not {spacing}"
+        )));
+    }
+    let (dims, values) = grid_values(field)?;
+    Ok(surfrecon::Field3 {
+        spec: surfrecon::GridSpec {
+            origin: [origin.0, origin.1, origin.2],
+            spacing,
+            dims,
+        },
+        values,
+    })
+}
+
+/// A field as (array of shape (nx, ny, nz), origin, spacing), no copy.
+fn grid_field(py: Python<'_>, field: surfrecon::Field3) -> PyResult<GridField<'_>> {
+    let [nx, ny, nz] = field.spec.dims;
+    let origin = field.spec.origin;
+    let h = field.spec.spacing;
+    let array = Array3::from_shape_vec((nx, ny, nz).f(), field.values)
+        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+    Ok((array.into_pyarray(py), (origin[0], origin[1], origin[2]), h))
 }
