@@ -61,16 +61,7 @@ pub(crate) fn run(
     let report = CurveNetworkReport {
         method: "curve-network",
         path: "curve network: Hermite fit of the normals implied by the crossings",
-        curve_network: CurveNetworkSummary {
-            curves: r.curves,
-            crossings: r.crossings,
-            curves_with_normals: r.curves_with_normals,
-            samples: r.samples,
-            samples_with_normals: r.samples_with_normals,
-            samples_with_in_plane_normals: r.samples_with_in_plane_normals,
-            sample_step: r.sample_step,
-            resolution: r.resolution,
-        },
+        curve_network: r,
         seconds_total,
         output_counts: OutputCounts::mesh(&mesh),
         data_fit: data_fit.then(|| data_fit_report(&mesh, input)),

@@ -4,6 +4,8 @@
 
 use serde::Serialize;
 use surfrecon_geom::data_fit::DataFit;
+pub use surfrecon_svm::curve_network::CurveFitReport;
+pub use surfrecon_svm::multiscale::LevelReport;
 
 /// The report of one [`crate::reconstruct`] run.
 #[derive(Clone, Debug, Serialize)]
@@ -208,7 +210,7 @@ pub struct SvmFitReport {
     pub epsilon_used: f64,
     pub accuracy_used: f64,
     pub min_width: f64,
-    pub levels: Vec<SvmLevel>,
+    pub levels: Vec<LevelReport>,
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -216,17 +218,6 @@ pub struct SvmTrial {
     pub c: f64,
     pub epsilon: f64,
     pub validation_error: f64,
-}
-
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct SvmLevel {
-    pub width: f64,
-    pub candidates: usize,
-    pub base_points: usize,
-    pub centres: usize,
-    pub inconsistent: usize,
-    pub sweeps: usize,
-    pub seconds: f64,
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -253,20 +244,8 @@ pub struct ConvectionReport {
 pub struct CurveNetworkReport {
     pub method: &'static str,
     pub path: &'static str,
-    pub curve_network: CurveNetworkSummary,
+    pub curve_network: CurveFitReport,
     pub seconds_total: f64,
     pub output_counts: OutputCounts,
     pub data_fit: Option<DataFitReport>,
-}
-
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct CurveNetworkSummary {
-    pub curves: usize,
-    pub crossings: usize,
-    pub curves_with_normals: usize,
-    pub samples: usize,
-    pub samples_with_normals: usize,
-    pub samples_with_in_plane_normals: usize,
-    pub sample_step: f64,
-    pub resolution: usize,
 }

@@ -142,15 +142,6 @@ fn fit_model(points: &PointCloud, o: &SvmOptions, hook: Hook) -> Result<(SvmMode
             .save(path)
             .map_err(|e| e.within(&format!("cannot write model {}", path.display())))?;
     }
-    let levels = report.levels.iter().map(|l| SvmLevel {
-        width: l.width,
-        candidates: l.candidates,
-        base_points: l.base_points,
-        centres: l.centres,
-        inconsistent: l.inconsistent,
-        sweeps: l.sweeps,
-        seconds: l.seconds,
-    });
     let fit = SvmFitReport {
         c: opts.c,
         epsilon: opts.epsilon,
@@ -165,7 +156,7 @@ fn fit_model(points: &PointCloud, o: &SvmOptions, hook: Hook) -> Result<(SvmMode
         epsilon_used: report.epsilon,
         accuracy_used: report.tolerance,
         min_width: report.min_width,
-        levels: levels.collect(),
+        levels: report.levels,
     };
     Ok((model, fit))
 }

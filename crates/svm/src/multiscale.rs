@@ -140,7 +140,7 @@ fn require_positive_or_infinite(name: &'static str, value: f64) -> Result<()> {
 }
 
 /// What one level did.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct LevelReport {
     pub width: f64,
     /// Base points proposed (surface representatives + off-surface points).

@@ -94,7 +94,7 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     let geometry = io::read(&args.input)?;
-    check_flags(&args, &geometry)?;
+    check_flags(&args, &geometry, ctx)?;
     let options = options(&args, ctx.json);
     let spinner = ctx.spinner("reconstructing");
     let hook = |p: Progress| {
@@ -131,7 +131,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
 
 /// Flags that do not apply to the path the data take, refused before the
 /// run (only then is the curve-network test made here too).
-fn check_flags(args: &Args, geometry: &Geometry) -> anyhow::Result<()> {
+fn check_flags(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()> {
     let levelset_only = args.field.is_some() || args.shell.is_some() || args.two_d;
     let planar = args.method == Method::Levelset && surfrecon::is_planar(geometry);
     let needs_obj = (args.two_d || planar) && !is_obj(&args.output);
@@ -153,6 +153,9 @@ fn check_flags(args: &Args, geometry: &Geometry) -> anyhow::Result<()> {
         anyhow::bail!("{} has no points to reconstruct from", args.input.display());
     }
     if args.method == Method::Levelset && needs_obj {
+        if planar && !args.two_d {
+            ctx.say("all z coordinates are equal: reconstructing closed curves in 2D");
+        }
         anyhow::bail!(
             "2D reconstruction gives closed curves, which only OBJ stores here: use an .obj output instead of {}",
             args.output.display()
