@@ -39,12 +39,16 @@ pub use svm::DEFAULT_RESOLUTION as SVM_DEFAULT_RESOLUTION;
 pub use surfrecon_geom::progress::{no_progress, ControlFlow, Hook, Progress};
 pub use surfrecon_geom::{io, Aabb, DVec3, Geometry, PointCloud, Polylines, TriMesh};
 pub use surfrecon_grid::{field_io, shell, Field, Field2, Field3, GridSpec};
-/// The method crates, for what the facade does not cover.
-pub use {
-    surfrecon_convection as convection_crate, surfrecon_distfield as distfield,
-    surfrecon_geom as geom, surfrecon_grid as grid, surfrecon_levelset as levelset_crate,
-    surfrecon_svm as svm_crate,
-};
+/// The geometry, grid and distance-field crates, for what the facade does
+/// not wrap (metrics, fields, sharp-feature fields).
+pub use {surfrecon_distfield as distfield, surfrecon_geom as geom, surfrecon_grid as grid};
+
+/// The method crates, for finer control than [`Options`] gives.
+pub mod methods {
+    pub use surfrecon_convection as convection;
+    pub use surfrecon_levelset as levelset;
+    pub use surfrecon_svm as svm;
+}
 
 /// The data to reconstruct from: points (with optional normals),
 /// polylines and triangles over them, as [`io::read`] returns them.
