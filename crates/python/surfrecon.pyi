@@ -114,3 +114,18 @@ def write_shell(
 
 def read_shell(path: _Path) -> Tuple[npt.NDArray[np.float64], Tuple[float, float, float], float]:
     """(field, origin, spacing) rebuilt from a thin shell file (`surfrecon unshell`)."""
+
+def morph(
+    vertices: _Floats,
+    faces: _Ints,
+    target: Union[_Floats, _Mesh],
+    pairs: Optional[_Floats] = None,
+    *,
+    c_corr: Optional[float] = None,
+    c_dist: Optional[float] = None,
+    warp_levels: Optional[int] = None,
+    report: bool = False,
+    cancel: Optional[_Event] = None,
+    progress: Optional[Callable[[str, int, int], Optional[bool]]] = None,
+) -> Union[npt.NDArray[np.float64], Tuple[npt.NDArray[np.float64], Dict[str, Any]]]:
+    """Displacements (n, 3) warping the source mesh onto the target; frame t is V + t*D."""

@@ -704,3 +704,79 @@ fn grid_field(py: Python<'_>, field: surfrecon::Field3) -> PyResult<GridField<'_
         .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
     Ok((array.into_pyarray(py), (origin[0], origin[1], origin[2]), h))
 }
+
+/// Warp a mesh onto another shape (`surfrecon morph`): SVM implicit
+/// surfaces of both, and a dense warp field (feature pairs + distance
+/// preservation) between them.
+///
+///   vertices, faces  the source mesh.
+///   target           (N, 3) points or a (vertices, faces) tuple.
+///   pairs            (P, 2, 3) feature correspondences: pairs[i, 0] on the
+///                    source goes to pairs[i, 1] on the target.
+///   c_corr=100.0     weight of the correspondences.
+///   c_dist=1.0       weight of distance preservation.
+///   warp_levels=4    levels of the warp field.
+///   report=False     also return {"pairs", "samples", "levels"}.
+///   cancel, progress as for reconstruct (checked between the fits).
+///
+/// Returns D, float64 (n, 3): the displacement of every source vertex;
+/// frame t in [0, 1] of the morph is vertices + t * D.
+#[pyfunction]
+#[pyo3(signature = (vertices, faces, target, pairs=None, *, c_corr=None, c_dist=None, warp_levels=None, report=false, cancel=None, progress=None))]
+#[allow(clippy::too_many_arguments)] // the keyword arguments of the Python API
+pub fn morph<'py>(
+    py: Python<'py>,
+    vertices: &Bound<'py, PyAny>,
+    faces: &Bound<'py, PyAny>,
+    target: &Bound<'py, PyAny>,
+    pairs: Option<&Bound<'py, PyAny>>,
+    c_corr: Option<f64>,
+    c_dist: Option<f64>,
+    warp_levels: Option<usize>,
+    report: bool,
+    cancel: Option<Py<PyAny>>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let source = mesh(vertices, faces, "source")?;
+    let target = match shape(target, "target")? {
+        Shape::Points(p) => Geometry::from_points(PointCloud::new(p)),
+        Shape::Mesh(m) => Geometry::from_mesh(m),
+    };
+    let pairs = match pairs {
+        Some(p) => feature_pairs(p)?,
+        None => Vec::new(),
+    };
+    let d = surfrecon::MorphOptions::default();
+    let options = surfrecon::MorphOptions {
+        c_corr: c_corr.unwrap_or(d.c_corr),
+        c_dist: c_dist.unwrap_or(d.c_dist),
+        warp_levels: warp_levels.unwrap_or(d.warp_levels),
+    };
+    let (displacements, morph_report) = watched(py, cancel, progress, |hook| {
+        let m = surfrecon::morph(&source, &target, &pairs, &options, hook)?;
+        Ok((m.warp.displacements(&source.vertices), m.report))
+    })?;
+    let d = to_vertices(py, &displacements).into_any();
+    if report {
+        let r = json_to_py(py, &morph_report)?;
+        Ok(PyTuple::new(py, [d, r])?.into_any())
+    } else {
+        Ok(d)
+    }
+}
+
+/// (P, 2, 3) float array → (source point, target point) pairs.
+fn feature_pairs(p: &Bound<'_, PyAny>) -> PyResult<Vec<(surfrecon::DVec3, surfrecon::DVec3)>> {
+    let arr = p
+        .cast::<numpy::PyUntypedArray>()
+        .map_err(|_| value_error("pairs must be a numpy array of shape (P, 2, 3)"))?;
+    if arr.ndim() != 3 || arr.shape()[1] != 2 || arr.shape()[2] != 3 {
+        return Err(value_error(format!(
+            "pairs must have shape (P, 2, 3), got {:?}",
+            arr.shape()
+        )));
+    }
+    let flat = arr.call_method1("reshape", ((-1i64, 3i64),))?;
+    let points = vectors(&flat, "pairs")?;
+    Ok(points.chunks(2).map(|c| (c[0], c[1])).collect())
+}

@@ -26,5 +26,6 @@ fn surfrecon_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(functions::write, m)?)?;
     m.add_function(wrap_pyfunction!(functions::write_shell, m)?)?;
     m.add_function(wrap_pyfunction!(functions::read_shell, m)?)?;
+    m.add_function(wrap_pyfunction!(functions::morph, m)?)?;
     Ok(())
 }

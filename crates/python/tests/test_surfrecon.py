@@ -328,3 +328,33 @@ def test_thin_shell_round_trip(tmp_path):
     assert np.abs(back - field).max() < 1.5 * spacing
     Vb, Fb = surfrecon.extract(back, origin2, spacing2)
     check_closed(Vb, Fb, 0, V)
+
+
+def test_morph_moves_a_sphere_onto_an_ellipsoid(tmp_path):
+    V, F = surfrecon.reconstruct(sphere_points(4000), resolution=40)
+    scale = np.array([1.3, 1.0, 0.8])
+    target = (V * scale, F)
+    pairs = np.array([[[1, 0, 0], [1.3, 0, 0]], [[0, 0, 1], [0, 0, 0.8]]], dtype=float)
+    D, report = surfrecon.morph(V, F, target, pairs, report=True)
+    assert D.shape == V.shape and D.dtype == np.float64
+    assert report["pairs"] == 2 and len(report["levels"]) > 0
+    moved = V + D
+    # On the ellipsoid: |x / scale| = 1, and the x extent reaches 1.3.
+    before = np.abs(np.linalg.norm(V / scale, axis=1) - 1).mean()
+    after = np.abs(np.linalg.norm(moved / scale, axis=1) - 1).mean()
+    assert after < 0.2 * before, (before, after)
+    assert abs(moved[:, 0].max() - 1.3) < 0.03
+    # The same as the command line's last frame.
+    src, dst = tmp_path / "src.ply", tmp_path / "dst.ply"
+    surfrecon.write(src, V, F)
+    surfrecon.write(dst, *target)
+    (tmp_path / "pairs.txt").write_text("1 0 0 1.3 0 0\n0 0 1 0 0 0.8\n")
+    subprocess.run(
+        [CLI, "--quiet", "morph", str(src), str(dst), "--pairs", str(tmp_path / "pairs.txt"),
+         "-o", str(tmp_path / "m"), "--frames", "2"],
+        check=True,
+    )
+    last = surfrecon.read(tmp_path / "m_001.ply")["vertices"]
+    assert np.array_equal(last, V + D)
+    with pytest.raises(ValueError, match=r"pairs must have shape \(P, 2, 3\)"):
+        surfrecon.morph(V, F, target, np.zeros((2, 3)))
