@@ -13,6 +13,7 @@
 //! - [`fairing`]: smooth (bi-Laplacian) fills for unsupported mesh parts.
 //! - [`metrics`]: Chamfer, Hausdorff, F-score, normal consistency, topology.
 //! - [`data_fit`]: how closely a mesh reaches the data it was built from.
+//! - [`progress`]: the progress-and-cancel hook long computations call.
 //! - [`render`]: PNG previews of meshes and point clouds.
 //! - [`shapes`]: analytic test shapes and uniform surface sampling.
 
@@ -26,6 +27,7 @@ pub mod io;
 pub mod linalg;
 pub mod metrics;
 pub mod normals;
+pub mod progress;
 pub mod render;
 pub mod shapes;
 pub mod spatial;

@@ -50,7 +50,14 @@ pub fn convect<const D: usize>(
     d: &mut BandDistance<D>,
     params: &EvolveParams,
 ) -> EvolveStats {
-    evolve(band, d, Motion::Convection, params, &Default::default())
+    evolve(
+        band,
+        d,
+        Motion::Convection,
+        params,
+        &Default::default(),
+        &surfrecon_geom::progress::no_progress,
+    )
 }
 
 #[cfg(test)]

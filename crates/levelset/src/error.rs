@@ -12,6 +12,9 @@ pub enum LevelsetError {
     #[error("invalid parameter {name}: {message}")]
     InvalidParameter { name: &'static str, message: String },
     /// The grid could not be built (too large, degenerate).
+    /// The progress hook asked to stop.
+    #[error("cancelled")]
+    Cancelled,
     #[error(transparent)]
     Grid(#[from] GridError),
 }

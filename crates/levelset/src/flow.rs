@@ -22,6 +22,7 @@ use crate::anchors::{DataCells, TangentSides};
 use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
 use crate::convection::{advection_term, upwind_advection};
 use crate::reinit::reinitialize;
+use surfrecon_geom::progress::{Hook, Progress};
 use surfrecon_geom::DVec3;
 use surfrecon_grid::sparse::WINDOW;
 use surfrecon_grid::topology::Neighbourhood;
@@ -76,17 +77,21 @@ pub struct EvolveStats {
     pub energy: f64,
     /// Largest band size seen.
     pub max_band: usize,
+    /// Whether the progress hook cancelled it.
+    pub cancelled: bool,
 }
 
 /// Run `motion` on `band` until convergence or `params.max_steps`; ends
 /// with a reinitialized band. `anchors` keep the surface on the data
-/// ([`crate::anchors`]).
+/// ([`crate::anchors`]). `hook` hears of every measurement interval and
+/// may cancel there (`stats.cancelled`).
 pub fn evolve<const D: usize>(
     band: &mut NarrowBand<D>,
     d: &mut BandDistance<D>,
     motion: Motion,
     params: &EvolveParams,
     anchors: &Anchors<D>,
+    hook: Hook,
 ) -> EvolveStats {
     let mut stats = EvolveStats::default();
     if band.is_empty() {
@@ -121,7 +126,20 @@ pub fn evolve<const D: usize>(
             .then(|| Neighbourhood::new(&cube_strides::<D>())),
         anchors,
     };
+    let stage = match motion {
+        Motion::Convection => "convection",
+        Motion::MinimalSurface { .. } => "flow",
+    };
     while stats.steps < params.max_steps {
+        let at = Progress {
+            stage,
+            done: stats.steps,
+            total: params.max_steps,
+        };
+        if hook(at).is_break() {
+            stats.cancelled = true;
+            break;
+        }
         // Only p ≠ 1 needs the energy while stepping (the factor F); the
         // report's energy is taken at the end.
         let factor = if p == 1.0 {

@@ -33,6 +33,6 @@ pub mod tagging;
 pub use band::NarrowBand;
 pub use error::{LevelsetError, Result};
 pub use reconstruct::{
-    reconstruct_2d, reconstruct_3d, reconstruct_field, Input, ReconstructParams, Reconstruction2,
-    Reconstruction3, Report,
+    reconstruct_2d, reconstruct_2d_with, reconstruct_3d, reconstruct_3d_with, reconstruct_field,
+    reconstruct_field_with, Input, ReconstructParams, Reconstruction2, Reconstruction3, Report,
 };

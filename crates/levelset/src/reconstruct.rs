@@ -18,6 +18,7 @@ use crate::slices::{detect_slices, interpolate_slices, SliceStack};
 use crate::tagging::{remove_unsupported, tag, BoundingBox};
 use std::sync::Arc;
 use std::time::Instant;
+use surfrecon_geom::progress::{no_progress, Hook, Progress};
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, Polylines, TriMesh};
 use surfrecon_grid::distance::{self, DataSet};
@@ -284,21 +285,35 @@ impl Reconstruction2 {
 
 /// Reconstruct a closed surface from 3D data.
 pub fn reconstruct_3d(input: &Input, params: &ReconstructParams) -> Result<Reconstruction3> {
+    reconstruct_3d_with(input, params, &no_progress)
+}
+
+/// [`reconstruct_3d`] reporting to `hook` between stages and inside the
+/// evolutions; [`LevelsetError::Cancelled`] when the hook cancels.
+pub fn reconstruct_3d_with(
+    input: &Input,
+    params: &ReconstructParams,
+    hook: Hook,
+) -> Result<Reconstruction3> {
     validate::<3>(input, params)?;
     if params.slices {
         if let Some(stack) = detect_slices(input) {
+            check(hook, "slices")?;
             return reconstruct_stack(&stack, params);
         }
     }
     let mut report = Report::default();
+    check(hook, "cleaning")?;
     let input = cleaned(input, params, 3, &mut report);
-    let (phi, field) = evolve_field::<3>(&input, params, &mut report)?;
+    let (phi, field) = evolve_field::<3>(&input, params, &mut report, hook)?;
+    check(hook, "extract")?;
     // Straight from the blocks: same triangles as on the dense φ.
     let mut mesh = report.time("extract", || marching_cubes_sparse(&phi, 0.0));
     if params.refine && !input.points.is_empty() {
         // Gaps are measured from the points: curves and patches bound them
         // elsewhere, so with them present no patch is faired.
         let fair_gaps = input.segments.is_empty() && input.triangles.is_empty();
+        check(hook, "refine")?;
         report.refine = report.time("refine", || {
             refine_surface(&mut mesh, &input.points, phi.spec().spacing, fair_gaps)
         });
@@ -335,7 +350,17 @@ fn reconstruct_stack(stack: &SliceStack, params: &ReconstructParams) -> Result<R
 
 /// Reconstruct closed curves from 2D data (z ignored).
 pub fn reconstruct_2d(input: &Input, params: &ReconstructParams) -> Result<Reconstruction2> {
-    let (phi, field, mut report) = reconstruct_field::<2>(input, params)?;
+    reconstruct_2d_with(input, params, &no_progress)
+}
+
+/// [`reconstruct_2d`] reporting to `hook`, which may cancel.
+pub fn reconstruct_2d_with(
+    input: &Input,
+    params: &ReconstructParams,
+    hook: Hook,
+) -> Result<Reconstruction2> {
+    let (phi, field, mut report) = reconstruct_field_with::<2>(input, params, hook)?;
+    check(hook, "extract")?;
     // 2D grids are small: extract from the dense φ.
     let curves = report.time("extract", || {
         surfrecon_grid::marching::marching_squares(&phi.to_dense(), 0.0)
@@ -355,11 +380,33 @@ pub fn reconstruct_field<const D: usize>(
     input: &Input,
     params: &ReconstructParams,
 ) -> Result<(BlockGrid<D>, Option<Field<D>>, Report)> {
+    reconstruct_field_with(input, params, &no_progress)
+}
+
+/// [`reconstruct_field`] reporting to `hook`, which may cancel.
+pub fn reconstruct_field_with<const D: usize>(
+    input: &Input,
+    params: &ReconstructParams,
+    hook: Hook,
+) -> Result<(BlockGrid<D>, Option<Field<D>>, Report)> {
     validate::<D>(input, params)?;
     let mut report = Report::default();
+    check(hook, "cleaning")?;
     let input = cleaned(input, params, D, &mut report);
-    let (phi, field) = evolve_field::<D>(&input, params, &mut report)?;
+    let (phi, field) = evolve_field::<D>(&input, params, &mut report, hook)?;
     Ok((phi, field, report))
+}
+
+/// [`LevelsetError::Cancelled`] if `hook` cancels at the start of `stage`.
+fn check(hook: Hook, stage: &'static str) -> Result<()> {
+    report_to(hook, Progress::stage(stage))
+}
+
+fn report_to(hook: Hook, at: Progress) -> Result<()> {
+    match hook(at) {
+        std::ops::ControlFlow::Continue(()) => Ok(()),
+        std::ops::ControlFlow::Break(()) => Err(LevelsetError::Cancelled),
+    }
 }
 
 /// The input with its points cleaned when `params.clean` asks for it.
@@ -401,6 +448,7 @@ fn evolve_field<const D: usize>(
     input: &Input,
     params: &ReconstructParams,
     report: &mut Report,
+    hook: Hook,
 ) -> Result<(BlockGrid<D>, Option<Field<D>>)> {
     let mut sampling = sampling_spacing(input);
     let fine = fine_grid::<D>(input, params, sampling)?;
@@ -441,25 +489,32 @@ fn evolve_field<const D: usize>(
     };
     report.surfels = surfels.len();
     let coarsest_spec = coarsen(&fine, 1 << (levels - 1));
+    check(hook, "distance")?;
     let coarsest_d = report.time("distance", || {
         let finest = (levels == 1).then_some(surfels.as_slice());
         coarsest_distance(input, coarsest_spec, finest)
     })?;
+    check(hook, "tagging")?;
     let mut band = initial_band(input, params, sampling, &coarsest_d, report)?;
     if levels > 1 {
-        band = evolve_coarsest(
+        let data = LevelData {
             input,
             sampling,
-            band,
-            &coarsest_d,
-            params,
-            fits.as_ref(),
-            report,
-        )?;
+            fits: fits.as_ref(),
+        };
+        band = evolve_coarsest(&data, band, &coarsest_d, params, report, hook)?;
     }
     // Each finer level takes the coarser surface and grows it to the
     // points it missed.
     for level in (0..levels - 1).rev() {
+        report_to(
+            hook,
+            Progress {
+                stage: "level",
+                done: levels - 1 - level,
+                total: levels,
+            },
+        )?;
         let spec = coarsen(&fine, 1 << level);
         band = report.time("upsample", || -> Result<NarrowBand<D>> {
             let mut b = upsample_band(&band, spec, params.band * spec.spacing)?;
@@ -471,6 +526,7 @@ fn evolve_field<const D: usize>(
         band = grown;
         report.grown_to_points += missed;
     }
+    check(hook, "distance")?;
     let mut d = if levels == 1 {
         BandDistance::dense(coarsest_d)?
     } else {
@@ -478,15 +534,12 @@ fn evolve_field<const D: usize>(
             refined_distance(input, &surfels, fine, coarsest_d, FINE_EXACT_CELLS)
         })?
     };
-    solve_level(
+    let data = LevelData {
         input,
         sampling,
-        &mut band,
-        &mut d,
-        params,
-        fits.as_ref(),
-        report,
-    );
+        fits: fits.as_ref(),
+    };
+    solve_level(&data, &mut band, &mut d, params, report, hook)?;
     report.band_nodes = band.len();
     report.band_blocks = band.block_count();
     report.band_bytes = band.memory_bytes();
@@ -496,6 +549,15 @@ fn evolve_field<const D: usize>(
     Ok((band.phi, field))
 }
 
+/// What every level's evolution reads of the data: the (cleaned,
+/// perhaps densified) input, its sampling gap and its tangent planes.
+#[derive(Clone, Copy)]
+struct LevelData<'a> {
+    input: &'a Input,
+    sampling: f64,
+    fits: Option<&'a PointPlanes>,
+}
+
 /// The coarsest level's evolution, which brings the surface from the
 /// tagged contour down to the data (into creases and concavities a finer
 /// level's convection alone gets stuck over). Parts thinner than a coarse
@@ -503,20 +565,19 @@ fn evolve_field<const D: usize>(
 /// [`RESTORE_CELLS`]) the tagged inside is put back within ε, for the finer
 /// levels to shape.
 fn evolve_coarsest<const D: usize>(
-    input: &Input,
-    sampling: f64,
+    data: &LevelData,
     tagged: NarrowBand<D>,
     distance: &Arc<Field<D>>,
     params: &ReconstructParams,
-    fits: Option<&PointPlanes>,
     report: &mut Report,
+    hook: Hook,
 ) -> Result<NarrowBand<D>> {
     let mut band = tagged.clone();
     let mut d = BandDistance::dense(distance.clone())?;
-    solve_level(input, sampling, &mut band, &mut d, params, fits, report);
+    solve_level(data, &mut band, &mut d, params, report, hook)?;
     let epsilon = report.epsilon;
     let (band, restored) = report.time("restore", || {
-        restore_near_missed(band, &tagged, &input.points, RESTORE_CELLS, epsilon)
+        restore_near_missed(band, &tagged, &data.input.points, RESTORE_CELLS, epsilon)
     });
     report.restored_near_points = restored;
     Ok(band)
@@ -576,14 +637,18 @@ const GROW_GAPS: f64 = 0.6;
 /// on the band's blocks first (the evolution adds blocks as the band moves),
 /// so its cost shows as such; records the distance's size.
 fn solve_level<const D: usize>(
-    input: &Input,
-    sampling: f64,
+    data: &LevelData,
     band: &mut NarrowBand<D>,
     d: &mut BandDistance<D>,
     params: &ReconstructParams,
-    fits: Option<&PointPlanes>,
     report: &mut Report,
-) {
+    hook: Hook,
+) -> Result<()> {
+    let LevelData {
+        input,
+        sampling,
+        fits,
+    } = *data;
     report.time("distance", || d.cover(band));
     let h = band.spec().spacing;
     let (cells, sides) = report.time("anchors", || {
@@ -597,9 +662,10 @@ fn solve_level<const D: usize>(
         cells: Some(&cells),
         sides: sides.as_ref(),
     };
-    evolve_level(band, d, &anchors, params, report);
+    evolve_level(band, d, &anchors, params, report, hook)?;
     report.distance_blocks = d.grid().blocks().len();
     report.distance_bytes = d.memory_bytes();
+    Ok(())
 }
 
 fn validate<const D: usize>(input: &Input, params: &ReconstructParams) -> Result<()> {
@@ -850,7 +916,8 @@ fn evolve_level<const D: usize>(
     anchors: &Anchors<D>,
     params: &ReconstructParams,
     report: &mut Report,
-) {
+    hook: Hook,
+) -> Result<()> {
     let conv = EvolveParams {
         max_steps: params.convection_steps,
         tolerance: params.tolerance,
@@ -858,9 +925,13 @@ fn evolve_level<const D: usize>(
         ..Default::default()
     };
     let stats = report.time("convection", || {
-        evolve(band, d, Motion::Convection, &conv, anchors)
+        evolve(band, d, Motion::Convection, &conv, anchors, hook)
     });
+    let cancelled = stats.cancelled;
     report.convection.push(stats);
+    if cancelled {
+        return Err(LevelsetError::Cancelled);
+    }
     let flow = EvolveParams {
         max_steps: params.steps,
         ..conv
@@ -872,17 +943,27 @@ fn evolve_level<const D: usize>(
             Motion::MinimalSurface { p: params.p },
             &flow,
             anchors,
+            hook,
         )
     });
+    let cancelled = stats.cancelled;
     report.flow.push(stats);
+    if cancelled {
+        return Err(LevelsetError::Cancelled);
+    }
     // The flow smooths, and where d > 0 between samples its curvature term
     // also pulls the surface slightly inside the data; a last convection
     // puts the zero set back on the data where there are data, leaving
     // the flow's shape where the surface spans gaps.
     let stats = report.time("settle", || {
-        evolve(band, d, Motion::Convection, &conv, anchors)
+        evolve(band, d, Motion::Convection, &conv, anchors, hook)
     });
+    let cancelled = stats.cancelled;
     report.settle.push(stats);
+    if cancelled {
+        return Err(LevelsetError::Cancelled);
+    }
+    Ok(())
 }
 
 /// The input with at most one point per cube of side `cell` (the first

@@ -28,8 +28,9 @@ impl Default for CurveFitOptions {
     }
 }
 
-/// What the fit used.
-#[derive(Clone, Debug)]
+/// What the fit used (serializes to the `curve_network` keys of
+/// `surfrecon reconstruct --json`).
+#[derive(Clone, Debug, serde::Serialize)]
 pub struct CurveFitReport {
     pub curves: usize,
     pub crossings: usize,

@@ -22,6 +22,9 @@ pub enum SvmError {
         byte: u64,
         message: String,
     },
+    /// The progress hook asked to stop.
+    #[error("cancelled")]
+    Cancelled,
     #[error(transparent)]
     Geom(#[from] surfrecon_geom::GeomError),
     #[error(transparent)]

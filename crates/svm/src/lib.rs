@@ -35,5 +35,5 @@ pub mod warp;
 
 pub use error::SvmError;
 pub use model::SvmModel;
-pub use multiscale::{fit, FitOptions, FitReport};
+pub use multiscale::{fit, fit_with, FitOptions, FitReport};
 pub use regression::Loss;

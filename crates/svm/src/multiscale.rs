@@ -21,6 +21,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::time::Instant;
+use surfrecon_geom::progress::{no_progress, Hook, Progress};
 use surfrecon_geom::spatial::KdTree;
 
 /// Parameters of the multi-scale fit. Lengths are relative: `epsilon` and
@@ -140,7 +141,7 @@ fn require_positive_or_infinite(name: &'static str, value: f64) -> Result<()> {
 }
 
 /// What one level did.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct LevelReport {
     pub width: f64,
     /// Base points proposed (surface representatives + off-surface points).
@@ -200,6 +201,17 @@ pub fn fit(
     normals: &[DVec3],
     opts: &FitOptions,
 ) -> Result<(SvmModel, FitReport)> {
+    fit_with(points, normals, opts, &no_progress)
+}
+
+/// [`fit`] reporting each level to `hook` ("fit level", levels done out of
+/// at most `max_levels`); [`SvmError::Cancelled`] when the hook cancels.
+pub fn fit_with(
+    points: &[DVec3],
+    normals: &[DVec3],
+    opts: &FitOptions,
+    hook: Hook,
+) -> Result<(SvmModel, FitReport)> {
     opts.validate()?;
     let start = Instant::now();
     let mut samples = SurfaceSamples::new(points, normals)?;
@@ -223,7 +235,15 @@ pub fn fit(
     let isolated = samples.points.len() - active.len();
     samples.exclude_from_consistency(&active);
     samples.set_noise(noise);
-    for _ in 0..opts.max_levels {
+    for done in 0..opts.max_levels {
+        let at = Progress {
+            stage: "fit level",
+            done,
+            total: opts.max_levels,
+        };
+        if hook(at).is_break() {
+            return Err(SvmError::Cancelled);
+        }
         let first = reports.is_empty();
         let (level, base, report) =
             fit_level(&samples, &active, &model, width, first, &scales, opts);

@@ -10,7 +10,6 @@ pub mod morph;
 pub mod normals;
 pub mod reconstruct;
 pub mod reconstruct_convection;
-pub mod reconstruct_curves;
 pub mod reconstruct_svm;
 pub mod render;
 pub mod sculpt;

@@ -7,11 +7,9 @@ use crate::context::Context;
 use anyhow::Context as _;
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use surfrecon_geom::normals::{estimate_normals, orient_normals};
-use surfrecon_geom::shapes::sample_surface;
-use surfrecon_geom::{io, DVec3, Geometry, PointCloud, TriMesh};
-use surfrecon_svm::warp::{fit_warp, WarpField, WarpOptions};
-use surfrecon_svm::{FitOptions, SvmModel};
+use surfrecon::morph::{fit_shape, oriented_points, warp_samples};
+use surfrecon::{io, DVec3, Geometry, MorphOptions, TriMesh};
+use surfrecon_svm::warp::{fit_warp, WarpField};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -67,12 +65,12 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         fit_shape(&target_points).with_context(|| format!("fitting {}", args.target.display()))?;
     spinner.finish_and_clear();
     let samples = warp_samples(&source_points, r1.diameter);
-    let opts = WarpOptions {
+    let opts = MorphOptions {
         c_corr: args.c_corr,
         c_dist: args.c_dist,
-        levels: args.warp_levels,
-        ..Default::default()
-    };
+        warp_levels: args.warp_levels,
+    }
+    .warp_options();
     let spinner = ctx.spinner("fitting the warp field");
     let (warp, reports) =
         fit_warp(&f1, &f2, &samples, &pairs, r1.diameter, &opts).context("warp fit failed")?;
@@ -114,48 +112,6 @@ fn read_mesh(path: &Path) -> anyhow::Result<TriMesh> {
         anyhow::bail!("{}: has no triangles; morph warps a mesh", path.display());
     }
     Ok(g.to_mesh())
-}
-
-/// Points with outward normals: sampled from a mesh, or the cloud itself
-/// (normals estimated and oriented when missing).
-fn oriented_points(g: &Geometry) -> PointCloud {
-    if g.is_mesh() {
-        let mesh = g.to_mesh();
-        let n = mesh.vertices.len().clamp(5_000, 50_000);
-        let pc = sample_surface(&mesh, n, 1);
-        if !pc.is_empty() {
-            return pc;
-        }
-    }
-    let mut pc = g.points.clone();
-    if pc.normals.is_none() {
-        let mut normals = estimate_normals(&pc.positions, 12);
-        orient_normals(&pc.positions, &mut normals, 12);
-        pc.normals = Some(normals);
-    }
-    pc
-}
-
-fn fit_shape(pc: &PointCloud) -> anyhow::Result<(SvmModel, surfrecon_svm::FitReport)> {
-    let normals = pc.normals.as_deref().unwrap_or_default();
-    Ok(surfrecon_svm::fit(
-        &pc.positions,
-        normals,
-        &FitOptions::default(),
-    )?)
-}
-
-/// Points on and around the source surface where distances must be kept.
-fn warp_samples(pc: &PointCloud, diameter: f64) -> Vec<DVec3> {
-    let stride = (pc.len() / 4000).max(1);
-    let normals = pc.normals.as_deref().unwrap_or_default();
-    let mut out = Vec::new();
-    for (p, n) in pc.positions.iter().zip(normals).step_by(stride) {
-        for t in [-0.02, 0.0, 0.02] {
-            out.push(*p + *n * (t * diameter));
-        }
-    }
-    out
 }
 
 /// Parse "x1 y1 z1 x2 y2 z2" lines; errors name the file and line.

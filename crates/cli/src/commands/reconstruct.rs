@@ -1,18 +1,18 @@
 //! `surfrecon reconstruct`: a closed surface (2D: closed curves) from points,
 //! curves and triangle patches. Level-set method by default (no normals
 //! needed); `--method svm` fits an SVM implicit surface to oriented points;
-//! `--method convection` interpolates the points by geometric convection.
+//! `--method convection` interpolates the points by geometric convection;
+//! crossing curve networks are spanned by a Hermite fit. A thin layer over
+//! the facade (`surfrecon::reconstruct_with`): flags to options, progress
+//! to the spinner, the output and field files, the summary.
 
-use crate::commands::reconstruct_convection::{self, ConvectionArgs};
-use crate::commands::reconstruct_curves;
+use crate::commands::reconstruct_convection::ConvectionArgs;
 use crate::commands::reconstruct_svm::{self, SvmArgs};
 use crate::context::Context;
 use anyhow::Context as _;
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use surfrecon_geom::data_fit::data_fit;
-use surfrecon_geom::{io, Geometry, TriMesh};
-use surfrecon_levelset::{reconstruct_2d, reconstruct_3d, Input, ReconstructParams, Report};
+use surfrecon::{io, ControlFlow, Geometry, OutputField, Progress, Report};
 
 /// Reconstruction method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -94,238 +94,198 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     let geometry = io::read(&args.input)?;
-    let network = (!args.no_curve_network)
-        .then(|| reconstruct_curves::detect(&geometry))
-        .flatten();
+    check_flags(&args, &geometry, ctx)?;
+    let options = options(&args, ctx.json);
     let spinner = ctx.spinner("reconstructing");
-    let result = match (network, args.method) {
-        (Some(network), _) => reconstruct_curves::run(&args, &geometry, &network, ctx),
-        (None, Method::Levelset) => run_levelset(&args, &geometry, ctx),
-        (None, Method::Svm) => run_svm(&args, &geometry, ctx),
-        (None, Method::Convection) => reconstruct_convection::run(&args, &geometry, ctx),
+    let hook = |p: Progress| {
+        spinner.set_message(match p.total {
+            0 => format!("reconstructing: {}", p.stage),
+            n => format!("reconstructing: {} {}/{n}", p.stage, p.done),
+        });
+        ControlFlow::Continue(())
     };
+    let output = surfrecon::reconstruct_with(&geometry, &options, &hook);
     spinner.finish_and_clear();
-    result
-}
-
-fn run_svm(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()> {
-    if args.field.is_some() || args.shell.is_some() || args.two_d {
-        anyhow::bail!("--field, --shell and --2d apply to --method levelset only");
+    let mut output = output?;
+    if let Some(field) = output.field.take() {
+        write_field_outputs(&args, &field)?;
     }
-    let (mesh, summary) = match args.resolution {
-        None => reconstruct_svm::reconstruct(&geometry.points, &args.svm, ctx)?,
-        Some(n) => {
-            reconstruct_svm::reconstruct_with_resolution(&geometry.points, &args.svm, Some(n), ctx)?
+    let mut report = output.report.clone();
+    if let Report::LevelSet(r) = &report {
+        if r.dimension == 2 && !args.two_d {
+            ctx.say("all z coordinates are equal: reconstructing closed curves in 2D");
         }
-    };
-    let (vertices, triangles) = (mesh.vertices.len(), mesh.triangles.len());
-    let fit = data_fit_json(ctx, &mesh, geometry);
-    io::write(&args.output, &Geometry::from_mesh(mesh))
+    }
+    if let Report::Svm(r) = &report {
+        reconstruct_svm::say_fit(&args.svm, r, ctx);
+    }
+    let clock = std::time::Instant::now();
+    io::write(&args.output, &output.into_geometry())
         .with_context(|| format!("cannot write {}", args.output.display()))?;
-    ctx.say(format!(
-        "reconstructed a surface with {vertices} vertices, {triangles} triangles (svm) -> {}",
-        args.output.display()
-    ));
-    ctx.emit_json(&json!({
-        "command": "reconstruct",
-        "method": "svm",
-        "input": args.input,
-        "output": args.output,
-        "output_counts": {"vertices": vertices, "triangles": triangles},
-        "svm": summary,
-        "data_fit": fit,
-    }));
+    if let Report::Convection(r) = &mut report {
+        r.convection.seconds.output += clock.elapsed().as_secs_f64();
+    }
+    summarize(&args, &report, ctx);
     Ok(())
 }
 
-fn params(args: &Args) -> ReconstructParams {
-    ReconstructParams {
-        resolution: args.resolution,
-        epsilon: args.epsilon,
-        p: args.p,
-        steps: args.steps,
-        band: args.band,
-        levels: args.levels,
-        bounding_box: args.bounding_box,
-        clean: !args.no_cleaning,
-        keep_topology: !args.free_topology,
-        refine: !args.no_refine,
-        slices: !args.no_slices,
-        // The shell needs only the nodes next to the surface (in the band).
-        full_field: args.field.is_some(),
-        ..Default::default()
+/// Flags that do not apply to the path the data take, refused before the
+/// run (only then is the curve-network test made here too).
+fn check_flags(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()> {
+    let levelset_only = args.field.is_some() || args.shell.is_some() || args.two_d;
+    let planar = args.method == Method::Levelset && surfrecon::is_planar(geometry);
+    let needs_obj = (args.two_d || planar) && !is_obj(&args.output);
+    let network = (levelset_only || needs_obj)
+        && !args.no_curve_network
+        && surfrecon::detect_curve_network(geometry).is_some();
+    if network && levelset_only {
+        anyhow::bail!(
+            "--field, --shell and --2d apply to the level-set path, not to curve networks (add --no-curve-network)"
+        );
     }
-}
-
-fn run_levelset(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()> {
-    let input = Input::from_geometry(geometry);
-    let planar = is_planar(&input);
-    let two_d = args.two_d || planar;
-    if planar && !args.two_d {
-        ctx.say("all z coordinates are equal: reconstructing closed curves in 2D");
+    if network {
+        return Ok(());
     }
-    let is_obj = args
-        .output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-    if two_d && !is_obj {
+    if args.method != Method::Levelset && levelset_only {
+        anyhow::bail!("--field, --shell and --2d apply to --method levelset only");
+    }
+    if args.method == Method::Convection && geometry.points.positions.is_empty() {
+        anyhow::bail!("{} has no points to reconstruct from", args.input.display());
+    }
+    if args.method == Method::Levelset && needs_obj {
+        if planar && !args.two_d {
+            ctx.say("all z coordinates are equal: reconstructing closed curves in 2D");
+        }
         anyhow::bail!(
             "2D reconstruction gives closed curves, which only OBJ stores here: use an .obj output instead of {}",
             args.output.display()
         );
     }
-    let spinner = ctx.spinner("reconstructing");
-    let (output, report, counts, fit) = if two_d {
-        let r = reconstruct_2d(&input, &params(args)).context("level-set reconstruction failed")?;
-        write_field_outputs(args, || r.dense_field())?;
-        let counts = json!({"vertices": r.curves.vertices.len(), "curves": r.curves.lines.len()});
-        (
-            Geometry::from_polylines(r.curves),
-            r.report,
-            counts,
-            serde_json::Value::Null,
-        )
-    } else {
-        let r = reconstruct_3d(&input, &params(args)).context("level-set reconstruction failed")?;
-        write_field_outputs(args, || r.dense_field())?;
-        let counts =
-            json!({"vertices": r.mesh.vertices.len(), "triangles": r.mesh.triangles.len()});
-        let fit = data_fit_json(ctx, &r.mesh, geometry);
-        (Geometry::from_mesh(r.mesh), r.report, counts, fit)
-    };
-    spinner.finish_and_clear();
-    io::write(&args.output, &output)
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
-    summarize(args, &input, &report, (counts, fit), two_d, ctx);
     Ok(())
 }
 
-/// Whether every datum lies in one plane z = const (2D data).
-fn is_planar(input: &Input) -> bool {
-    let mut zs = input
-        .points
-        .iter()
-        .chain(input.segments.iter().flatten())
-        .chain(input.triangles.iter().flatten())
-        .map(|v| v.z);
-    match zs.next() {
-        Some(z0) => zs.all(|z| z == z0),
-        None => false,
+fn is_obj(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+}
+
+/// The facade's options for the flags.
+fn options(args: &Args, data_fit: bool) -> surfrecon::Options {
+    let method = match args.method {
+        Method::Levelset => surfrecon::Method::LevelSet(surfrecon::LevelSetOptions {
+            epsilon: args.epsilon,
+            p: args.p,
+            steps: args.steps,
+            band: args.band,
+            levels: args.levels,
+            bounding_box: args.bounding_box,
+            free_topology: args.free_topology,
+            cleaning: !args.no_cleaning,
+            refine: !args.no_refine,
+            slices: !args.no_slices,
+            two_d: args.two_d,
+            field: match (&args.field, &args.shell) {
+                (Some(_), _) => surfrecon::FieldOutput::Full,
+                (None, Some(_)) => surfrecon::FieldOutput::Band,
+                (None, None) => surfrecon::FieldOutput::None,
+            },
+        }),
+        Method::Svm => surfrecon::Method::Svm(args.svm.options()),
+        Method::Convection => surfrecon::Method::Convection(args.convection.options()),
+    };
+    surfrecon::Options {
+        method,
+        resolution: args.resolution,
+        curve_network: !args.no_curve_network,
+        // With --json only: it costs a pass over the data.
+        data_fit,
     }
 }
 
-/// `field` gives the dense φ (the reconstruction keeps it sparse): called
-/// only when a field or shell file is asked for.
-fn write_field_outputs<const D: usize>(
-    args: &Args,
-    field: impl FnOnce() -> surfrecon_grid::Field<D>,
-) -> anyhow::Result<()> {
-    if args.field.is_none() && args.shell.is_none() {
-        return Ok(());
+fn write_field_outputs(args: &Args, field: &OutputField) -> anyhow::Result<()> {
+    match field {
+        OutputField::Two(f) => write_field_files(args, f),
+        OutputField::Three(f) => write_field_files(args, f),
     }
-    let field = &field();
+}
+
+fn write_field_files<const D: usize>(
+    args: &Args,
+    field: &surfrecon::Field<D>,
+) -> anyhow::Result<()> {
     if let Some(path) = &args.field {
-        surfrecon_grid::field_io::write_field(path, field)
+        surfrecon::field_io::write_field(path, field)
             .with_context(|| format!("cannot write field {}", path.display()))?;
     }
     if let Some(path) = &args.shell {
-        write_shell(path, field)?;
+        let shell = surfrecon::shell::Shell::from_field(field);
+        surfrecon::shell::write_shell(path, &shell)
+            .with_context(|| format!("cannot write shell {}", path.display()))?;
     }
     Ok(())
 }
 
-fn write_shell<const D: usize>(
-    path: &Path,
-    field: &surfrecon_grid::Field<D>,
-) -> anyhow::Result<()> {
-    let shell = surfrecon_grid::shell::Shell::from_field(field);
-    surfrecon_grid::shell::write_shell(path, &shell)
-        .with_context(|| format!("cannot write shell {}", path.display()))
+/// The line on stderr and, with `--json`, the report with the command,
+/// input and output added.
+fn summarize(args: &Args, report: &Report, ctx: &Context) {
+    let output = args.output.display();
+    match report {
+        Report::LevelSet(r) => say_levelset(r, args, ctx),
+        Report::Svm(r) => ctx.say(format!(
+            "reconstructed a surface with {} vertices, {} triangles (svm) -> {output}",
+            r.output_counts.vertices,
+            r.output_counts.triangles.unwrap_or(0)
+        )),
+        Report::Convection(r) => ctx.say(format!(
+            "reconstructed a surface through {} of {} points, {} triangles (convection{}) -> {output}",
+            r.output_counts.vertices,
+            r.convection.points,
+            r.output_counts.triangles.unwrap_or(0),
+            match r.convection.boundary_edges {
+                0 => String::new(),
+                b => format!(", {b} boundary edges"),
+            },
+        )),
+        Report::CurveNetwork(r) => ctx.say(format!(
+            "reconstructed a closed surface spanning {} curves ({} crossings) with {} vertices in {:.2} s -> {output}",
+            r.curve_network.curves,
+            r.curve_network.crossings,
+            r.output_counts.vertices,
+            r.seconds_total
+        )),
+    }
+    if !ctx.json {
+        return;
+    }
+    let mut value = serde_json::to_value(report).unwrap_or_default();
+    if let Some(map) = value.as_object_mut() {
+        map.insert("command".into(), json!("reconstruct"));
+        map.insert("input".into(), json!(args.input));
+        map.insert("output".into(), json!(args.output));
+    }
+    ctx.emit_json(&value);
 }
 
-fn summarize(
-    args: &Args,
-    input: &Input,
-    report: &Report,
-    (counts, fit): (serde_json::Value, serde_json::Value),
-    two_d: bool,
-    ctx: &Context,
-) {
-    let dims: Vec<String> = report.dims.iter().map(|d| d.to_string()).collect();
-    let total: f64 = report.timings.iter().map(|(_, t)| t).sum();
+fn say_levelset(r: &surfrecon::LevelSetReport, args: &Args, ctx: &Context) {
+    let dims: Vec<String> = r.grid.dims.iter().map(|d| d.to_string()).collect();
     ctx.say(format!(
         "reconstructed {} on a {} grid (h = {:.4}, {} level(s)) in {:.2} s -> {}",
-        match (two_d, report.slices) {
+        match (r.dimension == 2, &r.slices) {
             (true, _) => "closed curves".to_string(),
             (false, None) => "a closed surface".to_string(),
-            (false, Some((axis, count))) => format!(
-                "a closed surface between {count} contour slices across {}",
-                ["x", "y", "z"][axis]
+            (false, Some(s)) => format!(
+                "a closed surface between {} contour slices across {}",
+                s.count,
+                ["x", "y", "z"][s.axis]
             ),
         },
         dims.join("x"),
-        report.spacing,
-        report.levels,
-        total,
+        r.grid.spacing,
+        r.grid.levels,
+        r.seconds_total,
         args.output.display()
     ));
-    for (stage, t) in &report.timings {
-        ctx.detail(format!("  {stage:<12} {t:8.3} s"));
-    }
-    let stages: Vec<serde_json::Value> = report
-        .timings
-        .iter()
-        .map(|(s, t)| json!({"stage": s, "seconds": t}))
-        .collect();
-    let steps = |v: &[surfrecon_levelset::flow::EvolveStats]| -> Vec<serde_json::Value> {
-        v.iter()
-            .map(|s| {
-                json!({
-                    "steps": s.steps,
-                    "converged": s.converged,
-                    "stopped_by": if s.converged { "convergence" } else { "step cap" },
-                    "last_change": s.last_change,
-                    "energy": s.energy,
-                    "max_band": s.max_band,
-                })
-            })
-            .collect()
-    };
-    ctx.emit_json(&json!({
-        "command": "reconstruct",
-        "method": "levelset",
-        "input": args.input,
-        "output": args.output,
-        "dimension": if two_d { 2 } else { 3 },
-        "data": {"points": input.points.len(), "segments": input.segments.len(), "triangles": input.triangles.len()},
-        "grid": {"dims": report.dims, "spacing": report.spacing, "nodes": report.dims.iter().product::<usize>(), "levels": report.levels},
-        "cleaning": {"outliers_removed": report.cleaning.outliers, "projected": report.cleaning.projected, "rms_shift": report.cleaning.rms_shift},
-        "epsilon": report.epsilon,
-        "surfels": report.surfels,
-        "densified": report.densified,
-        "tagging": {"heap_pops": report.heap_pops, "inside_nodes": report.tagged_inside, "removed_components": report.removed_components, "grown_to_points": report.grown_to_points, "restored_near_points": report.restored_near_points, "sealed_by_normals": report.sealed_nodes},
-        "band_nodes": report.band_nodes,
-        "band": {"nodes": report.band_nodes, "blocks": report.band_blocks, "block_nodes": surfrecon_grid::sparse::BLOCK.pow(if two_d { 2 } else { 3 })},
-        "convection": steps(&report.convection),
-        "flow": steps(&report.flow),
-        "settle": steps(&report.settle),
-        "refine": {"snapped": report.refine.snapped, "faired": report.refine.faired, "max_fairing_shift": report.refine.max_fairing_shift},
-        "slices": report.slices.map(|(axis, count)| json!({"axis": axis, "count": count})),
-        "timings": stages,
-        "seconds_total": total,
-        "output_counts": counts,
-        "data_fit": fit,
-    }));
-}
-
-/// With `--json`: how closely `mesh` reaches every input datum (points,
-/// curve and patch vertices); null otherwise (it costs a pass over the data).
-pub fn data_fit_json(ctx: &Context, mesh: &TriMesh, geometry: &Geometry) -> serde_json::Value {
-    if !ctx.json {
-        return serde_json::Value::Null;
-    }
-    match data_fit(mesh, &geometry.points.positions) {
-        Ok(fit) => serde_json::to_value(fit).unwrap_or_default(),
-        Err(e) => json!({"error": e.to_string()}),
+    for t in &r.timings {
+        ctx.detail(format!("  {:<12} {:8.3} s", t.stage, t.seconds));
     }
 }

@@ -1,16 +1,9 @@
-//! The `--method convection` part of `surfrecon reconstruct`: geometric
-//! convection over the exact Delaunay tetrahedralization of the points
-//! (surfrecon-convection). `reconstruct.rs` flattens [`ConvectionArgs`]
-//! into its arguments and calls [`run`].
+//! The `--method convection` flags of `surfrecon reconstruct` (geometric
+//! convection over the exact Delaunay tetrahedralization of the points):
+//! `reconstruct.rs` flattens [`ConvectionArgs`] into its arguments and
+//! hands [`ConvectionArgs::options`] to the facade.
 
-use crate::commands::reconstruct::{data_fit_json, Args};
-use crate::context::Context;
-use anyhow::Context as _;
-use serde_json::json;
-use std::time::Instant;
 use surfrecon_convection::decimate::Brush;
-use surfrecon_convection::{reconstruct, Params};
-use surfrecon_geom::{io, Geometry};
 
 /// Convection-specific flags of `surfrecon reconstruct --method convection`.
 #[derive(clap::Args, Clone, Debug)]
@@ -50,58 +43,20 @@ pub struct ConvectionArgs {
     pub normal_k: usize,
 }
 
-pub fn run(args: &Args, geometry: &Geometry, ctx: &Context) -> anyhow::Result<()> {
-    let c = &args.convection;
-    if args.field.is_some() || args.shell.is_some() || args.two_d {
-        anyhow::bail!("--field, --shell and --2d apply to --method levelset only");
+impl ConvectionArgs {
+    /// The facade's options for these flags.
+    pub fn options(&self) -> surfrecon::ConvectionOptions {
+        surfrecon::ConvectionOptions {
+            rho: self.rho,
+            rho_geom: self.rho_geom,
+            rho_topo: self.rho_topo,
+            fill_holes: self.fill_holes,
+            pockets: !self.no_pockets,
+            thin_parts: !self.no_thin_parts,
+            normal_k: self.normal_k,
+            brush: self.brush.as_deref().copied(),
+        }
     }
-    let points = &geometry.points;
-    if points.positions.is_empty() {
-        anyhow::bail!("{} has no points to reconstruct from", args.input.display());
-    }
-    let params = Params {
-        normal_k: c.normal_k,
-        pockets: !c.no_pockets,
-        thin_size: if c.no_thin_parts {
-            0.0
-        } else {
-            Params::default().thin_size
-        },
-        max_hole_edges: c.fill_holes,
-        rho: c.rho,
-        rho_geometric: c.rho_geom,
-        rho_topo: c.rho_topo,
-        brush: c.brush.as_deref().copied(),
-        ..Params::default()
-    };
-    let r = reconstruct(&points.positions, points.normals.as_deref(), &params)
-        .context("convection reconstruction failed")?;
-    let clock = Instant::now();
-    let (vertices, triangles) = (r.report.kept_points, r.mesh.triangles.len());
-    let fit = data_fit_json(ctx, &r.mesh, geometry);
-    io::write(&args.output, &Geometry::from_mesh(r.mesh))
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
-    let mut report = r.report;
-    report.seconds.output += clock.elapsed().as_secs_f64();
-    ctx.say(format!(
-        "reconstructed a surface through {vertices} of {} points, {triangles} triangles (convection{}) -> {}",
-        report.points,
-        match report.boundary_edges {
-            0 => String::new(),
-            b => format!(", {b} boundary edges"),
-        },
-        args.output.display()
-    ));
-    ctx.emit_json(&json!({
-        "command": "reconstruct",
-        "method": "convection",
-        "input": args.input,
-        "output": args.output,
-        "output_counts": {"vertices": vertices, "triangles": triangles},
-        "convection": report,
-        "data_fit": fit,
-    }));
-    Ok(())
 }
 
 /// `X,Y,Z,R,RHO_C`: five numbers; R above 0, RHO_C from 0 to 1.

@@ -1,0 +1,61 @@
+//! [`Method::Convection`](crate::Method::Convection): geometric convection
+//! over the exact Delaunay tetrahedralization of the points.
+
+use crate::error::{Classify, Error, ErrorKind, Result};
+use crate::report::*;
+use crate::{check, data_fit_report, ConvectionOptions, Output};
+use surfrecon_convection::{reconstruct, Params};
+use surfrecon_geom::progress::Hook;
+use surfrecon_geom::Geometry;
+
+pub(crate) fn params(o: &ConvectionOptions) -> Params {
+    Params {
+        normal_k: o.normal_k,
+        pockets: o.pockets,
+        thin_size: if o.thin_parts {
+            Params::default().thin_size
+        } else {
+            0.0
+        },
+        max_hole_edges: o.fill_holes,
+        brush: o.brush,
+        rho: o.rho,
+        rho_geometric: o.rho_geom,
+        rho_topo: o.rho_topo,
+        ..Params::default()
+    }
+}
+
+pub(crate) fn run(
+    input: &Geometry,
+    o: &ConvectionOptions,
+    data_fit: bool,
+    hook: Hook,
+) -> Result<Output> {
+    let points = &input.points;
+    if points.positions.is_empty() {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            "the input has no points to reconstruct from",
+        ));
+    }
+    check(hook, "convection")?;
+    let r = reconstruct(&points.positions, points.normals.as_deref(), &params(o))
+        .map_err(|e| e.within("convection reconstruction failed"))?;
+    let output_counts = OutputCounts {
+        vertices: r.report.kept_points,
+        ..OutputCounts::mesh(&r.mesh)
+    };
+    let report = ConvectionReport {
+        method: "convection",
+        convection: r.report,
+        output_counts,
+        data_fit: data_fit.then(|| data_fit_report(&r.mesh, input)),
+    };
+    Ok(Output {
+        mesh: r.mesh,
+        curves: None,
+        field: None,
+        report: Report::Convection(Box::new(report)),
+    })
+}

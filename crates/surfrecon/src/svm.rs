@@ -1,0 +1,174 @@
+//! [`Method::Svm`](crate::Method::Svm): fit a multi-scale SVM implicit
+//! surface to oriented points (normals from the input, or estimated and
+//! oriented) and mesh its zero set by surface-following marching cubes.
+
+use crate::error::{Classify, Error, ErrorKind, Result};
+use crate::report::*;
+use crate::{check, data_fit_report, Loss, Output, SvmC, SvmOptions};
+use std::time::Instant;
+use surfrecon_geom::normals::{estimate_normals, orient_normals};
+use surfrecon_geom::progress::Hook;
+use surfrecon_geom::{DVec3, Geometry, PointCloud};
+use surfrecon_svm::mesh::{mesh_model, MeshOptions};
+use surfrecon_svm::selection::{select_parameters, SelectionOptions};
+use surfrecon_svm::{FitOptions, SvmModel};
+
+/// Meshing resolution when none is given.
+pub const DEFAULT_RESOLUTION: usize = 200;
+
+pub(crate) fn run(
+    input: &Geometry,
+    o: &SvmOptions,
+    resolution: Option<usize>,
+    data_fit: bool,
+    hook: Hook,
+) -> Result<Output> {
+    let points = &input.points;
+    if points.positions.is_empty() {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            "the input has no points to fit",
+        ));
+    }
+    let started = Instant::now();
+    let mut normals_estimated = None;
+    let (model, fit) = match &o.model_in {
+        Some(path) => (
+            SvmModel::load(path)
+                .map_err(|e| e.within(&format!("cannot load model {}", path.display())))?,
+            SvmFit::Loaded {
+                loaded: path.display().to_string(),
+            },
+        ),
+        None => {
+            if points.normals.is_none() {
+                normals_estimated = Some(o.normal_k);
+            }
+            let (model, fit) = fit_model(points, o, hook)?;
+            (model, SvmFit::Fitted(Box::new(fit)))
+        }
+    };
+    let fit_seconds = started.elapsed().as_secs_f64();
+    let model = if o.drop_levels > 0 {
+        model.without_finest(o.drop_levels)
+    } else {
+        model
+    };
+    check(hook, "mesh")?;
+    let opts = MeshOptions {
+        resolution: resolution.unwrap_or(DEFAULT_RESOLUTION),
+        ..Default::default()
+    };
+    let (mesh, m) = mesh_model(&model, &points.positions, points.bounds(), &opts)
+        .map_err(|e| e.within("meshing the SVM implicit surface failed"))?;
+    let svm = SvmSummary {
+        method: "svm",
+        fit,
+        centres: model.centre_count(),
+        levels_used: model.levels.len(),
+        fit_seconds,
+        mesh_seconds: started.elapsed().as_secs_f64() - fit_seconds,
+        mesh: SvmMeshReport {
+            grid_dims: m.grid_dims,
+            spacing: m.spacing,
+            cells_visited: m.cells_visited,
+            nodes_evaluated: m.nodes_evaluated,
+            specks_removed: m.specks_removed,
+            vertices: mesh.vertices.len(),
+            triangles: mesh.triangles.len(),
+        },
+    };
+    let report = SvmReport {
+        method: "svm",
+        svm,
+        output_counts: OutputCounts::mesh(&mesh),
+        data_fit: data_fit.then(|| data_fit_report(&mesh, input)),
+        normals_estimated,
+    };
+    Ok(Output {
+        mesh,
+        curves: None,
+        field: None,
+        report: Report::Svm(Box::new(report)),
+    })
+}
+
+/// Normals, parameters (given or selected), the fit, and the optional save.
+fn fit_model(points: &PointCloud, o: &SvmOptions, hook: Hook) -> Result<(SvmModel, SvmFitReport)> {
+    check(hook, "normals")?;
+    let normals = normals_for(points, o.normal_k);
+    let mut opts = FitOptions {
+        loss: match o.loss {
+            Loss::Epsilon => surfrecon_svm::Loss::EpsilonInsensitive,
+            Loss::Squared => surfrecon_svm::Loss::Squared,
+        },
+        epsilon: o.epsilon,
+        accuracy: o.accuracy,
+        ..Default::default()
+    };
+    opts.validate()
+        .map_err(|e| e.within("invalid SVM parameters"))?;
+    let mut selection = None;
+    opts.c = match o.c {
+        SvmC::Fixed(c) if c.is_finite() && c > 0.0 => c,
+        SvmC::Fixed(c) => {
+            return Err(Error::new(
+                ErrorKind::InvalidInput,
+                format!("invalid SVM parameters: C must be a positive number, got {c}"),
+            ))
+        }
+        SvmC::Auto => {
+            check(hook, "selection")?;
+            // ε: the given tube and a wider one, which suits noisy data.
+            let candidates = SelectionOptions {
+                epsilon_values: vec![opts.epsilon, 4.0 * opts.epsilon],
+                ..Default::default()
+            };
+            let s = select_parameters(&points.positions, &normals, &opts, &candidates)
+                .map_err(|e| e.within("parameter selection failed"))?;
+            opts.epsilon = s.epsilon;
+            let trials = s.trials.iter().map(|t| SvmTrial {
+                c: t.c,
+                epsilon: t.epsilon,
+                validation_error: t.error,
+            });
+            selection = Some(trials.collect());
+            s.c
+        }
+    };
+    let (model, report) = surfrecon_svm::fit_with(&points.positions, &normals, &opts, hook)
+        .map_err(|e| e.within("SVM fit failed"))?;
+    if let Some(path) = &o.model_out {
+        model
+            .save(path)
+            .map_err(|e| e.within(&format!("cannot write model {}", path.display())))?;
+    }
+    let fit = SvmFitReport {
+        c: opts.c,
+        epsilon: opts.epsilon,
+        accuracy: opts.accuracy,
+        loss: format!("{:?}", opts.loss),
+        selection,
+        seconds: report.seconds,
+        diameter: report.diameter,
+        spacing: report.spacing,
+        noise_estimate: report.noise,
+        isolated_samples: report.isolated,
+        epsilon_used: report.epsilon,
+        accuracy_used: report.tolerance,
+        min_width: report.min_width,
+        levels: report.levels,
+    };
+    Ok((model, fit))
+}
+
+/// The input's normals, or normals estimated from `k` neighbours and
+/// oriented consistently outward.
+fn normals_for(points: &PointCloud, k: usize) -> Vec<DVec3> {
+    if let Some(n) = &points.normals {
+        return n.clone();
+    }
+    let mut normals = estimate_normals(&points.positions, k);
+    orient_normals(&points.positions, &mut normals, k);
+    normals
+}

@@ -1,0 +1,153 @@
+//! The facade end to end: every method reconstructs a sampled sphere into a
+//! closed surface near it, the report serializes to the command line's
+//! keys, and a hook that cancels stops a run early with a Cancelled error.
+
+use std::cell::Cell;
+use surfrecon::geom::metrics::topology;
+use surfrecon::geom::shapes::{icosphere, sample_surface};
+use surfrecon::{
+    reconstruct, reconstruct_with, ControlFlow, ConvectionOptions, DVec3, ErrorKind, Geometry,
+    LevelSetOptions, Method, Options, Progress, SvmOptions,
+};
+
+const RADIUS: f64 = 1.0;
+
+fn sphere_points(n: usize, normals: bool) -> Geometry {
+    let mut cloud = sample_surface(&icosphere(DVec3::ZERO, RADIUS, 5), n, 7);
+    if !normals {
+        cloud.normals = None;
+    }
+    Geometry::from_points(cloud)
+}
+
+/// Closed, manifold, genus 0, and every vertex within `tol` of the sphere.
+fn assert_sphere(mesh: &surfrecon::Mesh, tol: f64) {
+    let t = topology(mesh);
+    assert!(
+        t.watertight && t.edge_manifold && t.vertex_manifold,
+        "{t:?}"
+    );
+    assert_eq!((t.components, t.euler), (1, 2), "{t:?}");
+    let worst = mesh
+        .vertices
+        .iter()
+        .map(|v| (v.length() - RADIUS).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < tol, "vertex {worst} off the sphere");
+}
+
+#[test]
+fn every_method_reconstructs_a_sphere() {
+    let input = sphere_points(4000, true);
+    let methods = [
+        Method::LevelSet(LevelSetOptions::default()),
+        Method::Svm(SvmOptions::default()),
+        Method::Convection(ConvectionOptions::default()),
+    ];
+    for method in methods {
+        let name = method.name();
+        let options = Options {
+            resolution: (name == "svm").then_some(60),
+            data_fit: true,
+            ..Options::with_method(method)
+        };
+        let out = reconstruct(&input, &options).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+        assert_eq!(out.report.method(), name);
+        assert_sphere(&out.mesh, 0.03);
+        let json = serde_json::to_value(&out.report).unwrap();
+        assert_eq!(json["method"], name);
+        assert_eq!(
+            json["output_counts"]["triangles"],
+            out.mesh.triangles.len(),
+            "{name}"
+        );
+        // Every datum lies on the sphere, which the surface follows.
+        assert!(json["data_fit"]["max"].as_f64().unwrap() < 0.03, "{name}");
+    }
+}
+
+#[test]
+fn svm_estimates_missing_normals() {
+    let input = sphere_points(3000, false);
+    let options = Options {
+        resolution: Some(50),
+        ..Options::with_method(Method::Svm(SvmOptions::default()))
+    };
+    let out = reconstruct(&input, &options).unwrap();
+    assert_sphere(&out.mesh, 0.03);
+    match out.report {
+        surfrecon::Report::Svm(r) => assert_eq!(r.normals_estimated, Some(12)),
+        other => panic!("not an SVM report: {}", other.method()),
+    }
+}
+
+#[test]
+fn a_cancelling_hook_stops_the_level_set_inside_its_evolution() {
+    let input = sphere_points(20_000, false);
+    let options = Options {
+        resolution: Some(120),
+        ..Options::default()
+    };
+    // Cancel at the second progress report inside the flow.
+    let flow_calls = Cell::new(0);
+    let stages = std::cell::RefCell::new(Vec::new());
+    let hook = |p: Progress| {
+        stages.borrow_mut().push(p.stage);
+        if p.stage == "flow" {
+            flow_calls.set(flow_calls.get() + 1);
+            if flow_calls.get() == 2 {
+                return ControlFlow::Break(());
+            }
+        }
+        ControlFlow::Continue(())
+    };
+    let err = reconstruct_with(&input, &options, &hook).unwrap_err();
+    assert_eq!(err.kind, ErrorKind::Cancelled);
+    assert_eq!(err.message(), "cancelled");
+    let stages = stages.into_inner();
+    // Nothing ran after the cancelling call.
+    assert_eq!(stages.last(), Some(&"flow"));
+    assert_eq!(flow_calls.get(), 2);
+    assert!(stages.contains(&"distance") && stages.contains(&"convection"));
+}
+
+#[test]
+fn a_cancelling_hook_stops_the_svm_fit_between_levels() {
+    let input = sphere_points(3000, true);
+    let options = Options::with_method(Method::Svm(SvmOptions::default()));
+    let levels = Cell::new(0);
+    let hook = |p: Progress| {
+        if p.stage == "fit level" {
+            levels.set(p.done + 1);
+            if p.done == 1 {
+                return ControlFlow::Break(());
+            }
+        }
+        ControlFlow::Continue(())
+    };
+    let err = reconstruct_with(&input, &options, &hook).unwrap_err();
+    assert_eq!(err.kind, ErrorKind::Cancelled);
+    assert_eq!(levels.get(), 2);
+}
+
+#[test]
+fn bad_input_and_options_are_invalid_input_with_the_cli_message() {
+    let empty = Geometry::default();
+    let err = reconstruct(&empty, &Options::default()).unwrap_err();
+    assert_eq!(err.kind, ErrorKind::InvalidInput);
+    assert_eq!(
+        err.message(),
+        "level-set reconstruction failed: no data to reconstruct from (no points, curves or triangles)"
+    );
+    let input = sphere_points(500, false);
+    let options = Options::with_method(Method::LevelSet(LevelSetOptions {
+        p: 0.5,
+        ..Default::default()
+    }));
+    let err = reconstruct(&input, &options).unwrap_err();
+    assert_eq!(err.kind, ErrorKind::InvalidInput);
+    assert_eq!(
+        err.message(),
+        "level-set reconstruction failed: invalid parameter p: must be a finite number ≥ 1, got 0.5"
+    );
+}
