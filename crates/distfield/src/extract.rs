@@ -18,13 +18,17 @@ use surfrecon_grid::marching::tables::{cube_table, EDGE_CORNERS};
 use surfrecon_grid::marching::{cell_case, crossing_fraction};
 use surfrecon_grid::GridSpec;
 
-/// Smallest cosine between a fan triangle and the table triangle whose
-/// boundary edge it takes. At a sharp ridge the table triangle cuts across
-/// while the fan follows the two faces, so large turns are normal (on
-/// fandisk, requiring less than 90° refused a fifth of the fans and kept a
-/// max error of 0.9 h; 120° keeps 0.54 h); a fan turned further has its
-/// feature point behind the patch and would fold over.
-const FAN_MIN_COS: f64 = -0.5;
+/// How far a fan triangle's unit normal may point against the direction
+/// from the inside to the outside sample of a crossing it touches (the
+/// surface's own normal there points along it). A fan whose feature point
+/// lies behind the patch turns its triangles against these directions and
+/// folds. The test uses only the crossing's edge, not the table
+/// triangles, which are arbitrarily oriented slivers where a crossing
+/// falls on a sample (a face through grid nodes); comparing with them
+/// refused the fans of the cells where fandisk's ridge errors peaked.
+/// On fandisk 0.3 keeps a fold-over at 0.39 h, 0.5 and 0.7 give the same
+/// surface.
+const FAN_SLACK: f64 = 0.5;
 
 /// A field sampled once per grid node, as extraction reads it.
 pub trait SampledField: Sync {
@@ -65,7 +69,7 @@ pub fn extract(
         .map(|&(cell, config, bits)| {
             let patch = table_patch(field.spec(), cell, config, bits, &keys, &vertices);
             match features.get(&cell) {
-                Some(&f) => patch.fan(f, &vertices, field.spec().spacing),
+                Some(&f) => patch.fan(f, &vertices, &keys, field),
                 None => patch,
             }
         })
@@ -179,6 +183,15 @@ fn edge_point(field: &impl SampledField, key: u64) -> DVec3 {
     })
 }
 
+/// The direction from the inside sample of edge `key` to its outside
+/// one: the surface's normal there has a positive component along it.
+fn outward(field: &impl SampledField, key: u64) -> DVec3 {
+    let (node, axis) = ((key / 3) as usize, (key % 3) as usize);
+    let mut d = DVec3::ZERO;
+    d[axis] = if field.value(node) < 0.0 { 1.0 } else { -1.0 };
+    d
+}
+
 /// Whether extraction would fan `cell`'s patch around `point` (see
 /// [`Patch::fan`]): lets construction pick feature points that work.
 pub(crate) fn fan_fits(field: &impl SampledField, cell: usize, point: DVec3) -> bool {
@@ -192,7 +205,7 @@ pub(crate) fn fan_fits(field: &impl SampledField, cell: usize, point: DVec3) -> 
     keys.sort_unstable();
     let vertices: Vec<DVec3> = keys.iter().map(|&k| edge_point(field, k)).collect();
     let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
-    patch.fan(point, &vertices, spec.spacing).fanned == Some(true)
+    patch.fan(point, &vertices, &keys, field).fanned == Some(true)
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Hash, Debug)]
@@ -263,9 +276,16 @@ fn table_patch(
 
 impl Patch {
     /// The patch as a fan around `feature`, when its boundary is one loop
-    /// and no fan triangle turns further than [`FAN_MIN_COS`] from the
-    /// table triangle it replaces (`fanned` says whether it was).
-    fn fan(self, feature: DVec3, vertices: &[DVec3], h: f64) -> Patch {
+    /// and no fan triangle turns against the inside-to-outside direction
+    /// of a crossing it touches by more than [`FAN_SLACK`] (`fanned` says
+    /// whether it was).
+    fn fan(
+        self,
+        feature: DVec3,
+        vertices: &[DVec3],
+        keys: &[u64],
+        field: &impl SampledField,
+    ) -> Patch {
         let position = |v: Vertex| match v {
             Vertex::Edge(i) => vertices[i as usize],
             Vertex::Extra(i) => self.extra[i as usize],
@@ -275,20 +295,24 @@ impl Patch {
             .iter()
             .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
             .collect();
-        // Boundary edges with the normal of the table triangle they are in.
-        let boundary: Vec<(Vertex, Vertex, DVec3)> = self
+        let boundary: Vec<(Vertex, Vertex)> = self
             .triangles
             .iter()
-            .flat_map(|t| {
-                let normal = triangle_normal(t.map(position)).normalize_or_zero();
-                (0..3).map(move |k| (t[k], t[(k + 1) % 3], normal))
-            })
-            .filter(|&(a, b, _)| !directed.contains(&(b, a)))
+            .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+            .filter(|&(a, b)| !directed.contains(&(b, a)))
             .collect();
+        let h = field.spec().spacing;
         let min_area2 = (1e-8 * h * h).powi(2);
-        let folds = boundary.iter().any(|&(a, b, n)| {
+        let outward = |v: Vertex| match v {
+            Vertex::Edge(i) => outward(field, keys[i as usize]),
+            Vertex::Extra(_) => DVec3::ZERO,
+        };
+        let folds = boundary.iter().any(|&(a, b)| {
             let fan = triangle_normal([position(a), position(b), feature]);
-            fan.length_squared() < min_area2 || fan.normalize().dot(n) < FAN_MIN_COS
+            fan.length_squared() < min_area2 || {
+                let n = fan.normalize();
+                n.dot(outward(a)) < -FAN_SLACK || n.dot(outward(b)) < -FAN_SLACK
+            }
         });
         if folds || !is_one_loop(&boundary) {
             return Patch {
@@ -298,7 +322,7 @@ impl Patch {
         }
         let triangles = boundary
             .iter()
-            .map(|&(a, b, _)| [a, b, Vertex::Extra(0)])
+            .map(|&(a, b)| [a, b, Vertex::Extra(0)])
             .collect();
         Patch {
             triangles,
@@ -313,8 +337,8 @@ fn triangle_normal([a, b, c]: [DVec3; 3]) -> DVec3 {
     (b - a).cross(c - a)
 }
 
-fn is_one_loop(boundary: &[(Vertex, Vertex, DVec3)]) -> bool {
-    let next: HashMap<Vertex, Vertex> = boundary.iter().map(|&(a, b, _)| (a, b)).collect();
+fn is_one_loop(boundary: &[(Vertex, Vertex)]) -> bool {
+    let next: HashMap<Vertex, Vertex> = boundary.iter().copied().collect();
     if boundary.is_empty() || next.len() != boundary.len() {
         return false;
     }

@@ -12,11 +12,10 @@
 //! mix: extraction interpolates it wherever nothing more is stored.
 
 use crate::extract::{corner_nodes, extract, fan_fits, ExtractReport, SampledField};
-use crate::features::{
-    cell_of, cells_with_features, closest_on_segment, nudge_into, CellFeatures, Features,
-};
-use crate::offset::{may_take, node_position, on_outer_layer, stays_convex};
+use crate::features::{cells_with_features, nudge_into, CellFeatures, Features};
+use crate::offset::{may_take, node_position, stays_convex};
 use crate::query::MeshQuery;
+use crate::sharp::{clamp_near, is_sharp, owner_cell, qef_minimizer, Tangent};
 use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -93,6 +92,9 @@ pub struct UdfReport {
     pub directed: usize,
     pub feature_points: usize,
     pub positions: usize,
+    /// Of the feature points, those of cells without a mesh feature inside
+    /// whose crossings' normals disagree (a sharp edge runs beside them).
+    pub sharp_cells: usize,
     /// Directed distances given up because all corners of a feature cell
     /// already carried extra data.
     pub directed_dropped: usize,
@@ -141,7 +143,8 @@ pub fn build_udf(
         f.bends.retain(|p| !snapped.contains(p));
     }
     report.feature_cells = cells.len();
-    report.positions = snapped.len() + snap_unreached(&mut field, &cells);
+    report.positions = snapped.len();
+    let cos_limit = options.feature_angle_deg.to_radians().cos();
     for (cell, f) in &cells {
         let Some(centroid) = crossing_centroid(&field, &query, *cell) else {
             continue;
@@ -157,6 +160,11 @@ pub fn build_udf(
         else {
             continue;
         };
+        if let Some(node) = storage_for(&field, *cell, point) {
+            field.extras.insert(node, Extra::FeaturePoint(point));
+            report.feature_points += 1;
+            continue;
+        }
         let corners = corner_nodes(&field.spec, *cell);
         let free = corners
             .iter()
@@ -167,6 +175,13 @@ pub fn build_udf(
             report.directed_dropped += 1;
         }
         report.feature_points += 1;
+    }
+    for (cell, point) in sharp_cell_points(&field, &query, &cells, cos_limit) {
+        if let Some(node) = storage_for(&field, cell, point) {
+            field.extras.insert(node, Extra::FeaturePoint(point));
+            report.feature_points += 1;
+            report.sharp_cells += 1;
+        }
     }
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
@@ -232,63 +247,6 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
     snapped
 }
 
-/// Feature cells the surface enters without changing the sign of any
-/// sample (a tip or ridge poking in between them) are lost to plain
-/// interpolation. For each, the sample nearest one of its feature points
-/// moves onto that point (within its box, keeping its cells convex), with
-/// distance 0 signed against the cell's other samples, so the surface
-/// crosses the cell there. Returns the number of samples moved.
-fn snap_unreached(field: &mut UnifiedField, cells: &BTreeMap<usize, CellFeatures>) -> usize {
-    let spec = field.spec;
-    let cube = Neighbourhood::new(&spec.strides());
-    let reach = 0.5 * spec.spacing * (1.0 - 1e-9);
-    let mut moved = 0;
-    for (&cell, f) in cells {
-        if field.crosses(cell) {
-            continue;
-        }
-        let nodes = corner_nodes(&spec, cell);
-        let mut best: Option<(f64, usize, DVec3)> = None;
-        for &n in &nodes {
-            if field
-                .extras
-                .get(&(n as u32))
-                .is_some_and(|e| !matches!(e, Extra::Directed(_)))
-            {
-                continue;
-            }
-            let home = node_position(&spec, n);
-            let on_pieces = f
-                .pieces
-                .iter()
-                .map(|&[a, b]| closest_on_segment(home, a, b));
-            for q in f.corners.iter().chain(&f.bends).copied().chain(on_pieces) {
-                let d = (q - home).abs().max_element();
-                if d <= reach && best.is_none_or(|b| d < b.0) {
-                    best = Some((d, n, q));
-                }
-            }
-        }
-        let Some((_, n, q)) = best else { continue };
-        if !stays_convex(&spec, n, q, |m| field.position(m)) {
-            continue;
-        }
-        // The sample changes side, which must change no topology.
-        let value = if field.values[nodes[0]] >= 0.0 {
-            -1e-9 * spec.spacing
-        } else {
-            0.0
-        };
-        if on_outer_layer(&spec, n) || !may_take(&cube, n, value, |m| field.values[m]) {
-            continue;
-        }
-        field.values[n] = value;
-        field.extras.insert(n as u32, Extra::Position(q));
-        moved += 1;
-    }
-    moved
-}
-
 /// Samples with an edge crossing that interpolation misplaces by more than
 /// `threshold` spacings, with their exact distances along the three axes.
 fn directed_distances(
@@ -319,6 +277,81 @@ fn directed_distances(
             needed.then_some((node as u32, directed))
         })
         .collect()
+}
+
+/// How far outside its cell a feature point found from the crossings may
+/// lie (in spacings): a sharp edge passing just beside a cell is where its
+/// patch must reach.
+const SHARP_MARGIN: f64 = 0.5;
+
+/// Feature points for the boundary cells that have no mesh feature inside
+/// but whose crossings' normals differ by more than the feature angle:
+/// the QEF minimizer of the crossings' tangent planes, within
+/// [`SHARP_MARGIN`] of the cell, where the cell's fan around it fits.
+fn sharp_cell_points(
+    field: &UnifiedField,
+    query: &MeshQuery,
+    featured: &BTreeMap<usize, CellFeatures>,
+    cos_limit: f64,
+) -> Vec<(usize, DVec3)> {
+    let spec = &field.spec;
+    let [nx, ny, nz] = spec.dims;
+    (0..nz - 1)
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let cells = (0..ny - 1).flat_map(move |j| (0..nx - 1).map(move |i| [i, j, k]));
+            cells.filter_map(|idx| {
+                let cell = spec.linear(idx);
+                if featured.contains_key(&cell) || !field.crosses(cell) {
+                    return None;
+                }
+                let tangents = crossing_tangents(field, query, cell);
+                if !is_sharp(&tangents, cos_limit) {
+                    return None;
+                }
+                let point = qef_minimizer(&tangents)?;
+                let point = clamp_near(spec, cell, point, SHARP_MARGIN * spec.spacing);
+                fan_fits(field, cell, point).then_some((cell, point))
+            })
+        })
+        .collect()
+}
+
+/// A sample of `cell` free to store `point` as the cell's feature point
+/// (one whose cells put `point` in `cell`, see [`owner_cell`]).
+fn storage_for(field: &UnifiedField, cell: usize, point: DVec3) -> Option<u32> {
+    corner_nodes(&field.spec, cell)
+        .into_iter()
+        .find(|&n| {
+            !field.extras.contains_key(&(n as u32))
+                && owner_cell(&field.spec, n, point) == Some(cell)
+        })
+        .map(|n| n as u32)
+}
+
+/// The exact crossings on a cell's sign-changing edges with the surface
+/// normal there (outward: from the inside sample to the outside one).
+fn crossing_tangents(field: &UnifiedField, query: &MeshQuery, cell: usize) -> Vec<Tangent> {
+    let spec = &field.spec;
+    let nodes = corner_nodes(spec, cell);
+    let mut out = Vec::new();
+    for [a, b] in surfrecon_grid::marching::tables::EDGE_CORNERS {
+        let (na, nb) = (nodes[a as usize], nodes[b as usize]);
+        let (va, vb) = (field.values[na], field.values[nb]);
+        if (va >= 0.0) == (vb >= 0.0) {
+            continue;
+        }
+        let axis = (a ^ b).trailing_zeros() as usize;
+        let origin = DVec3::from_array(spec.position(spec.unlinear(na)));
+        let Some((d, n)) = query.hit_with_normal(origin, axis, spec.spacing) else {
+            continue;
+        };
+        let mut p = origin;
+        p[axis] += d;
+        let n = if (n[axis] > 0.0) == (va < 0.0) { n } else { -n };
+        out.push((p, n));
+    }
+    out
 }
 
 /// The mean of the exact crossings on a cell's sign-changing edges.
@@ -365,12 +398,12 @@ impl UnifiedField {
             .sum()
     }
 
-    /// Feature points by the cell that contains them.
+    /// Feature points by their cell (see [`owner_cell`]).
     pub fn feature_points(&self) -> BTreeMap<usize, DVec3> {
         self.extras
-            .values()
-            .filter_map(|e| match *e {
-                Extra::FeaturePoint(p) => cell_of(&self.spec, p).map(|c| (c, p)),
+            .iter()
+            .filter_map(|(&n, e)| match *e {
+                Extra::FeaturePoint(p) => owner_cell(&self.spec, n as usize, p).map(|c| (c, p)),
                 _ => None,
             })
             .collect()
