@@ -11,7 +11,9 @@
 //! Every sample keeps its minimum distance, which is what lets the kinds
 //! mix: extraction interpolates it wherever nothing more is stored.
 
-use crate::extract::{corner_nodes, extract, fan_fits, ExtractReport, SampledField};
+use crate::extract::{
+    corner_nodes, extract, fan_fits, leans_on_neighbour, ExtractReport, SampledField,
+};
 use crate::features::{cells_with_features, nudge_into, CellFeatures, Features};
 use crate::offset::{may_take, node_position, stays_convex};
 use crate::query::MeshQuery;
@@ -311,7 +313,10 @@ fn sharp_cell_points(
                 }
                 let point = qef_minimizer(&tangents)?;
                 let point = clamp_near(spec, cell, point, SHARP_MARGIN * spec.spacing);
-                fan_fits(field, cell, point).then_some((cell, point))
+                // A point in a neighbour makes this cell join that
+                // neighbour's fan at extraction, which checks it there.
+                let beside = leans_on_neighbour(field, cell, point);
+                (beside || fan_fits(field, cell, point)).then_some((cell, point))
             })
         })
         .collect()
