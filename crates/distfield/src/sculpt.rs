@@ -12,12 +12,13 @@
 //! field gets a sample moved onto that edge instead.
 
 use crate::extract::{corner_nodes, crosses, fan_fits, SampledField};
-use crate::features::nudge_into;
+use crate::features::{cell_of, nudge_into};
 use crate::offset::{
     cells_around, may_take, node_position, on_outer_layer, stays_convex, OffsetField,
 };
 use crate::query::MeshQuery;
-use crate::unified::{Extra, UnifiedField};
+use crate::sharp::Tangent;
+use crate::unified::{sharp_point, storage_for, Extra, UnifiedField};
 use crate::DistFieldError;
 use rayon::prelude::*;
 use std::collections::BTreeSet;
@@ -199,6 +200,14 @@ impl<'a> Combined<'a> {
             .apply(self.object.signed_distance(p), self.tool.signed_distance(p))
     }
 
+    /// Whether the tool moved the surface near `p`: the combined distance
+    /// differs from the object's by more than `tolerance`. (Feature points
+    /// elsewhere stay, including those beside their cell that are not on
+    /// the extracted surface.)
+    fn changes(&self, p: DVec3, tolerance: f64) -> bool {
+        (self.signed_distance(p) - self.object.signed_distance(p)).abs() > tolerance
+    }
+
     /// A point on both surfaces near `start` (alternating projections),
     /// if they meet there.
     fn edge_point(&self, start: DVec3, tolerance: f64) -> Option<DVec3> {
@@ -270,6 +279,10 @@ fn edge_point_in(spec: &GridSpec<3>, combined: &Combined, cell: usize) -> Option
         .map(|p| nudge_into(spec, cell, p))
 }
 
+/// A point fitted to a cell's crossings counts as on the new edge within
+/// this many spacings of both the tool and the result.
+const ON_EDGE: f64 = 0.02;
+
 /// Sculpt a unified field: combine, then restore exact crossings and put
 /// feature points on the new edges.
 pub fn sculpt_udf(
@@ -296,7 +309,7 @@ pub fn sculpt_udf(
         .extras
         .iter()
         .filter_map(|(&i, e)| match e {
-            Extra::FeaturePoint(p) if combined.signed_distance(*p).abs() > 1e-6 * h => Some(i),
+            Extra::FeaturePoint(p) if combined.changes(*p, 1e-6 * h) => Some(i),
             _ => None,
         })
         .collect();
@@ -342,13 +355,25 @@ pub fn sculpt_udf(
             dirs[axis] = d;
         }
     }
-    // Feature points on the new edges.
+    // Feature points on the new edges: where the crossings' tangent
+    // planes meet on both the tool and the result (a corner where the new
+    // edge meets an old one), that point, else one on the new edge.
+    let cos_limit = crate::features::DEFAULT_FEATURE_ANGLE_DEG
+        .to_radians()
+        .cos();
     let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
     for &c in &cells {
         if taken.contains(&c) {
             continue;
         }
-        let Some(p) = edge_point_in(&spec, &combined, c) else {
+        let tangents = combined_tangents(&spec, &combined, c, &field.values);
+        let on_both = |q: DVec3| {
+            combined.signed_distance(q).abs() < ON_EDGE * h
+                && combined.tool.signed_distance(q).abs() < ON_EDGE * h
+        };
+        let fitted = sharp_point(field, c, &tangents, cos_limit)
+            .filter(|&q| cell_of(&spec, q) == Some(c) && on_both(q));
+        let Some(p) = fitted.or_else(|| edge_point_in(&spec, &combined, c)) else {
             continue;
         };
         report.edge_points += 1;
@@ -361,7 +386,61 @@ pub fn sculpt_udf(
             report.kept += 1;
         }
     }
+    // Cells beside the new edges: feature points from the crossings'
+    // tangent planes.
+    let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
+    let sharp: Vec<(usize, DVec3)> = cells
+        .par_iter()
+        .filter(|c| !taken.contains(c))
+        .filter_map(|&c| {
+            let tangents = combined_tangents(&spec, &combined, c, &field.values);
+            sharp_point(field, c, &tangents, cos_limit).map(|p| (c, p))
+        })
+        .collect();
+    for (c, p) in sharp {
+        if let Some(n) = storage_for(field, c, p) {
+            field.extras.insert(n, Extra::FeaturePoint(p));
+            report.kept += 1;
+        }
+    }
     Ok(report)
+}
+
+/// The exact crossings of the combined surface on `cell`'s sign-changing
+/// edges, with its outward normal there (the combined distance's
+/// gradient, by central differences).
+fn combined_tangents(
+    spec: &GridSpec<3>,
+    combined: &Combined,
+    cell: usize,
+    values: &[f64],
+) -> Vec<Tangent> {
+    let h = spec.spacing;
+    let nodes = corner_nodes(spec, cell);
+    let mut out = Vec::new();
+    for [a, b] in EDGE_CORNERS {
+        let (na, nb) = (nodes[a as usize], nodes[b as usize]);
+        if (values[na] >= 0.0) == (values[nb] >= 0.0) {
+            continue;
+        }
+        let axis = (a ^ b).trailing_zeros() as usize;
+        let origin = node_position(spec, na);
+        let Some(d) = edge_root(combined, origin, axis, h) else {
+            continue;
+        };
+        let mut p = origin;
+        p[axis] += d;
+        let e = 1e-4 * h;
+        let gradient = DVec3::from_array(std::array::from_fn(|k| {
+            let mut step = DVec3::ZERO;
+            step[k] = e;
+            combined.signed_distance(p + step) - combined.signed_distance(p - step)
+        }));
+        if let Some(n) = gradient.try_normalize() {
+            out.push((p, n));
+        }
+    }
+    out
 }
 
 /// Distance along `+axis` from `origin` to the combined surface within

@@ -308,23 +308,39 @@ fn sharp_cell_points(
                     return None;
                 }
                 let tangents = crossing_tangents(field, query, cell);
-                if !is_sharp(&tangents, cos_limit) {
-                    return None;
-                }
-                let point = qef_minimizer(&tangents)?;
-                let point = clamp_near(spec, cell, point, SHARP_MARGIN * spec.spacing);
-                // A point in a neighbour makes this cell join that
-                // neighbour's fan at extraction, which checks it there.
-                let beside = leans_on_neighbour(field, cell, point);
-                (beside || fan_fits(field, cell, point)).then_some((cell, point))
+                sharp_point(field, cell, &tangents, cos_limit).map(|p| (cell, p))
             })
         })
         .collect()
 }
 
+/// The feature point of `cell` from its crossings' `tangents` when their
+/// normals differ by more than the angle whose cosine is `cos_limit`: the
+/// QEF minimizer within [`SHARP_MARGIN`] of the cell, if the cell's fan
+/// around it fits or it lies in a crossed neighbour (whose fan the cell
+/// then joins at extraction, which checks it there).
+pub(crate) fn sharp_point(
+    field: &UnifiedField,
+    cell: usize,
+    tangents: &[Tangent],
+    cos_limit: f64,
+) -> Option<DVec3> {
+    if !is_sharp(tangents, cos_limit) {
+        return None;
+    }
+    let spec = &field.spec;
+    let point = clamp_near(
+        spec,
+        cell,
+        qef_minimizer(tangents)?,
+        SHARP_MARGIN * spec.spacing,
+    );
+    (leans_on_neighbour(field, cell, point) || fan_fits(field, cell, point)).then_some(point)
+}
+
 /// A sample of `cell` free to store `point` as the cell's feature point
 /// (one whose cells put `point` in `cell`, see [`owner_cell`]).
-fn storage_for(field: &UnifiedField, cell: usize, point: DVec3) -> Option<u32> {
+pub(crate) fn storage_for(field: &UnifiedField, cell: usize, point: DVec3) -> Option<u32> {
     corner_nodes(&field.spec, cell)
         .into_iter()
         .find(|&n| {
