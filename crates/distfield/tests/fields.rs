@@ -138,6 +138,55 @@ fn udf_keeps_every_corner_of_an_octahedron() {
     check_corners_kept(rotate(&octahedron(), [0.2, 0.1, 0.4]), 20);
 }
 
+/// A long bar turned so that its edges run across the grid at every
+/// offset from the samples: many cells lie beside an edge that passes
+/// just outside them, with crossings on both of its faces. Their patches
+/// must reach the edge (joined to the neighbour's fan), not cut under it.
+/// (Corners are left out: a corner poking into a cell without changing
+/// any sample's sign is a different matter.)
+#[test]
+fn udf_follows_edges_that_pass_beside_cells() {
+    let bar = rotate(
+        &cuboid(DVec3::new(-1.0, -0.23, -0.19), DVec3::new(1.0, 0.23, 0.19)),
+        [0.13, 0.07, 0.61],
+    );
+    let size = GridSize::Resolution(24);
+    let (udf, report) = build_udf(
+        &bar,
+        &UdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let h = udf.spec.spacing;
+    let (mesh, extract) = udf.extract();
+    assert_closed_manifold(&mesh, 2);
+    let features = surfrecon_distfield::features::Features::detect(&bar, 30.0);
+    assert_eq!(features.edges.len(), 12);
+    let surface = MeshQuery::new(&mesh).unwrap();
+    let mut worst = 0.0f64;
+    for [a, b] in features.edges {
+        let (a, b) = (bar.vertices[a as usize], bar.vertices[b as usize]);
+        let n = (a.distance(b) / (0.05 * h)) as usize;
+        for k in 0..=n {
+            let p = a.lerp(b, k as f64 / n as f64);
+            if p.distance(a).min(p.distance(b)) > 1.5 * h {
+                worst = worst.max(surface.signed_distance(p).abs() / h);
+            }
+        }
+    }
+    let exact = MeshQuery::new(&bar).unwrap();
+    let (max, mean) = two_way_error(&bar, &exact, &mesh, 16);
+    eprintln!(
+        "{report:?} {extract:?}\nedges {worst} h; everywhere max {} h, mean {} h",
+        max / h,
+        mean / h
+    );
+    assert!(report.sharp_cells > 0 && extract.merged > 0);
+    assert!(worst < 0.1, "an edge is cut by {worst} h");
+}
+
 #[test]
 fn field_files_round_trip_exactly_and_refuse_truncation() {
     use surfrecon_distfield::format::{read_odf, read_udf, write_odf, write_udf};
