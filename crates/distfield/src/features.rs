@@ -66,6 +66,10 @@ impl Features {
 pub struct CellFeatures {
     /// Corners inside the cell.
     pub corners: Vec<DVec3>,
+    /// Corners in a cell next to this one that the surface enters
+    /// without changing any sample's sign (so no patch of their own
+    /// reaches them), within half a cell of this one.
+    pub near_corners: Vec<DVec3>,
     /// Feature-line vertices (bends) inside the cell that are not corners.
     pub bends: Vec<DVec3>,
     /// Pieces of feature edges clipped to the cell.
@@ -129,6 +133,12 @@ pub fn cells_with_features(
             } else {
                 entry.bends.push(p);
             }
+        } else if corner_set.contains(&v) {
+            for cell in cells_near(spec, p, 0.5 * spec.spacing) {
+                if has_surface(cell) {
+                    cells.entry(cell).or_default().near_corners.push(p);
+                }
+            }
         }
     }
     for &[a, b] in &features.edges {
@@ -164,6 +174,26 @@ fn cells_containing(spec: &GridSpec<3>, p: DVec3) -> Vec<usize> {
         }
     }
     cells
+}
+
+/// The cells whose boxes lie within `reach` of `p` (in every axis).
+fn cells_near(spec: &GridSpec<3>, p: DVec3, reach: f64) -> Vec<usize> {
+    let lo = spec.to_grid((p - DVec3::splat(reach)).to_array());
+    let hi = spec.to_grid((p + DVec3::splat(reach)).to_array());
+    let range = |a: usize| {
+        let first = lo[a].floor().max(0.0) as usize;
+        let last = (hi[a].floor().max(0.0) as usize).min(spec.dims[a].saturating_sub(2));
+        first..=last
+    };
+    let mut out = Vec::new();
+    for k in range(2) {
+        for j in range(1) {
+            for i in range(0) {
+                out.push(spec.linear([i, j, k]));
+            }
+        }
+    }
+    out
 }
 
 /// `p` moved just inside cell `cell` (by 1e-7 of a spacing at most), so

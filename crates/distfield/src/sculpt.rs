@@ -12,7 +12,7 @@
 //! field gets a sample moved onto that edge instead.
 
 use crate::extract::{corner_nodes, crosses, fan_fits, SampledField};
-use crate::features::{cell_of, nudge_into};
+use crate::features::nudge_into;
 use crate::offset::{
     cells_around, may_take, node_position, on_outer_layer, stays_convex, OffsetField,
 };
@@ -371,18 +371,16 @@ pub fn sculpt_udf(
             combined.signed_distance(q).abs() < ON_EDGE * h
                 && combined.tool.signed_distance(q).abs() < ON_EDGE * h
         };
-        let fitted = sharp_point(field, c, &tangents, cos_limit)
-            .filter(|&q| cell_of(&spec, q) == Some(c) && on_both(q));
+        // (The fitted point may lie just outside the cell: a corner in a
+        // cell the surface enters without changing any sample's sign.)
+        let fitted = sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q));
         let Some(p) = fitted.or_else(|| edge_point_in(&spec, &combined, c)) else {
             continue;
         };
         report.edge_points += 1;
-        let corners = corner_nodes(&spec, c);
-        let free = corners
-            .iter()
-            .find(|&&n| !field.extras.contains_key(&(n as u32)));
-        if let (Some(&n), true) = (free, fan_fits(&*field, c, p)) {
-            field.extras.insert(n as u32, Extra::FeaturePoint(p));
+        let fits = fitted.is_some() || fan_fits(&*field, c, p);
+        if let (Some(n), true) = (storage_for(field, c, p), fits) {
+            field.extras.insert(n, Extra::FeaturePoint(p));
             report.kept += 1;
         }
     }

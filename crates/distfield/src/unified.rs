@@ -143,6 +143,7 @@ pub fn build_udf(
     for f in cells.values_mut() {
         f.corners.retain(|p| !snapped.contains(p));
         f.bends.retain(|p| !snapped.contains(p));
+        f.near_corners.retain(|p| !snapped.contains(p));
     }
     report.feature_cells = cells.len();
     report.positions = snapped.len();
@@ -151,14 +152,23 @@ pub fn build_udf(
         let Some(centroid) = crossing_centroid(&field, &query, *cell) else {
             continue;
         };
-        let candidates = f
+        // A corner in a neighbour no patch reaches comes first, as it is
+        // (the cell's fan reaches out to it, from a sample that can hold
+        // it); the rest lie in the cell.
+        let margin = SHARP_MARGIN * field.spec.spacing;
+        let near = f
+            .near_corners
+            .iter()
+            .map(|&p| clamp_near(&field.spec, *cell, p, margin))
+            .filter(|&p| storage_for(&field, *cell, p).is_some());
+        let inside = f
             .candidates(centroid)
             .into_iter()
             .map(|p| nudge_into(&field.spec, *cell, p));
-        let Some(point) = candidates
-            .clone()
+        let Some(point) = near
+            .chain(inside.clone())
             .find(|&p| fan_fits(&field, *cell, p))
-            .or_else(|| candidates.clone().next())
+            .or_else(|| inside.clone().next())
         else {
             continue;
         };
