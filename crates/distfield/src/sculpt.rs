@@ -12,11 +12,12 @@
 //! field gets a sample moved onto that edge instead.
 
 use crate::extract::{corner_nodes, crosses, fan_fits, SampledField};
-use crate::features::nudge_into;
+use crate::features::{nudge_into, Features, DEFAULT_FEATURE_ANGLE_DEG};
 use crate::offset::{
     cells_around, may_take, node_position, on_outer_layer, stays_convex, OffsetField,
 };
 use crate::query::MeshQuery;
+use crate::sharp::clamp_near;
 use crate::sharp::Tangent;
 use crate::unified::{sharp_point, storage_for, Extra, UnifiedField};
 use crate::DistFieldError;
@@ -291,7 +292,9 @@ pub fn sculpt_udf(
     tool: &Tool,
     threshold: f64,
 ) -> Result<SculptReport, DistFieldError> {
-    let combined = Combined::new(&field.extract().0, tool, operation)?;
+    let surface = field.extract().0;
+    let combined = Combined::new(&surface, tool, operation)?;
+    let corners = new_corners(&surface, tool);
     let spec = field.spec;
     let h = spec.spacing;
     let (changed, cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
@@ -373,7 +376,13 @@ pub fn sculpt_udf(
         };
         // (The fitted point may lie just outside the cell: a corner in a
         // cell the surface enters without changing any sample's sign.)
-        let fitted = sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q));
+        let corner = corners
+            .iter()
+            .map(|&q| clamp_near(&spec, c, q, 0.5 * h))
+            .filter(|&q| on_both(q) && storage_for(field, c, q).is_some())
+            .find(|&q| fan_fits(&*field, c, q));
+        let fitted =
+            corner.or_else(|| sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q)));
         let Some(p) = fitted.or_else(|| edge_point_in(&spec, &combined, c)) else {
             continue;
         };
@@ -402,6 +411,32 @@ pub fn sculpt_udf(
         }
     }
     Ok(report)
+}
+
+/// Where the sharp edges of `surface` (the object as its field represents
+/// it) pierce the tool: the corners a new edge makes with an old one.
+fn new_corners(surface: &TriMesh, tool: &Tool) -> Vec<DVec3> {
+    let features = Features::detect(surface, DEFAULT_FEATURE_ANGLE_DEG);
+    features
+        .edges
+        .iter()
+        .filter_map(|&[a, b]| {
+            let (mut p, mut q) = (surface.vertices[a as usize], surface.vertices[b as usize]);
+            let inside = tool.signed_distance(p) < 0.0;
+            if inside == (tool.signed_distance(q) < 0.0) {
+                return None;
+            }
+            for _ in 0..48 {
+                let mid = p.lerp(q, 0.5);
+                if (tool.signed_distance(mid) < 0.0) == inside {
+                    p = mid;
+                } else {
+                    q = mid;
+                }
+            }
+            Some(p.lerp(q, 0.5))
+        })
+        .collect()
 }
 
 /// The exact crossings of the combined surface on `cell`'s sign-changing

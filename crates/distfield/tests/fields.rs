@@ -108,9 +108,10 @@ fn check_corners_kept(shape: TriMesh, cells: usize) {
         "the regular field cuts corners: {regular:?}"
     );
     // Everywhere, not only at the corners, the surface is closer than the
-    // regular field's. (Not yet everywhere within the 0.1 h: where
-    // a cell's crossings lie on two faces of an edge that passes just
-    // outside it, its patch cuts the ridge by up to 0.45 h.)
+    // regular field's. (Not yet everywhere within the 0.1 h: near
+    // corners, fans reaching a corner in a cell without sign changes stray
+    // by up to 0.32 h; 0.45 h before cells beside an edge joined their
+    // neighbour's fan.)
     let exact = MeshQuery::new(&shape).unwrap();
     let regular_mesh = marching_cubes(&regular_field, 0.0);
     let error = |m: &TriMesh| two_way_error(&shape, &exact, m, 9);
@@ -119,7 +120,7 @@ fn check_corners_kept(shape: TriMesh, cells: usize) {
         "max / mean error: udf {max} / {mean}, regular {regular_max} / {regular_mean}, h {h}"
     );
     assert!(
-        max < 0.5 * h && max < regular_max,
+        max < 0.4 * h && max < regular_max,
         "max error {max} vs regular {regular_max}, h {h}"
     );
     assert!(
@@ -416,6 +417,10 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
             max < 0.8 * regular_max,
             "{name} max {max} vs regular {regular_max}"
         );
+        // The unified field: 0.37 h where two feature lines share a cell
+        // (0.54 h before cells beside an edge joined their neighbour's fan
+        // and fans were checked against the crossings' directions).
+        assert!(name != "udf" || max < 0.45 * h, "udf max {} h", max / h);
         assert!(
             mean < 0.45 * regular_mean,
             "{name} mean {mean} vs regular {regular_mean}"
