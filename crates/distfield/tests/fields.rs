@@ -139,6 +139,15 @@ fn udf_keeps_every_corner_of_an_octahedron() {
     check_corners_kept(rotate(&octahedron(), [0.2, 0.1, 0.4]), 20);
 }
 
+/// A 2 × 0.46 × 0.38 bar turned so that its edges cross the grid at
+/// every offset from the samples.
+fn turned_bar() -> TriMesh {
+    rotate(
+        &cuboid(DVec3::new(-1.0, -0.23, -0.19), DVec3::new(1.0, 0.23, 0.19)),
+        [0.13, 0.07, 0.61],
+    )
+}
+
 /// A long bar turned so that its edges run across the grid at every
 /// offset from the samples: many cells lie beside an edge that passes
 /// just outside them, with crossings on both of its faces. Their patches
@@ -147,10 +156,7 @@ fn udf_keeps_every_corner_of_an_octahedron() {
 /// any sample's sign is a different matter.)
 #[test]
 fn udf_follows_edges_that_pass_beside_cells() {
-    let bar = rotate(
-        &cuboid(DVec3::new(-1.0, -0.23, -0.19), DVec3::new(1.0, 0.23, 0.19)),
-        [0.13, 0.07, 0.61],
-    );
+    let bar = turned_bar();
     let size = GridSize::Resolution(24);
     let (udf, report) = build_udf(
         &bar,
@@ -186,6 +192,44 @@ fn udf_follows_edges_that_pass_beside_cells() {
     );
     assert!(report.sharp_cells > 0 && extract.merged > 0);
     assert!(worst < 0.1, "an edge is cut by {worst} h");
+}
+
+/// A sphere centred on an edge of the turned bar cuts it at two corners
+/// where three surfaces meet (the sphere and the edge's two faces), each
+/// in a cell of its own that the tool changed. Sculpting must reach them.
+#[test]
+fn sculpting_keeps_the_corners_where_a_tool_cuts_an_edge() {
+    use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
+    let bar = turned_bar();
+    let (mut udf, _) = build_udf(
+        &bar,
+        &UdfOptions {
+            size: GridSize::Resolution(24),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let h = udf.spec.spacing;
+    let features = surfrecon_distfield::features::Features::detect(&bar, 30.0);
+    let mut worst = 0.0f64;
+    for (k, &[a, b]) in features.edges.iter().enumerate().step_by(3) {
+        let (a, b) = (bar.vertices[a as usize], bar.vertices[b as usize]);
+        let (centre, radius) = (a.lerp(b, 0.5), 0.13 + 0.01 * k as f64);
+        let tool = Tool::Sphere { centre, radius };
+        sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
+        let along = (b - a).normalize() * radius;
+        let (mesh, _) = udf.extract();
+        let surface = MeshQuery::new(&mesh).unwrap();
+        for corner in [centre - along, centre + along] {
+            worst = worst.max(surface.signed_distance(corner).abs() / h);
+        }
+    }
+    let (mesh, _) = udf.extract();
+    assert_closed_manifold(&mesh, 2);
+    // 0.12 h; 0.91 h before the corners where the object's edges pierce
+    // the tool became feature points.
+    eprintln!("corners off by {worst} h");
+    assert!(worst < 0.15, "a corner is cut by {worst} h");
 }
 
 #[test]
