@@ -22,7 +22,7 @@ use crate::sharp::Tangent;
 use crate::unified::{sharp_point, storage_for, Extra, UnifiedField};
 use crate::DistFieldError;
 use rayon::prelude::*;
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, HashMap};
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::marching::tables::EDGE_CORNERS;
@@ -201,6 +201,18 @@ impl<'a> Combined<'a> {
             .apply(self.object.signed_distance(p), self.tool.signed_distance(p))
     }
 
+    /// The outward unit normal at `p`: the combined distance's gradient,
+    /// by central differences.
+    fn normal(&self, p: DVec3, h: f64) -> Option<DVec3> {
+        let e = 1e-4 * h;
+        let gradient = DVec3::from_array(std::array::from_fn(|k| {
+            let mut step = DVec3::ZERO;
+            step[k] = e;
+            self.signed_distance(p + step) - self.signed_distance(p - step)
+        }));
+        gradient.try_normalize()
+    }
+
     /// Whether the tool moved the surface near `p`: the combined distance
     /// differs from the object's by more than `tolerance`. (Feature points
     /// elsewhere stay, including those beside their cell that are not on
@@ -328,21 +340,31 @@ pub fn sculpt_udf(
             edges.insert((nodes[a as usize], (a ^ b).trailing_zeros() as usize));
         }
     }
-    let found: Vec<(usize, usize, f64)> = edges
+    let crossings: HashMap<(usize, usize), Tangent> = edges
         .par_iter()
         .filter_map(|&(n, axis)| {
             let m = n + spec.strides()[axis];
-            let (a, b) = (field.values[n], field.values[m]);
-            let regular = !field.extras.contains_key(&(n as u32))
-                || matches!(field.extras[&(n as u32)], Extra::Directed(_));
-            if (a >= 0.0) == (b >= 0.0)
-                || !regular
-                || matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_)))
-            {
+            if (field.values[n] >= 0.0) == (field.values[m] >= 0.0) {
                 return None;
             }
             let origin = node_position(&spec, n);
             let d = edge_root(&combined, origin, axis, h)?;
+            let mut p = origin;
+            p[axis] += d;
+            Some(((n, axis), (p, combined.normal(p, h)?)))
+        })
+        .collect();
+    let found: Vec<(usize, usize, f64)> = crossings
+        .par_iter()
+        .filter_map(|(&(n, axis), &(p, _))| {
+            let m = n + spec.strides()[axis];
+            let regular = !field.extras.contains_key(&(n as u32))
+                || matches!(field.extras[&(n as u32)], Extra::Directed(_));
+            if !regular || matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_))) {
+                return None;
+            }
+            let d = p[axis] - node_position(&spec, n)[axis];
+            let (a, b) = (field.values[n], field.values[m]);
             ((d - crossing_fraction(a, b, 0.0) * h).abs() > threshold * h).then_some((n, axis, d))
         })
         .collect();
@@ -369,7 +391,7 @@ pub fn sculpt_udf(
         if taken.contains(&c) {
             continue;
         }
-        let tangents = combined_tangents(&spec, &combined, c, &field.values);
+        let tangents = cell_tangents(&spec, &crossings, c);
         let on_both = |q: DVec3| {
             combined.signed_distance(q).abs() < ON_EDGE * h
                 && combined.tool.signed_distance(q).abs() < ON_EDGE * h
@@ -400,7 +422,7 @@ pub fn sculpt_udf(
         .par_iter()
         .filter(|c| !taken.contains(c))
         .filter_map(|&c| {
-            let tangents = combined_tangents(&spec, &combined, c, &field.values);
+            let tangents = cell_tangents(&spec, &crossings, c);
             sharp_point(field, c, &tangents, cos_limit).map(|p| (c, p))
         })
         .collect();
@@ -440,40 +462,20 @@ fn new_corners(surface: &TriMesh, tool: &Tool) -> Vec<DVec3> {
 }
 
 /// The exact crossings of the combined surface on `cell`'s sign-changing
-/// edges, with its outward normal there (the combined distance's
-/// gradient, by central differences).
-fn combined_tangents(
+/// edges with its outward normals, from `crossings` (by edge).
+fn cell_tangents(
     spec: &GridSpec<3>,
-    combined: &Combined,
+    crossings: &HashMap<(usize, usize), Tangent>,
     cell: usize,
-    values: &[f64],
 ) -> Vec<Tangent> {
-    let h = spec.spacing;
     let nodes = corner_nodes(spec, cell);
-    let mut out = Vec::new();
-    for [a, b] in EDGE_CORNERS {
-        let (na, nb) = (nodes[a as usize], nodes[b as usize]);
-        if (values[na] >= 0.0) == (values[nb] >= 0.0) {
-            continue;
-        }
-        let axis = (a ^ b).trailing_zeros() as usize;
-        let origin = node_position(spec, na);
-        let Some(d) = edge_root(combined, origin, axis, h) else {
-            continue;
-        };
-        let mut p = origin;
-        p[axis] += d;
-        let e = 1e-4 * h;
-        let gradient = DVec3::from_array(std::array::from_fn(|k| {
-            let mut step = DVec3::ZERO;
-            step[k] = e;
-            combined.signed_distance(p + step) - combined.signed_distance(p - step)
-        }));
-        if let Some(n) = gradient.try_normalize() {
-            out.push((p, n));
-        }
-    }
-    out
+    EDGE_CORNERS
+        .iter()
+        .filter_map(|&[a, b]| {
+            let axis = (a ^ b).trailing_zeros() as usize;
+            crossings.get(&(nodes[a as usize], axis)).copied()
+        })
+        .collect()
 }
 
 /// Distance along `+axis` from `origin` to the combined surface within
