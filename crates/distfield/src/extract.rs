@@ -280,17 +280,38 @@ fn outward(field: &impl SampledField, key: u64) -> DVec3 {
 /// Whether extraction would fan `cell`'s patch around `point` (see
 /// [`Patch::fan`]): lets construction pick feature points that work.
 pub(crate) fn fan_fits(field: &impl SampledField, cell: usize, point: DVec3) -> bool {
+    fan_triangles(field, cell, point).is_some()
+}
+
+/// The triangles of `cell`'s fan around `point`, if extraction would fan
+/// it (alone).
+pub(crate) fn fan_triangles(
+    field: &impl SampledField,
+    cell: usize,
+    point: DVec3,
+) -> Option<Vec<[DVec3; 3]>> {
     let spec = field.spec();
     let values = corner_nodes(spec, cell).map(|n| field.value(n));
     let (config, bits) = cell_case(&values, 0.0);
     if config == 0 || config == 255 {
-        return false;
+        return None;
     }
     let mut keys: Vec<u64> = (0..12).map(|e| cell_edge_key(spec, cell, e)).collect();
     keys.sort_unstable();
     let vertices: Vec<DVec3> = keys.iter().map(|&k| edge_point(field, k)).collect();
     let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
-    patch.fan(point, &vertices, &keys, field).fanned == Some(true)
+    let fan = patch.fan(point, &vertices, &keys, field);
+    (fan.fanned == Some(true)).then(|| {
+        fan.triangles
+            .iter()
+            .map(|t| {
+                t.map(|v| match v {
+                    Vertex::Edge(i) => vertices[i as usize],
+                    Vertex::Extra(i) => fan.extra[i as usize],
+                })
+            })
+            .collect()
+    })
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Hash, Debug)]

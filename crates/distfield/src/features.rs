@@ -102,6 +102,51 @@ impl CellFeatures {
     }
 }
 
+impl CellFeatures {
+    /// How many separate feature lines cross the cell: chains of pieces
+    /// joined end to end.
+    pub fn lines(&self) -> usize {
+        let n = self.pieces.len();
+        let mut chain: Vec<usize> = (0..n).collect();
+        fn root(chain: &mut [usize], mut i: usize) -> usize {
+            while chain[i] != i {
+                chain[i] = chain[chain[i]];
+                i = chain[i];
+            }
+            i
+        }
+        for i in 0..n {
+            for j in i + 1..n {
+                let [a, b] = self.pieces[i];
+                let [c, d] = self.pieces[j];
+                if a == c || a == d || b == c || b == d {
+                    let (ri, rj) = (root(&mut chain, i), root(&mut chain, j));
+                    chain[ri] = rj;
+                }
+            }
+        }
+        (0..n).filter(|&i| root(&mut chain, i) == i).count()
+    }
+
+    /// Points on the cell's features: its corners and bends, and points
+    /// along each piece of feature edge, ends included.
+    pub fn probes(&self) -> Vec<DVec3> {
+        let along = self.pieces.iter().flat_map(|&[a, b]| {
+            (0..=PROBES_PER_PIECE).map(move |k| a.lerp(b, k as f64 / PROBES_PER_PIECE as f64))
+        });
+        self.corners
+            .iter()
+            .chain(&self.bends)
+            .copied()
+            .chain(along)
+            .collect()
+    }
+}
+
+/// Intervals along a feature edge piece at which [`CellFeatures::probes`]
+/// samples it.
+const PROBES_PER_PIECE: usize = 4;
+
 /// Points tried along each feature edge piece (besides the projection of
 /// the crossings' mean) when looking for a feature point that fans well.
 const PIECE_SAMPLES: usize = 8;

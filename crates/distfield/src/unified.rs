@@ -12,7 +12,7 @@
 //! mix: extraction interpolates it wherever nothing more is stored.
 
 use crate::extract::{
-    corner_nodes, extract, fan_fits, leans_on_neighbour, ExtractReport, SampledField,
+    corner_nodes, extract, fan_fits, fan_triangles, leans_on_neighbour, ExtractReport, SampledField,
 };
 use crate::features::{cells_with_features, nudge_into, CellFeatures, Features};
 use crate::offset::{may_take, node_position, stays_convex};
@@ -22,6 +22,7 @@ use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::time::Instant;
+use surfrecon_geom::metrics::closest_point_on_triangle;
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::sdf::signed_distance;
@@ -165,9 +166,31 @@ pub fn build_udf(
             .candidates(centroid)
             .into_iter()
             .map(|p| nudge_into(&field.spec, *cell, p));
+        // Where the cell holds separate feature lines (one point keeps
+        // one), of the points whose fans fit, the one whose fan passes
+        // nearest all of them; elsewhere the first that fits.
+        let nearest_all = || {
+            let probes = f.probes();
+            inside
+                .clone()
+                .filter_map(|p| {
+                    let fan = fan_triangles(&field, *cell, p)?;
+                    Some((farthest_from(&fan, &probes), p))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|(_, p)| p)
+        };
+        let first_fitting = || inside.clone().find(|&p| fan_fits(&field, *cell, p));
         let Some(point) = near
-            .chain(inside.clone())
+            .clone()
             .find(|&p| fan_fits(&field, *cell, p))
+            .or_else(|| {
+                if f.lines() > 1 {
+                    nearest_all()
+                } else {
+                    first_fitting()
+                }
+            })
             .or_else(|| inside.clone().next())
         else {
             continue;
@@ -289,6 +312,19 @@ fn directed_distances(
             needed.then_some((node as u32, directed))
         })
         .collect()
+}
+
+/// The largest distance from `points` to the triangles.
+fn farthest_from(triangles: &[[DVec3; 3]], points: &[DVec3]) -> f64 {
+    points
+        .iter()
+        .map(|&p| {
+            triangles
+                .iter()
+                .map(|&t| p.distance(closest_point_on_triangle(p, t)))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0, f64::max)
 }
 
 /// How far outside its cell a feature point found from the crossings may
