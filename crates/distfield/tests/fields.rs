@@ -461,10 +461,11 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
             max < 0.8 * regular_max,
             "{name} max {max} vs regular {regular_max}"
         );
-        // The unified field: 0.37 h where two feature lines share a cell
-        // (0.54 h before cells beside an edge joined their neighbour's fan
-        // and fans were checked against the crossings' directions).
-        assert!(name != "udf" || max < 0.45 * h, "udf max {} h", max / h);
+        // The unified field: 0.28 h where two feature lines share a cell
+        // (0.54 h before cells beside an edge joined their neighbour's fan,
+        // fans were checked against the crossings' directions and such
+        // cells chose the point that cuts both lines least).
+        assert!(name != "udf" || max < 0.35 * h, "udf max {} h", max / h);
         assert!(
             mean < 0.45 * regular_mean,
             "{name} mean {mean} vs regular {regular_mean}"
