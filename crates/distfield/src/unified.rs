@@ -399,50 +399,50 @@ pub(crate) fn storage_for(field: &UnifiedField, cell: usize, point: DVec3) -> Op
 /// The exact crossings on a cell's sign-changing edges with the surface
 /// normal there (outward: from the inside sample to the outside one).
 fn crossing_tangents(field: &UnifiedField, query: &MeshQuery, cell: usize) -> Vec<Tangent> {
-    let spec = &field.spec;
-    let nodes = corner_nodes(spec, cell);
-    let mut out = Vec::new();
-    for [a, b] in surfrecon_grid::marching::tables::EDGE_CORNERS {
-        let (na, nb) = (nodes[a as usize], nodes[b as usize]);
-        let (va, vb) = (field.values[na], field.values[nb]);
-        if (va >= 0.0) == (vb >= 0.0) {
-            continue;
-        }
-        let axis = (a ^ b).trailing_zeros() as usize;
-        let origin = DVec3::from_array(spec.position(spec.unlinear(na)));
-        let Some((d, n)) = query.hit_with_normal(origin, axis, spec.spacing) else {
-            continue;
-        };
-        let mut p = origin;
-        p[axis] += d;
-        let n = if (n[axis] > 0.0) == (va < 0.0) { n } else { -n };
-        out.push((p, n));
-    }
-    out
+    crossed_edges(field, cell)
+        .filter_map(|(origin, axis, va, _)| {
+            let (d, n) = query.hit_with_normal(origin, axis, field.spec.spacing)?;
+            let mut p = origin;
+            p[axis] += d;
+            let n = if (n[axis] > 0.0) == (va < 0.0) { n } else { -n };
+            Some((p, n))
+        })
+        .collect()
 }
 
 /// The mean of the exact crossings on a cell's sign-changing edges.
 fn crossing_centroid(field: &UnifiedField, query: &MeshQuery, cell: usize) -> Option<DVec3> {
-    let spec = &field.spec;
-    let nodes = corner_nodes(spec, cell);
+    let h = field.spec.spacing;
     let (mut sum, mut count) = (DVec3::ZERO, 0);
-    for [a, b] in surfrecon_grid::marching::tables::EDGE_CORNERS {
-        let (na, nb) = (nodes[a as usize], nodes[b as usize]);
-        let (va, vb) = (field.values[na], field.values[nb]);
-        if (va >= 0.0) == (vb >= 0.0) {
-            continue;
-        }
-        let axis = (a ^ b).trailing_zeros() as usize;
-        let origin = DVec3::from_array(spec.position(spec.unlinear(na)));
+    for (origin, axis, va, vb) in crossed_edges(field, cell) {
         let d = query
-            .hit_along(origin, axis, spec.spacing)
-            .unwrap_or_else(|| crossing_fraction(va, vb, 0.0) * spec.spacing);
+            .hit_along(origin, axis, h)
+            .unwrap_or_else(|| crossing_fraction(va, vb, 0.0) * h);
         let mut p = origin;
         p[axis] += d;
         sum += p;
         count += 1;
     }
     (count > 0).then(|| sum / count as f64)
+}
+
+/// The sign-changing edges of `cell`: the position of the edge's lower
+/// sample, the edge's axis, and the two samples' values.
+fn crossed_edges(
+    field: &UnifiedField,
+    cell: usize,
+) -> impl Iterator<Item = (DVec3, usize, f64, f64)> + '_ {
+    let spec = &field.spec;
+    let nodes = corner_nodes(spec, cell);
+    surfrecon_grid::marching::tables::EDGE_CORNERS
+        .into_iter()
+        .filter_map(move |[a, b]| {
+            let (na, nb) = (nodes[a as usize], nodes[b as usize]);
+            let (va, vb) = (field.values[na], field.values[nb]);
+            let origin = DVec3::from_array(spec.position(spec.unlinear(na)));
+            ((va >= 0.0) != (vb >= 0.0))
+                .then(|| (origin, (a ^ b).trailing_zeros() as usize, va, vb))
+        })
 }
 
 impl UnifiedField {

@@ -58,6 +58,24 @@ fn corner_errors(shape: &TriMesh, surface: &TriMesh) -> Vec<f64> {
         .collect()
 }
 
+/// The unified field of `shape` with default options at `size`.
+fn udf_of(
+    shape: &TriMesh,
+    size: GridSize,
+) -> (
+    surfrecon_distfield::unified::UnifiedField,
+    surfrecon_distfield::unified::UdfReport,
+) {
+    build_udf(
+        shape,
+        &UdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
 /// The regular signed distance field of `shape` (2 cells of padding).
 fn regular_field(shape: &TriMesh, size: GridSize) -> surfrecon_grid::Field3 {
     signed_distance(shape, &grid_for(shape, size, 2).unwrap(), None).unwrap()
@@ -83,14 +101,7 @@ fn assert_closed_manifold(mesh: &TriMesh, euler: i64) {
 
 fn check_corners_kept(shape: TriMesh, cells: usize) {
     let size = GridSize::Resolution(cells);
-    let (udf, report) = build_udf(
-        &shape,
-        &UdfOptions {
-            size,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (udf, report) = udf_of(&shape, size);
     let h = udf.spec.spacing;
     let (mesh, extract) = udf.extract();
     assert_closed_manifold(&mesh, 2);
@@ -158,14 +169,7 @@ fn turned_bar() -> TriMesh {
 fn udf_follows_edges_that_pass_beside_cells() {
     let bar = turned_bar();
     let size = GridSize::Resolution(24);
-    let (udf, report) = build_udf(
-        &bar,
-        &UdfOptions {
-            size,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (udf, report) = udf_of(&bar, size);
     let h = udf.spec.spacing;
     let (mesh, extract) = udf.extract();
     assert_closed_manifold(&mesh, 2);
@@ -201,14 +205,7 @@ fn udf_follows_edges_that_pass_beside_cells() {
 fn sculpting_keeps_the_corners_where_a_tool_cuts_an_edge() {
     use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
     let bar = turned_bar();
-    let (mut udf, _) = build_udf(
-        &bar,
-        &UdfOptions {
-            size: GridSize::Resolution(24),
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (mut udf, _) = udf_of(&bar, GridSize::Resolution(24));
     let h = udf.spec.spacing;
     let features = surfrecon_distfield::features::Features::detect(&bar, 30.0);
     let mut worst = 0.0f64;
