@@ -11,6 +11,7 @@
 //! edge whose two opposite vertices are feature points of neighbouring
 //! cells is flipped to join them, which traces the feature line.
 
+use crate::features::cell_of;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use surfrecon_geom::{DVec3, TriMesh};
@@ -18,13 +19,17 @@ use surfrecon_grid::marching::tables::{cube_table, EDGE_CORNERS};
 use surfrecon_grid::marching::{cell_case, crossing_fraction};
 use surfrecon_grid::GridSpec;
 
-/// Smallest cosine between a fan triangle and the table triangle whose
-/// boundary edge it takes. At a sharp ridge the table triangle cuts across
-/// while the fan follows the two faces, so large turns are normal (on
-/// fandisk, requiring less than 90° refused a fifth of the fans and kept a
-/// max error of 0.9 h; 120° keeps 0.54 h); a fan turned further has its
-/// feature point behind the patch and would fold over.
-const FAN_MIN_COS: f64 = -0.5;
+/// How far a fan triangle's unit normal may point against the direction
+/// from the inside to the outside sample of a crossing it touches (the
+/// surface's own normal there points along it). A fan whose feature point
+/// lies behind the patch turns its triangles against these directions and
+/// folds. The test uses only the crossing's edge, not the table
+/// triangles, which are arbitrarily oriented slivers where a crossing
+/// falls on a sample (a face through grid nodes); comparing with them
+/// refused the fans of the cells where fandisk's ridge errors peaked.
+/// On fandisk 0.3 keeps a fold-over at 0.39 h, 0.5 and 0.7 give the same
+/// surface.
+const FAN_SLACK: f64 = 0.5;
 
 /// A field sampled once per grid node, as extraction reads it.
 pub trait SampledField: Sync {
@@ -50,6 +55,9 @@ pub struct ExtractReport {
     pub fans_refused: usize,
     /// Edges flipped to join feature points.
     pub flips: usize,
+    /// Cells beside a sharp edge whose patch joined the fan of the
+    /// neighbour the edge runs through.
+    pub merged: usize,
 }
 
 /// The zero set of `field` as a closed triangle mesh. `features` maps a
@@ -60,16 +68,24 @@ pub fn extract(
 ) -> (TriMesh, ExtractReport) {
     let cells = active_cells(field);
     let (keys, vertices) = edge_vertices(field, &cells);
-    let patches: Vec<Patch> = cells
+    let spec = field.spec();
+    let mut patches: Vec<Patch> = cells
         .par_iter()
         .map(|&(cell, config, bits)| {
-            let patch = table_patch(field.spec(), cell, config, bits, &keys, &vertices);
+            let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
             match features.get(&cell) {
-                Some(&f) => patch.fan(f, &vertices, field.spec().spacing),
+                Some(&f) if !leans_on_neighbour(field, cell, f) => {
+                    patch.fan(f, &vertices, &keys, field)
+                }
+                Some(_) => Patch {
+                    fanned: Some(false),
+                    ..patch
+                },
                 None => patch,
             }
         })
         .collect();
+    let merged = merge_beside(field, features, &cells, &mut patches, &keys, &vertices);
     let mut report = ExtractReport::default();
     let mut mesh = TriMesh {
         vertices,
@@ -77,7 +93,7 @@ pub fn extract(
         normals: None,
     };
     let mut feature_vertices = HashSet::new();
-    for (patch, &(cell, ..)) in patches.iter().zip(&cells) {
+    for patch in &patches {
         let base = mesh.vertices.len() as u32;
         mesh.vertices.extend_from_slice(&patch.extra);
         mesh.triangles.extend(patch.triangles.iter().map(|t| {
@@ -92,11 +108,84 @@ pub fn extract(
                 feature_vertices.insert(base);
             }
             Some(false) => report.fans_refused += 1,
-            None => debug_assert!(!features.contains_key(&cell)),
+            None => {}
         }
     }
     report.flips = flip_to_join(&mut mesh, &feature_vertices);
+    report.merged = merged;
     (mesh, report)
+}
+
+/// Whether `cell`'s feature point `f` lies in another cell that the
+/// surface crosses: then the two patches are fanned together (see
+/// [`merge_beside`]); otherwise the cell fans alone.
+pub(crate) fn leans_on_neighbour(field: &impl SampledField, cell: usize, f: DVec3) -> bool {
+    let spec = field.spec();
+    match cell_of(spec, f) {
+        Some(other) if other != cell => {
+            let inside = corner_nodes(spec, other).map(|n| field.value(n) < 0.0);
+            inside.iter().any(|&s| s) && inside.iter().any(|&s| !s)
+        }
+        _ => false,
+    }
+}
+
+/// Cells whose feature point lies outside them, in a face neighbour
+/// (a sharp edge passing just beside the cell), join that neighbour's
+/// patch: the two crossing loops, less the segment they share, become one
+/// loop fanned around the neighbour's feature point (or, if it has none,
+/// the point itself). A group that does not fan keeps its own patches.
+/// Returns the number of cells merged into a neighbour.
+fn merge_beside(
+    field: &impl SampledField,
+    features: &BTreeMap<usize, DVec3>,
+    cells: &[(usize, u8, u8)],
+    patches: &mut [Patch],
+    keys: &[u64],
+    vertices: &[DVec3],
+) -> usize {
+    let spec = field.spec();
+    let slot = |cell: usize| cells.binary_search_by_key(&cell, |c| c.0).ok();
+    let mut groups: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for (&cell, &p) in features {
+        if let (Some(member), true) = (slot(cell), leans_on_neighbour(field, cell, p)) {
+            if let Some(target) = cell_of(spec, p) {
+                groups.entry(target).or_default().push(member);
+            }
+        }
+    }
+    let mut merged = 0;
+    for (target, members) in groups {
+        let Some(t) = slot(target) else { continue };
+        let own = features.get(&target).copied();
+        if own.is_some_and(|f| leans_on_neighbour(field, target, f)) {
+            continue; // the target leans on yet another cell
+        }
+        let (cell, config, bits) = cells[t];
+        let table = table_patch(spec, cell, config, bits, keys, vertices);
+        let mut boundary = table.boundary();
+        for &m in &members {
+            let (cell, config, bits) = cells[m];
+            boundary.extend(table_patch(spec, cell, config, bits, keys, vertices).boundary());
+        }
+        // Segments on the faces between the cells appear once each way.
+        let all: HashSet<(Vertex, Vertex)> = boundary.iter().copied().collect();
+        boundary.retain(|&(a, b)| !all.contains(&(b, a)));
+        let feature = own.unwrap_or_else(|| features[&cells[members[0]].0]);
+        let Some(fan) = fan_over(&boundary, feature, vertices, keys, field) else {
+            continue;
+        };
+        patches[t] = fan;
+        for &m in &members {
+            patches[m] = Patch {
+                triangles: Vec::new(),
+                extra: Vec::new(),
+                fanned: None,
+            };
+        }
+        merged += members.len();
+    }
+    merged
 }
 
 /// Cells with a sign change: (cell, configuration, ambiguous-face bits).
@@ -179,20 +268,50 @@ fn edge_point(field: &impl SampledField, key: u64) -> DVec3 {
     })
 }
 
+/// The direction from the inside sample of edge `key` to its outside
+/// one: the surface's normal there has a positive component along it.
+fn outward(field: &impl SampledField, key: u64) -> DVec3 {
+    let (node, axis) = ((key / 3) as usize, (key % 3) as usize);
+    let mut d = DVec3::ZERO;
+    d[axis] = if field.value(node) < 0.0 { 1.0 } else { -1.0 };
+    d
+}
+
 /// Whether extraction would fan `cell`'s patch around `point` (see
 /// [`Patch::fan`]): lets construction pick feature points that work.
 pub(crate) fn fan_fits(field: &impl SampledField, cell: usize, point: DVec3) -> bool {
+    fan_triangles(field, cell, point).is_some()
+}
+
+/// The triangles of `cell`'s fan around `point`, if extraction would fan
+/// it (alone).
+pub(crate) fn fan_triangles(
+    field: &impl SampledField,
+    cell: usize,
+    point: DVec3,
+) -> Option<Vec<[DVec3; 3]>> {
     let spec = field.spec();
     let values = corner_nodes(spec, cell).map(|n| field.value(n));
     let (config, bits) = cell_case(&values, 0.0);
     if config == 0 || config == 255 {
-        return false;
+        return None;
     }
     let mut keys: Vec<u64> = (0..12).map(|e| cell_edge_key(spec, cell, e)).collect();
     keys.sort_unstable();
     let vertices: Vec<DVec3> = keys.iter().map(|&k| edge_point(field, k)).collect();
     let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
-    patch.fan(point, &vertices, spec.spacing).fanned == Some(true)
+    let fan = patch.fan(point, &vertices, &keys, field);
+    (fan.fanned == Some(true)).then(|| {
+        fan.triangles
+            .iter()
+            .map(|t| {
+                t.map(|v| match v {
+                    Vertex::Edge(i) => vertices[i as usize],
+                    Vertex::Extra(i) => fan.extra[i as usize],
+                })
+            })
+            .collect()
+    })
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Hash, Debug)]
@@ -262,50 +381,81 @@ fn table_patch(
 }
 
 impl Patch {
-    /// The patch as a fan around `feature`, when its boundary is one loop
-    /// and no fan triangle turns further than [`FAN_MIN_COS`] from the
-    /// table triangle it replaces (`fanned` says whether it was).
-    fn fan(self, feature: DVec3, vertices: &[DVec3], h: f64) -> Patch {
-        let position = |v: Vertex| match v {
-            Vertex::Edge(i) => vertices[i as usize],
-            Vertex::Extra(i) => self.extra[i as usize],
-        };
+    /// The directed edges of the patch that no other of its triangles
+    /// shares (its crossing loops).
+    fn boundary(&self) -> Vec<(Vertex, Vertex)> {
         let directed: HashSet<(Vertex, Vertex)> = self
             .triangles
             .iter()
             .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
             .collect();
-        // Boundary edges with the normal of the table triangle they are in.
-        let boundary: Vec<(Vertex, Vertex, DVec3)> = self
-            .triangles
+        self.triangles
             .iter()
-            .flat_map(|t| {
-                let normal = triangle_normal(t.map(position)).normalize_or_zero();
-                (0..3).map(move |k| (t[k], t[(k + 1) % 3], normal))
-            })
-            .filter(|&(a, b, _)| !directed.contains(&(b, a)))
-            .collect();
-        let min_area2 = (1e-8 * h * h).powi(2);
-        let folds = boundary.iter().any(|&(a, b, n)| {
-            let fan = triangle_normal([position(a), position(b), feature]);
-            fan.length_squared() < min_area2 || fan.normalize().dot(n) < FAN_MIN_COS
-        });
-        if folds || !is_one_loop(&boundary) {
-            return Patch {
+            .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+            .filter(|&(a, b)| !directed.contains(&(b, a)))
+            .collect()
+    }
+
+    /// The patch as a fan around `feature` when [`fan_over`] allows it
+    /// (`fanned` says whether it was).
+    fn fan(
+        self,
+        feature: DVec3,
+        vertices: &[DVec3],
+        keys: &[u64],
+        field: &impl SampledField,
+    ) -> Patch {
+        match fan_over(&self.boundary(), feature, vertices, keys, field) {
+            Some(fan) => fan,
+            None => Patch {
                 fanned: Some(false),
                 ..self
-            };
-        }
-        let triangles = boundary
-            .iter()
-            .map(|&(a, b, _)| [a, b, Vertex::Extra(0)])
-            .collect();
-        Patch {
-            triangles,
-            extra: vec![feature],
-            fanned: Some(true),
+            },
         }
     }
+}
+
+/// A fan from `feature` to the crossing loop `boundary`, when the loop is
+/// one and no fan triangle turns against the inside-to-outside direction
+/// of a crossing it touches by more than [`FAN_SLACK`].
+fn fan_over(
+    boundary: &[(Vertex, Vertex)],
+    feature: DVec3,
+    vertices: &[DVec3],
+    keys: &[u64],
+    field: &impl SampledField,
+) -> Option<Patch> {
+    let edge = |v: Vertex| match v {
+        Vertex::Edge(i) => Some(i as usize),
+        Vertex::Extra(_) => None,
+    };
+    let h = field.spec().spacing;
+    let min_area2 = (1e-8 * h * h).powi(2);
+    for &(a, b) in boundary {
+        let (a, b) = (edge(a)?, edge(b)?);
+        let fan = triangle_normal([vertices[a], vertices[b], feature]);
+        if fan.length_squared() < min_area2 {
+            return None;
+        }
+        let n = fan.normalize();
+        if [a, b]
+            .iter()
+            .any(|&v| n.dot(outward(field, keys[v])) < -FAN_SLACK)
+        {
+            return None;
+        }
+    }
+    if !is_one_loop(boundary) {
+        return None;
+    }
+    Some(Patch {
+        triangles: boundary
+            .iter()
+            .map(|&(a, b)| [a, b, Vertex::Extra(0)])
+            .collect(),
+        extra: vec![feature],
+        fanned: Some(true),
+    })
 }
 
 /// Area-weighted normal (twice the area vector) of a triangle.
@@ -313,8 +463,8 @@ fn triangle_normal([a, b, c]: [DVec3; 3]) -> DVec3 {
     (b - a).cross(c - a)
 }
 
-fn is_one_loop(boundary: &[(Vertex, Vertex, DVec3)]) -> bool {
-    let next: HashMap<Vertex, Vertex> = boundary.iter().map(|&(a, b, _)| (a, b)).collect();
+fn is_one_loop(boundary: &[(Vertex, Vertex)]) -> bool {
+    let next: HashMap<Vertex, Vertex> = boundary.iter().copied().collect();
     if boundary.is_empty() || next.len() != boundary.len() {
         return false;
     }

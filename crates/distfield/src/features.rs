@@ -66,6 +66,10 @@ impl Features {
 pub struct CellFeatures {
     /// Corners inside the cell.
     pub corners: Vec<DVec3>,
+    /// Corners in a cell next to this one that the surface enters
+    /// without changing any sample's sign (so no patch of their own
+    /// reaches them), within half a cell of this one.
+    pub near_corners: Vec<DVec3>,
     /// Feature-line vertices (bends) inside the cell that are not corners.
     pub bends: Vec<DVec3>,
     /// Pieces of feature edges clipped to the cell.
@@ -98,6 +102,51 @@ impl CellFeatures {
     }
 }
 
+impl CellFeatures {
+    /// How many separate feature lines cross the cell: chains of pieces
+    /// joined end to end.
+    pub fn lines(&self) -> usize {
+        let n = self.pieces.len();
+        let mut chain: Vec<usize> = (0..n).collect();
+        fn root(chain: &mut [usize], mut i: usize) -> usize {
+            while chain[i] != i {
+                chain[i] = chain[chain[i]];
+                i = chain[i];
+            }
+            i
+        }
+        for i in 0..n {
+            for j in i + 1..n {
+                let [a, b] = self.pieces[i];
+                let [c, d] = self.pieces[j];
+                if a == c || a == d || b == c || b == d {
+                    let (ri, rj) = (root(&mut chain, i), root(&mut chain, j));
+                    chain[ri] = rj;
+                }
+            }
+        }
+        (0..n).filter(|&i| root(&mut chain, i) == i).count()
+    }
+
+    /// Points on the cell's features: its corners and bends, and points
+    /// along each piece of feature edge, ends included.
+    pub fn probes(&self) -> Vec<DVec3> {
+        let along = self.pieces.iter().flat_map(|&[a, b]| {
+            (0..=PROBES_PER_PIECE).map(move |k| a.lerp(b, k as f64 / PROBES_PER_PIECE as f64))
+        });
+        self.corners
+            .iter()
+            .chain(&self.bends)
+            .copied()
+            .chain(along)
+            .collect()
+    }
+}
+
+/// Intervals along a feature edge piece at which [`CellFeatures::probes`]
+/// samples it.
+const PROBES_PER_PIECE: usize = 4;
+
 /// Points tried along each feature edge piece (besides the projection of
 /// the crossings' mean) when looking for a feature point that fans well.
 const PIECE_SAMPLES: usize = 8;
@@ -128,6 +177,12 @@ pub fn cells_with_features(
                 entry.corners.push(p);
             } else {
                 entry.bends.push(p);
+            }
+        } else if corner_set.contains(&v) {
+            for cell in cells_near(spec, p, 0.5 * spec.spacing) {
+                if has_surface(cell) {
+                    cells.entry(cell).or_default().near_corners.push(p);
+                }
             }
         }
     }
@@ -164,6 +219,26 @@ fn cells_containing(spec: &GridSpec<3>, p: DVec3) -> Vec<usize> {
         }
     }
     cells
+}
+
+/// The cells whose boxes lie within `reach` of `p` (in every axis).
+fn cells_near(spec: &GridSpec<3>, p: DVec3, reach: f64) -> Vec<usize> {
+    let lo = spec.to_grid((p - DVec3::splat(reach)).to_array());
+    let hi = spec.to_grid((p + DVec3::splat(reach)).to_array());
+    let range = |a: usize| {
+        let first = lo[a].floor().max(0.0) as usize;
+        let last = (hi[a].floor().max(0.0) as usize).min(spec.dims[a].saturating_sub(2));
+        first..=last
+    };
+    let mut out = Vec::new();
+    for k in range(2) {
+        for j in range(1) {
+            for i in range(0) {
+                out.push(spec.linear([i, j, k]));
+            }
+        }
+    }
+    out
 }
 
 /// `p` moved just inside cell `cell` (by 1e-7 of a spacing at most), so

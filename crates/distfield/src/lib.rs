@@ -23,6 +23,7 @@ pub mod format;
 pub mod offset;
 pub mod query;
 pub mod sculpt;
+pub mod sharp;
 pub mod unified;
 
 pub use error::DistFieldError;

@@ -56,6 +56,17 @@ impl MeshQuery {
         let ray = Ray::new(to_parry(p), to_parry(dir));
         self.mesh.cast_local_ray(&ray, max, false)
     }
+
+    /// Like [`Self::hit_along`], with the unit normal of the triangle hit
+    /// (either way round: parry turns it towards the ray's origin).
+    pub fn hit_with_normal(&self, p: DVec3, axis: usize, max: f64) -> Option<(f64, DVec3)> {
+        let mut dir = DVec3::ZERO;
+        dir[axis] = 1.0;
+        let ray = Ray::new(to_parry(p), to_parry(dir));
+        let hit = self.mesh.cast_local_ray_and_get_normal(&ray, max, false)?;
+        let n = DVec3::new(hit.normal.x, hit.normal.y, hit.normal.z);
+        Some((hit.time_of_impact, n.normalize_or_zero()))
+    }
 }
 
 /// How far one surface strays from another, sampled at its vertices and

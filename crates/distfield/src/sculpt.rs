@@ -12,15 +12,17 @@
 //! field gets a sample moved onto that edge instead.
 
 use crate::extract::{corner_nodes, crosses, fan_fits, SampledField};
-use crate::features::nudge_into;
+use crate::features::{nudge_into, Features, DEFAULT_FEATURE_ANGLE_DEG};
 use crate::offset::{
     cells_around, may_take, node_position, on_outer_layer, stays_convex, OffsetField,
 };
 use crate::query::MeshQuery;
-use crate::unified::{Extra, UnifiedField};
+use crate::sharp::clamp_near;
+use crate::sharp::Tangent;
+use crate::unified::{sharp_point, storage_for, Extra, UnifiedField};
 use crate::DistFieldError;
 use rayon::prelude::*;
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, HashMap};
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::marching::tables::EDGE_CORNERS;
@@ -199,6 +201,26 @@ impl<'a> Combined<'a> {
             .apply(self.object.signed_distance(p), self.tool.signed_distance(p))
     }
 
+    /// The outward unit normal at `p`: the combined distance's gradient,
+    /// by central differences.
+    fn normal(&self, p: DVec3, h: f64) -> Option<DVec3> {
+        let e = 1e-4 * h;
+        let gradient = DVec3::from_array(std::array::from_fn(|k| {
+            let mut step = DVec3::ZERO;
+            step[k] = e;
+            self.signed_distance(p + step) - self.signed_distance(p - step)
+        }));
+        gradient.try_normalize()
+    }
+
+    /// Whether the tool moved the surface near `p`: the combined distance
+    /// differs from the object's by more than `tolerance`. (Feature points
+    /// elsewhere stay, including those beside their cell that are not on
+    /// the extracted surface.)
+    fn changes(&self, p: DVec3, tolerance: f64) -> bool {
+        (self.signed_distance(p) - self.object.signed_distance(p)).abs() > tolerance
+    }
+
     /// A point on both surfaces near `start` (alternating projections),
     /// if they meet there.
     fn edge_point(&self, start: DVec3, tolerance: f64) -> Option<DVec3> {
@@ -270,6 +292,10 @@ fn edge_point_in(spec: &GridSpec<3>, combined: &Combined, cell: usize) -> Option
         .map(|p| nudge_into(spec, cell, p))
 }
 
+/// A point fitted to a cell's crossings counts as on the new edge within
+/// this many spacings of both the tool and the result.
+const ON_EDGE: f64 = 0.02;
+
 /// Sculpt a unified field: combine, then restore exact crossings and put
 /// feature points on the new edges.
 pub fn sculpt_udf(
@@ -278,7 +304,9 @@ pub fn sculpt_udf(
     tool: &Tool,
     threshold: f64,
 ) -> Result<SculptReport, DistFieldError> {
-    let combined = Combined::new(&field.extract().0, tool, operation)?;
+    let surface = field.extract().0;
+    let combined = Combined::new(&surface, tool, operation)?;
+    let corners = new_corners(&surface, tool);
     let spec = field.spec;
     let h = spec.spacing;
     let (changed, cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
@@ -296,7 +324,7 @@ pub fn sculpt_udf(
         .extras
         .iter()
         .filter_map(|(&i, e)| match e {
-            Extra::FeaturePoint(p) if combined.signed_distance(*p).abs() > 1e-6 * h => Some(i),
+            Extra::FeaturePoint(p) if combined.changes(*p, 1e-6 * h) => Some(i),
             _ => None,
         })
         .collect();
@@ -312,21 +340,31 @@ pub fn sculpt_udf(
             edges.insert((nodes[a as usize], (a ^ b).trailing_zeros() as usize));
         }
     }
-    let found: Vec<(usize, usize, f64)> = edges
+    let crossings: HashMap<(usize, usize), Tangent> = edges
         .par_iter()
         .filter_map(|&(n, axis)| {
             let m = n + spec.strides()[axis];
-            let (a, b) = (field.values[n], field.values[m]);
-            let regular = !field.extras.contains_key(&(n as u32))
-                || matches!(field.extras[&(n as u32)], Extra::Directed(_));
-            if (a >= 0.0) == (b >= 0.0)
-                || !regular
-                || matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_)))
-            {
+            if (field.values[n] >= 0.0) == (field.values[m] >= 0.0) {
                 return None;
             }
             let origin = node_position(&spec, n);
             let d = edge_root(&combined, origin, axis, h)?;
+            let mut p = origin;
+            p[axis] += d;
+            Some(((n, axis), (p, combined.normal(p, h)?)))
+        })
+        .collect();
+    let found: Vec<(usize, usize, f64)> = crossings
+        .par_iter()
+        .filter_map(|(&(n, axis), &(p, _))| {
+            let m = n + spec.strides()[axis];
+            let regular = !field.extras.contains_key(&(n as u32))
+                || matches!(field.extras[&(n as u32)], Extra::Directed(_));
+            if !regular || matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_))) {
+                return None;
+            }
+            let d = p[axis] - node_position(&spec, n)[axis];
+            let (a, b) = (field.values[n], field.values[m]);
             ((d - crossing_fraction(a, b, 0.0) * h).abs() > threshold * h).then_some((n, axis, d))
         })
         .collect();
@@ -342,26 +380,102 @@ pub fn sculpt_udf(
             dirs[axis] = d;
         }
     }
-    // Feature points on the new edges.
+    // Feature points on the new edges: where the crossings' tangent
+    // planes meet on both the tool and the result (a corner where the new
+    // edge meets an old one), that point, else one on the new edge.
+    let cos_limit = crate::features::DEFAULT_FEATURE_ANGLE_DEG
+        .to_radians()
+        .cos();
     let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
     for &c in &cells {
         if taken.contains(&c) {
             continue;
         }
-        let Some(p) = edge_point_in(&spec, &combined, c) else {
+        let tangents = cell_tangents(&spec, &crossings, c);
+        let on_both = |q: DVec3| {
+            combined.signed_distance(q).abs() < ON_EDGE * h
+                && combined.tool.signed_distance(q).abs() < ON_EDGE * h
+        };
+        // (The fitted point may lie just outside the cell: a corner in a
+        // cell the surface enters without changing any sample's sign.)
+        let corner = corners
+            .iter()
+            .map(|&q| clamp_near(&spec, c, q, 0.5 * h))
+            .filter(|&q| on_both(q) && storage_for(field, c, q).is_some())
+            .find(|&q| fan_fits(&*field, c, q));
+        let fitted =
+            corner.or_else(|| sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q)));
+        let Some(p) = fitted.or_else(|| edge_point_in(&spec, &combined, c)) else {
             continue;
         };
         report.edge_points += 1;
-        let corners = corner_nodes(&spec, c);
-        let free = corners
-            .iter()
-            .find(|&&n| !field.extras.contains_key(&(n as u32)));
-        if let (Some(&n), true) = (free, fan_fits(&*field, c, p)) {
-            field.extras.insert(n as u32, Extra::FeaturePoint(p));
+        let fits = fitted.is_some() || fan_fits(&*field, c, p);
+        if let (Some(n), true) = (storage_for(field, c, p), fits) {
+            field.extras.insert(n, Extra::FeaturePoint(p));
+            report.kept += 1;
+        }
+    }
+    // Cells beside the new edges: feature points from the crossings'
+    // tangent planes.
+    let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
+    let sharp: Vec<(usize, DVec3)> = cells
+        .par_iter()
+        .filter(|c| !taken.contains(c))
+        .filter_map(|&c| {
+            let tangents = cell_tangents(&spec, &crossings, c);
+            sharp_point(field, c, &tangents, cos_limit).map(|p| (c, p))
+        })
+        .collect();
+    for (c, p) in sharp {
+        if let Some(n) = storage_for(field, c, p) {
+            field.extras.insert(n, Extra::FeaturePoint(p));
             report.kept += 1;
         }
     }
     Ok(report)
+}
+
+/// Where the sharp edges of `surface` (the object as its field represents
+/// it) pierce the tool: the corners a new edge makes with an old one.
+fn new_corners(surface: &TriMesh, tool: &Tool) -> Vec<DVec3> {
+    let features = Features::detect(surface, DEFAULT_FEATURE_ANGLE_DEG);
+    features
+        .edges
+        .iter()
+        .filter_map(|&[a, b]| {
+            let (mut p, mut q) = (surface.vertices[a as usize], surface.vertices[b as usize]);
+            let inside = tool.signed_distance(p) < 0.0;
+            if inside == (tool.signed_distance(q) < 0.0) {
+                return None;
+            }
+            for _ in 0..48 {
+                let mid = p.lerp(q, 0.5);
+                if (tool.signed_distance(mid) < 0.0) == inside {
+                    p = mid;
+                } else {
+                    q = mid;
+                }
+            }
+            Some(p.lerp(q, 0.5))
+        })
+        .collect()
+}
+
+/// The exact crossings of the combined surface on `cell`'s sign-changing
+/// edges with its outward normals, from `crossings` (by edge).
+fn cell_tangents(
+    spec: &GridSpec<3>,
+    crossings: &HashMap<(usize, usize), Tangent>,
+    cell: usize,
+) -> Vec<Tangent> {
+    let nodes = corner_nodes(spec, cell);
+    EDGE_CORNERS
+        .iter()
+        .filter_map(|&[a, b]| {
+            let axis = (a ^ b).trailing_zeros() as usize;
+            crossings.get(&(nodes[a as usize], axis)).copied()
+        })
+        .collect()
 }
 
 /// Distance along `+axis` from `origin` to the combined surface within

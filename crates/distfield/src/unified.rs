@@ -11,16 +11,18 @@
 //! Every sample keeps its minimum distance, which is what lets the kinds
 //! mix: extraction interpolates it wherever nothing more is stored.
 
-use crate::extract::{corner_nodes, extract, fan_fits, ExtractReport, SampledField};
-use crate::features::{
-    cell_of, cells_with_features, closest_on_segment, nudge_into, CellFeatures, Features,
+use crate::extract::{
+    corner_nodes, extract, fan_fits, fan_triangles, leans_on_neighbour, ExtractReport, SampledField,
 };
-use crate::offset::{may_take, node_position, on_outer_layer, stays_convex};
+use crate::features::{cells_with_features, nudge_into, CellFeatures, Features};
+use crate::offset::{may_take, node_position, stays_convex};
 use crate::query::MeshQuery;
+use crate::sharp::{clamp_near, is_sharp, owner_cell, qef_minimizer, Tangent};
 use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::time::Instant;
+use surfrecon_geom::metrics::closest_point_on_triangle;
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::sdf::signed_distance;
@@ -93,6 +95,9 @@ pub struct UdfReport {
     pub directed: usize,
     pub feature_points: usize,
     pub positions: usize,
+    /// Of the feature points, those of cells without a mesh feature inside
+    /// whose crossings' normals disagree (a sharp edge runs beside them).
+    pub sharp_cells: usize,
     /// Directed distances given up because all corners of a feature cell
     /// already carried extra data.
     pub directed_dropped: usize,
@@ -139,24 +144,62 @@ pub fn build_udf(
     for f in cells.values_mut() {
         f.corners.retain(|p| !snapped.contains(p));
         f.bends.retain(|p| !snapped.contains(p));
+        f.near_corners.retain(|p| !snapped.contains(p));
     }
     report.feature_cells = cells.len();
-    report.positions = snapped.len() + snap_unreached(&mut field, &cells);
+    report.positions = snapped.len();
+    let cos_limit = options.feature_angle_deg.to_radians().cos();
     for (cell, f) in &cells {
         let Some(centroid) = crossing_centroid(&field, &query, *cell) else {
             continue;
         };
-        let candidates = f
+        // A corner in a neighbour no patch reaches comes first, as it is
+        // (the cell's fan reaches out to it, from a sample that can hold
+        // it); the rest lie in the cell.
+        let margin = SHARP_MARGIN * field.spec.spacing;
+        let near = f
+            .near_corners
+            .iter()
+            .map(|&p| clamp_near(&field.spec, *cell, p, margin))
+            .filter(|&p| storage_for(&field, *cell, p).is_some());
+        let inside = f
             .candidates(centroid)
             .into_iter()
             .map(|p| nudge_into(&field.spec, *cell, p));
-        let Some(point) = candidates
+        // Where the cell holds separate feature lines (one point keeps
+        // one), of the points whose fans fit, the one whose fan passes
+        // nearest all of them; elsewhere the first that fits.
+        let nearest_all = || {
+            let probes = f.probes();
+            inside
+                .clone()
+                .filter_map(|p| {
+                    let fan = fan_triangles(&field, *cell, p)?;
+                    Some((farthest_from(&fan, &probes), p))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|(_, p)| p)
+        };
+        let first_fitting = || inside.clone().find(|&p| fan_fits(&field, *cell, p));
+        let Some(point) = near
             .clone()
             .find(|&p| fan_fits(&field, *cell, p))
-            .or_else(|| candidates.clone().next())
+            .or_else(|| {
+                if f.lines() > 1 {
+                    nearest_all()
+                } else {
+                    first_fitting()
+                }
+            })
+            .or_else(|| inside.clone().next())
         else {
             continue;
         };
+        if let Some(node) = storage_for(&field, *cell, point) {
+            field.extras.insert(node, Extra::FeaturePoint(point));
+            report.feature_points += 1;
+            continue;
+        }
         let corners = corner_nodes(&field.spec, *cell);
         let free = corners
             .iter()
@@ -167,6 +210,13 @@ pub fn build_udf(
             report.directed_dropped += 1;
         }
         report.feature_points += 1;
+    }
+    for (cell, point) in sharp_cell_points(&field, &query, &cells, cos_limit) {
+        if let Some(node) = storage_for(&field, cell, point) {
+            field.extras.insert(node, Extra::FeaturePoint(point));
+            report.feature_points += 1;
+            report.sharp_cells += 1;
+        }
     }
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
@@ -232,63 +282,6 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
     snapped
 }
 
-/// Feature cells the surface enters without changing the sign of any
-/// sample (a tip or ridge poking in between them) are lost to plain
-/// interpolation. For each, the sample nearest one of its feature points
-/// moves onto that point (within its box, keeping its cells convex), with
-/// distance 0 signed against the cell's other samples, so the surface
-/// crosses the cell there. Returns the number of samples moved.
-fn snap_unreached(field: &mut UnifiedField, cells: &BTreeMap<usize, CellFeatures>) -> usize {
-    let spec = field.spec;
-    let cube = Neighbourhood::new(&spec.strides());
-    let reach = 0.5 * spec.spacing * (1.0 - 1e-9);
-    let mut moved = 0;
-    for (&cell, f) in cells {
-        if field.crosses(cell) {
-            continue;
-        }
-        let nodes = corner_nodes(&spec, cell);
-        let mut best: Option<(f64, usize, DVec3)> = None;
-        for &n in &nodes {
-            if field
-                .extras
-                .get(&(n as u32))
-                .is_some_and(|e| !matches!(e, Extra::Directed(_)))
-            {
-                continue;
-            }
-            let home = node_position(&spec, n);
-            let on_pieces = f
-                .pieces
-                .iter()
-                .map(|&[a, b]| closest_on_segment(home, a, b));
-            for q in f.corners.iter().chain(&f.bends).copied().chain(on_pieces) {
-                let d = (q - home).abs().max_element();
-                if d <= reach && best.is_none_or(|b| d < b.0) {
-                    best = Some((d, n, q));
-                }
-            }
-        }
-        let Some((_, n, q)) = best else { continue };
-        if !stays_convex(&spec, n, q, |m| field.position(m)) {
-            continue;
-        }
-        // The sample changes side, which must change no topology.
-        let value = if field.values[nodes[0]] >= 0.0 {
-            -1e-9 * spec.spacing
-        } else {
-            0.0
-        };
-        if on_outer_layer(&spec, n) || !may_take(&cube, n, value, |m| field.values[m]) {
-            continue;
-        }
-        field.values[n] = value;
-        field.extras.insert(n as u32, Extra::Position(q));
-        moved += 1;
-    }
-    moved
-}
-
 /// Samples with an edge crossing that interpolation misplaces by more than
 /// `threshold` spacings, with their exact distances along the three axes.
 fn directed_distances(
@@ -321,28 +314,135 @@ fn directed_distances(
         .collect()
 }
 
+/// The largest distance from `points` to the triangles.
+fn farthest_from(triangles: &[[DVec3; 3]], points: &[DVec3]) -> f64 {
+    points
+        .iter()
+        .map(|&p| {
+            triangles
+                .iter()
+                .map(|&t| p.distance(closest_point_on_triangle(p, t)))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// How far outside its cell a feature point found from the crossings may
+/// lie (in spacings): a sharp edge passing just beside a cell is where its
+/// patch must reach.
+const SHARP_MARGIN: f64 = 0.5;
+
+/// Feature points for the boundary cells that have no mesh feature inside
+/// but whose crossings' normals differ by more than the feature angle:
+/// the QEF minimizer of the crossings' tangent planes, within
+/// [`SHARP_MARGIN`] of the cell, where the cell's fan around it fits.
+fn sharp_cell_points(
+    field: &UnifiedField,
+    query: &MeshQuery,
+    featured: &BTreeMap<usize, CellFeatures>,
+    cos_limit: f64,
+) -> Vec<(usize, DVec3)> {
+    let spec = &field.spec;
+    let [nx, ny, nz] = spec.dims;
+    (0..nz - 1)
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let cells = (0..ny - 1).flat_map(move |j| (0..nx - 1).map(move |i| [i, j, k]));
+            cells.filter_map(|idx| {
+                let cell = spec.linear(idx);
+                if featured.contains_key(&cell) || !field.crosses(cell) {
+                    return None;
+                }
+                let tangents = crossing_tangents(field, query, cell);
+                sharp_point(field, cell, &tangents, cos_limit).map(|p| (cell, p))
+            })
+        })
+        .collect()
+}
+
+/// The feature point of `cell` from its crossings' `tangents` when their
+/// normals differ by more than the angle whose cosine is `cos_limit`: the
+/// QEF minimizer within [`SHARP_MARGIN`] of the cell, if the cell's fan
+/// around it fits or it lies in a crossed neighbour (whose fan the cell
+/// then joins at extraction, which checks it there).
+pub(crate) fn sharp_point(
+    field: &UnifiedField,
+    cell: usize,
+    tangents: &[Tangent],
+    cos_limit: f64,
+) -> Option<DVec3> {
+    if !is_sharp(tangents, cos_limit) {
+        return None;
+    }
+    let spec = &field.spec;
+    let point = clamp_near(
+        spec,
+        cell,
+        qef_minimizer(tangents)?,
+        SHARP_MARGIN * spec.spacing,
+    );
+    (leans_on_neighbour(field, cell, point) || fan_fits(field, cell, point)).then_some(point)
+}
+
+/// A sample of `cell` free to store `point` as the cell's feature point
+/// (one whose cells put `point` in `cell`, see [`owner_cell`]).
+pub(crate) fn storage_for(field: &UnifiedField, cell: usize, point: DVec3) -> Option<u32> {
+    corner_nodes(&field.spec, cell)
+        .into_iter()
+        .find(|&n| {
+            !field.extras.contains_key(&(n as u32))
+                && owner_cell(&field.spec, n, point) == Some(cell)
+        })
+        .map(|n| n as u32)
+}
+
+/// The exact crossings on a cell's sign-changing edges with the surface
+/// normal there (outward: from the inside sample to the outside one).
+fn crossing_tangents(field: &UnifiedField, query: &MeshQuery, cell: usize) -> Vec<Tangent> {
+    crossed_edges(field, cell)
+        .filter_map(|(origin, axis, va, _)| {
+            let (d, n) = query.hit_with_normal(origin, axis, field.spec.spacing)?;
+            let mut p = origin;
+            p[axis] += d;
+            let n = if (n[axis] > 0.0) == (va < 0.0) { n } else { -n };
+            Some((p, n))
+        })
+        .collect()
+}
+
 /// The mean of the exact crossings on a cell's sign-changing edges.
 fn crossing_centroid(field: &UnifiedField, query: &MeshQuery, cell: usize) -> Option<DVec3> {
-    let spec = &field.spec;
-    let nodes = corner_nodes(spec, cell);
+    let h = field.spec.spacing;
     let (mut sum, mut count) = (DVec3::ZERO, 0);
-    for [a, b] in surfrecon_grid::marching::tables::EDGE_CORNERS {
-        let (na, nb) = (nodes[a as usize], nodes[b as usize]);
-        let (va, vb) = (field.values[na], field.values[nb]);
-        if (va >= 0.0) == (vb >= 0.0) {
-            continue;
-        }
-        let axis = (a ^ b).trailing_zeros() as usize;
-        let origin = DVec3::from_array(spec.position(spec.unlinear(na)));
+    for (origin, axis, va, vb) in crossed_edges(field, cell) {
         let d = query
-            .hit_along(origin, axis, spec.spacing)
-            .unwrap_or_else(|| crossing_fraction(va, vb, 0.0) * spec.spacing);
+            .hit_along(origin, axis, h)
+            .unwrap_or_else(|| crossing_fraction(va, vb, 0.0) * h);
         let mut p = origin;
         p[axis] += d;
         sum += p;
         count += 1;
     }
     (count > 0).then(|| sum / count as f64)
+}
+
+/// The sign-changing edges of `cell`: the position of the edge's lower
+/// sample, the edge's axis, and the two samples' values.
+fn crossed_edges(
+    field: &UnifiedField,
+    cell: usize,
+) -> impl Iterator<Item = (DVec3, usize, f64, f64)> + '_ {
+    let spec = &field.spec;
+    let nodes = corner_nodes(spec, cell);
+    surfrecon_grid::marching::tables::EDGE_CORNERS
+        .into_iter()
+        .filter_map(move |[a, b]| {
+            let (na, nb) = (nodes[a as usize], nodes[b as usize]);
+            let (va, vb) = (field.values[na], field.values[nb]);
+            let origin = DVec3::from_array(spec.position(spec.unlinear(na)));
+            ((va >= 0.0) != (vb >= 0.0))
+                .then(|| (origin, (a ^ b).trailing_zeros() as usize, va, vb))
+        })
 }
 
 impl UnifiedField {
@@ -365,12 +465,12 @@ impl UnifiedField {
             .sum()
     }
 
-    /// Feature points by the cell that contains them.
+    /// Feature points by their cell (see [`owner_cell`]).
     pub fn feature_points(&self) -> BTreeMap<usize, DVec3> {
         self.extras
-            .values()
-            .filter_map(|e| match *e {
-                Extra::FeaturePoint(p) => cell_of(&self.spec, p).map(|c| (c, p)),
+            .iter()
+            .filter_map(|(&n, e)| match *e {
+                Extra::FeaturePoint(p) => owner_cell(&self.spec, n as usize, p).map(|c| (c, p)),
                 _ => None,
             })
             .collect()

@@ -74,6 +74,7 @@ fn feature_surface(args: &Args, ctx: &Context) -> anyhow::Result<()> {
     summary["fans"] = report.fans.into();
     summary["fans_refused"] = report.fans_refused.into();
     summary["flips"] = report.flips.into();
+    summary["merged"] = report.merged.into();
     let format = io::Format::from_path(&args.output)?;
     if !format.stores_triangles() {
         bail!(

@@ -66,6 +66,7 @@ pub fn run(args: &Args, size: GridSize, ctx: &Context) -> anyhow::Result<()> {
             "feature_cells": r.feature_cells,
             "directed_distances": r.directed,
             "feature_points": r.feature_points,
+            "sharp_cells": r.sharp_cells,
             "sample_positions": r.positions,
             "directed_dropped": r.directed_dropped,
         });
