@@ -291,6 +291,8 @@ pub fn reconstruct<'py>(
             pockets: !no_pockets,
             thin_parts: !no_thin_parts,
             normal_k: convection_normal_k.unwrap_or(cv.normal_k),
+            // The brush is a CLI and library option only so far.
+            brush: None,
         },
     };
     let options = Options {
