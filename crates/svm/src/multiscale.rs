@@ -7,8 +7,9 @@
 //! Robustness: the estimated noise σ sets lower bounds for ε, the accuracy,
 //! the off-surface distance and the finest width; isolated samples, samples
 //! whose normal disagrees with their neighbours' (no off-surface points) and
-//! samples further from the coarser surface than a level can bridge are
-//! kept out of the training set, each counted in the [`FitReport`].
+//! samples further from the coarser surface than a level can bridge (and
+//! not joined to it by a chain of samples, as a thin part is) are kept out
+//! of the training set, each counted in the [`FitReport`].
 
 use crate::cells::CellIndex;
 use crate::error::{require_positive, Result, SvmError};
@@ -63,7 +64,9 @@ pub struct FitOptions {
     /// first level, a sample whose residual exceeds this many level widths
     /// is not a base point of the level. A kernel of width s only moves the
     /// surface by about s; pulling it to a sample further away would grow a
-    /// separate blob around the sample (an outlier), not refine the surface.
+    /// separate blob around the sample (an outlier), not refine the surface
+    /// — unless a chain of well-supported samples joins it to the fitted
+    /// surface, as along a thin part the coarser levels missed.
     pub consistency_ratio: f64,
     /// A sample whose k-th nearest neighbour
     /// (k = [`crate::training::LOCAL_NEIGHBOURS`]) is more than this many times further than typical is isolated: it
