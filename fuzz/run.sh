@@ -43,7 +43,7 @@ echo "toolchain: $("${cargo[@]}" --version) ${RUSTC_BOOTSTRAP:+(RUSTC_BOOTSTRAP=
 "${cargo[@]}" fuzz build "${flags[@]}" 2>"$here/target-build.log" ||
   { tail -n 30 "$here/target-build.log"; exit 2; }
 
-printf '%-6s %12s %10s %8s %8s  %s\n' target executions exec/s edges corpus findings
+printf '%-6s %12s %8s %11s %6s %7s  %s\n' target executions exec/s seed-edges edges corpus findings
 status=0
 for t in "${targets[@]}"; do
   corpus="$here/corpus/$t"
@@ -61,7 +61,8 @@ for t in "${targets[@]}"; do
     -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 \
     -print_final_stats=1 -artifact_prefix="$artifacts/" >"$log" 2>&1 || true
   execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")
-  rate=$(grep -o 'stat::average_exec_per_sec: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")
+  rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")
+  seeded=$(grep -o 'INITED cov: [0-9]*' "$log" | head -1 | grep -o '[0-9]*$' || echo "?")
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")
   corp=$(ls "$corpus" | wc -l)
   after=$(ls "$artifacts" | wc -l)
@@ -72,6 +73,6 @@ for t in "${targets[@]}"; do
   else
     findings="none"
   fi
-  printf '%-6s %12s %10s %8s %8s  %s\n' "$t" "$execs" "$rate" "$cov" "$corp" "$findings"
+  printf '%-6s %12s %8s %11s %6s %7s  %s\n' "$t" "$execs" "$rate" "$seeded" "$cov" "$corp" "$findings"
 done
 exit $status

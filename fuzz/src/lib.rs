@@ -80,8 +80,8 @@ pub fn check_field(data: &[u8], ext: &str) {
             AnyField::D3(f) => write_field(&path, f),
         }
         .unwrap_or_else(|e| panic!("{ext} field read but not writable as {out}: {e}"));
-        let again = read_field(&path)
-            .unwrap_or_else(|e| panic!("written {out} field not readable: {e}"));
+        let again =
+            read_field(&path).unwrap_or_else(|e| panic!("written {out} field not readable: {e}"));
         assert_eq!(again, field, "{ext} -> {out} round trip changed the field");
     }
 }

@@ -22,12 +22,18 @@ fn nan_sample_positions_are_refused() {
         include_bytes!("data/fuzz-odf-nan-position.odf"),
     );
     let message = read_odf(&odf).unwrap_err().to_string();
-    assert!(message.contains("outside its cell") && message.contains("NaN"), "{message}");
+    assert!(
+        message.contains("outside its cell") && message.contains("NaN"),
+        "{message}"
+    );
     let udf = stored(
         dir.path(),
         "nan.udf",
         include_bytes!("data/fuzz-udf-nan-position.udf"),
     );
     let message = read_udf(&udf).unwrap_err().to_string();
-    assert!(message.contains("outside its cell") && message.contains("NaN"), "{message}");
+    assert!(
+        message.contains("outside its cell") && message.contains("NaN"),
+        "{message}"
+    );
 }

@@ -955,8 +955,13 @@ mod tests {
         let expect = [1.0, -2.0, 3.5, 4.25];
         let mut gz = nrrd_header("type: double\nencoding: gzip\nendian: little").into_bytes();
         let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
-        enc.write_all(&expect.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<_>>())
-            .unwrap();
+        enc.write_all(
+            &expect
+                .iter()
+                .flat_map(|v| v.to_le_bytes())
+                .collect::<Vec<_>>(),
+        )
+        .unwrap();
         let zeros = vec![0u8; 1 << 20];
         for _ in 0..64 {
             enc.write_all(&zeros).unwrap();

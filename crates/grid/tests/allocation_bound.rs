@@ -55,6 +55,9 @@ fn billion_value_headers_in_tiny_files_allocate_little() {
     for (name, text) in [("big.vtk", vtk), ("big.nrrd", nrrd), ("raw.nrrd", raw)] {
         let (largest, message) = largest_allocation(name, text);
         assert!(message.contains("1000000000"), "{name}: {message}");
-        assert!(largest < 64 * 1024, "{name}: one allocation of {largest} bytes");
+        assert!(
+            largest < 64 * 1024,
+            "{name}: one allocation of {largest} bytes"
+        );
     }
 }

@@ -405,7 +405,9 @@ fn read_level(r: &mut ByteReader, li: u32) -> std::result::Result<Level, (u64, S
     if !CellIndex::can_hold(&centres, width) {
         return Err((
             at,
-            format!("level {li}: its {n} centres spread over more than 2^20 kernel widths ({width})"),
+            format!(
+                "level {li}: its {n} centres spread over more than 2^20 kernel widths ({width})"
+            ),
         ));
     }
     Ok(Level::new(width, centres, coefficients))
