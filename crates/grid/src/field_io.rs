@@ -952,7 +952,7 @@ mod tests {
         // and lacks its trailer. The reader stops after the 32 bytes it
         // needs (+1), so it never inflates the zeros nor reaches the cut
         // trailer; an unbounded read would inflate it all and then fail.
-        let expect = [1.0, -2.0, 3.5, 4.25];
+        let expect: [f64; 4] = [1.0, -2.0, 3.5, 4.25];
         let mut gz = nrrd_header("type: double\nencoding: gzip\nendian: little").into_bytes();
         let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
         enc.write_all(
