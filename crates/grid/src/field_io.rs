@@ -827,6 +827,22 @@ mod tests {
         format!("NRRD0005\n# c\ndimension: 2\nsizes: 2 2\nspacings: 0.5 0.5\nkinds: domain domain\n{extra}\n\n")
     }
 
+    /// A gzip stream of `values` (f64, little endian) then `zeros` zero bytes.
+    fn gzip_values(values: &[f64], zeros: usize) -> flate2::write::GzEncoder<Vec<u8>> {
+        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        for v in values {
+            enc.write_all(&v.to_le_bytes()).unwrap();
+        }
+        let block = vec![0u8; 1 << 20];
+        let mut left = zeros;
+        while left > 0 {
+            let n = left.min(block.len());
+            enc.write_all(&block[..n]).unwrap();
+            left -= n;
+        }
+        enc
+    }
+
     #[test]
     fn reads_nrrd_variants() {
         let dir = tempfile::tempdir().unwrap();
@@ -845,15 +861,7 @@ mod tests {
         let ascii = nrrd_header("type: double\nencoding: ascii") + "1 -2\n3.5 4.25\n";
         check(&write_bytes(&dir, "ascii.nrrd", ascii.as_bytes()));
         let mut gz = nrrd_header("type: double\nencoding: gzip\nendian: little").into_bytes();
-        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-        enc.write_all(
-            &expect
-                .iter()
-                .flat_map(|v| v.to_le_bytes())
-                .collect::<Vec<_>>(),
-        )
-        .unwrap();
-        gz.extend(enc.finish().unwrap());
+        gz.extend(gzip_values(&expect, 0).finish().unwrap());
         check(&write_bytes(&dir, "gz.nrrd", &gz));
     }
 
@@ -954,19 +962,7 @@ mod tests {
         // trailer; an unbounded read would inflate it all and then fail.
         let expect: [f64; 4] = [1.0, -2.0, 3.5, 4.25];
         let mut gz = nrrd_header("type: double\nencoding: gzip\nendian: little").into_bytes();
-        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
-        enc.write_all(
-            &expect
-                .iter()
-                .flat_map(|v| v.to_le_bytes())
-                .collect::<Vec<_>>(),
-        )
-        .unwrap();
-        let zeros = vec![0u8; 1 << 20];
-        for _ in 0..64 {
-            enc.write_all(&zeros).unwrap();
-        }
-        let stream = enc.finish().unwrap();
+        let stream = gzip_values(&expect, 64 << 20).finish().unwrap();
         gz.extend(&stream[..stream.len() - 8]);
         assert!(gz.len() < 200_000, "{} bytes", gz.len());
         let dir = tempfile::tempdir().unwrap();
