@@ -234,8 +234,9 @@ fn check_finite(r: &Reader, i: usize, p: DVec3) -> Result<DVec3, DistFieldError>
 
 /// A moved sample must stay within half a spacing of its node.
 fn check_in_cell(r: &Reader, spec: &GridSpec<3>, i: usize, p: DVec3) -> Result<(), DistFieldError> {
+    // `max_element` skips NaN components, so finiteness is checked on `p`.
     let off = (p - node_position(spec, i)).abs().max_element();
-    if off.is_finite() && off <= 0.5 * spec.spacing {
+    if p.is_finite() && off <= 0.5 * spec.spacing {
         Ok(())
     } else {
         Err(r.bad(format!("sample {i} is placed at {p}, outside its cell")))

@@ -394,7 +394,10 @@ fn decode_ascii(
 ) -> Result<Vec<f64>, GridError> {
     let text = std::str::from_utf8(&data[start.min(data.len())..])
         .map_err(|_| src.err(format!("byte {start}: ASCII data is not text")))?;
-    let mut values = Vec::with_capacity(count.min(1 << 28));
+    // Each value takes at least two bytes (a digit and a separator): a
+    // header declaring more values than the text can hold must not reserve
+    // memory for them before the count check below refuses the file.
+    let mut values = Vec::with_capacity(count.min(text.len() / 2 + 1));
     for token in text.split_ascii_whitespace() {
         if values.len() == count {
             return Err(src.err(format!("more than the {count} expected values")));
@@ -443,7 +446,7 @@ fn parse_nrrd(bytes: &[u8], src: &Source) -> Result<RawField, GridError> {
     }
     let data_start = header_end(data_start, src)?;
     let raw = nrrd_geometry(&h).map_err(|m| src.err(m))?;
-    let count: usize = raw.dims.iter().product();
+    let count = grid_points(&raw.dims, "sizes", src)?;
     let scalar = h
         .scalar
         .ok_or_else(|| src.err("header has no `type` field"))?;
@@ -461,8 +464,15 @@ fn parse_nrrd(bytes: &[u8], src: &Source) -> Result<RawField, GridError> {
             src,
         )?,
         Encoding::Gzip => {
+            // Inflate no more than the values need (plus one byte, so the
+            // size check still sees too much data): a small gzip stream can
+            // expand a thousandfold.
+            let limit = (count as u64)
+                .saturating_mul(scalar.size() as u64)
+                .saturating_add(1);
             let mut inflated = Vec::new();
             flate2::read::MultiGzDecoder::new(&bytes[data_start..])
+                .take(limit)
                 .read_to_end(&mut inflated)
                 .map_err(|e| {
                     src.err(format!(
@@ -480,6 +490,14 @@ fn parse_nrrd(bytes: &[u8], src: &Source) -> Result<RawField, GridError> {
         }
     };
     Ok(RawField { values, ..raw })
+}
+
+/// Node count of a grid with `dims` nodes per axis; an error (naming the
+/// header field `what`) when the product overflows.
+fn grid_points(dims: &[usize], what: &str, src: &Source) -> Result<usize, GridError> {
+    dims.iter()
+        .try_fold(1usize, |c, &n| c.checked_mul(n))
+        .ok_or_else(|| src.err(format!("{what} {dims:?} overflow the grid size")))
 }
 
 fn nrrd_little(h: &NrrdHeader, scalar: Scalar, src: &Source) -> Result<bool, GridError> {
@@ -664,11 +682,7 @@ fn parse_vtk(bytes: &[u8], src: &Source) -> Result<RawField, GridError> {
         );
     }
     let raw = vtk_geometry(&h).map_err(|m| src.err(m))?;
-    let count = raw
-        .dims
-        .iter()
-        .try_fold(1usize, |c, &n| c.checked_mul(n))
-        .ok_or_else(|| src.err(format!("DIMENSIONS {:?} overflow the grid size", raw.dims)))?;
+    let count = grid_points(&raw.dims, "DIMENSIONS", src)?;
     if h.points != Some(count) {
         return Err(src.err(format!(
             "POINT_DATA {:?} does not match {count} grid points",
@@ -813,6 +827,22 @@ mod tests {
         format!("NRRD0005\n# c\ndimension: 2\nsizes: 2 2\nspacings: 0.5 0.5\nkinds: domain domain\n{extra}\n\n")
     }
 
+    /// A gzip stream of `values` (f64, little endian) then `zeros` zero bytes.
+    fn gzip_values(values: &[f64], zeros: usize) -> flate2::write::GzEncoder<Vec<u8>> {
+        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        for v in values {
+            enc.write_all(&v.to_le_bytes()).unwrap();
+        }
+        let block = vec![0u8; 1 << 20];
+        let mut left = zeros;
+        while left > 0 {
+            let n = left.min(block.len());
+            enc.write_all(&block[..n]).unwrap();
+            left -= n;
+        }
+        enc
+    }
+
     #[test]
     fn reads_nrrd_variants() {
         let dir = tempfile::tempdir().unwrap();
@@ -831,15 +861,7 @@ mod tests {
         let ascii = nrrd_header("type: double\nencoding: ascii") + "1 -2\n3.5 4.25\n";
         check(&write_bytes(&dir, "ascii.nrrd", ascii.as_bytes()));
         let mut gz = nrrd_header("type: double\nencoding: gzip\nendian: little").into_bytes();
-        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-        enc.write_all(
-            &expect
-                .iter()
-                .flat_map(|v| v.to_le_bytes())
-                .collect::<Vec<_>>(),
-        )
-        .unwrap();
-        gz.extend(enc.finish().unwrap());
+        gz.extend(gzip_values(&expect, 0).finish().unwrap());
         check(&write_bytes(&dir, "gz.nrrd", &gz));
     }
 
@@ -925,6 +947,29 @@ mod tests {
         assert_fails("o.vtk", huge.as_bytes(), "overflow");
         assert_fails("z.vtk", b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 1\nPOINT_DATA 4\nSCALARS v double\nLOOKUP_TABLE default\n\x00\x01", "truncated");
         assert_fails("k.raw", b"", "unknown field format");
+        // NRRD sizes whose product passes 2^64 (a panic with overflow checks).
+        let huge = nrrd_header("").replace("sizes: 2 2", "sizes: 4294967296 4294967296")
+            + "type: double\nencoding: ascii\n\n1 2 3\n";
+        let huge = huge.replace("\n\n\ntype", "\ntype");
+        assert_fails("o.nrrd", huge.as_bytes(), "overflow");
+    }
+
+    #[test]
+    fn gzip_data_is_inflated_only_as_far_as_the_header_needs() {
+        // A 2x2 double field whose gzip stream goes on with 64 MiB of zeros
+        // and lacks its trailer. The reader stops after the 32 bytes it
+        // needs (+1), so it never inflates the zeros nor reaches the cut
+        // trailer; an unbounded read would inflate it all and then fail.
+        let expect: [f64; 4] = [1.0, -2.0, 3.5, 4.25];
+        let mut gz = nrrd_header("type: double\nencoding: gzip\nendian: little").into_bytes();
+        let stream = gzip_values(&expect, 64 << 20).finish().unwrap();
+        gz.extend(&stream[..stream.len() - 8]);
+        assert!(gz.len() < 200_000, "{} bytes", gz.len());
+        let dir = tempfile::tempdir().unwrap();
+        match read_field(write_bytes(&dir, "bomb.nrrd", &gz)).unwrap() {
+            AnyField::D2(f) => assert_eq!(f.values, expect),
+            other => panic!("expected 2D, got {other:?}"),
+        }
     }
 
     #[test]

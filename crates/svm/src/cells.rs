@@ -92,6 +92,18 @@ impl CellIndex {
         idx
     }
 
+    /// Whether [`CellIndex::new`] with cell side `cell` keeps every one of
+    /// `points` (finite ones spanning fewer than 2^20 cells per axis);
+    /// points beyond that fall outside every cell key and are not indexed.
+    pub fn can_hold(points: &[DVec3], cell: f64) -> bool {
+        let lo = points.iter().copied().fold(DVec3::INFINITY, DVec3::min);
+        let hi = points.iter().copied().fold(DVec3::NEG_INFINITY, DVec3::max);
+        let span = ((hi - lo) * (1.0 / cell)).floor();
+        // Same arithmetic as `cell_of` for the highest point (NaN, from one
+        // point and an infinite 1/cell, lands in cell 0 there too).
+        points.is_empty() || !span.to_array().iter().any(|&c| c > (MASK - BIAS) as f64)
+    }
+
     #[inline]
     fn cell_of(&self, p: DVec3) -> [i64; 3] {
         let c = ((p - self.origin) * self.inv_cell).floor();

@@ -401,6 +401,15 @@ fn read_level(r: &mut ByteReader, li: u32) -> std::result::Result<Level, (u64, S
         centres.push(DVec3::new(x, y, z));
         coefficients.push(r.finite("coefficient")?);
     }
+    // Centres the cell index cannot hold would silently drop out of the level.
+    if !CellIndex::can_hold(&centres, width) {
+        return Err((
+            at,
+            format!(
+                "level {li}: its {n} centres spread over more than 2^20 kernel widths ({width})"
+            ),
+        ));
+    }
     Ok(Level::new(width, centres, coefficients))
 }
 

@@ -1,0 +1,6 @@
+#![no_main]
+//! Fuzz the odf reader (and write-back of whatever it accepts).
+
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| surfrecon_fuzz::check_odf(data));
