@@ -103,18 +103,16 @@ impl TriMesh {
                 *piece = piece.grow(self.vertices[v as usize]);
             }
         }
-        let kept = |v: usize| {
-            extent
-                .get(&root[v])
-                .is_some_and(|b| b.diagonal() >= min_extent)
-        };
-        let specks = extent
-            .values()
-            .filter(|b| b.diagonal() < min_extent)
-            .count();
+        let large: std::collections::HashSet<usize> = extent
+            .iter()
+            .filter(|(_, b)| b.diagonal() >= min_extent)
+            .map(|(&r, _)| r)
+            .collect();
+        let specks = extent.len() - large.len();
         if specks == 0 {
             return (self.clone(), 0);
         }
+        let kept = |v: usize| large.contains(&root[v]);
         let mut new_index = vec![u32::MAX; self.vertices.len()];
         let mut mesh = TriMesh::default();
         for v in (0..self.vertices.len()).filter(|&v| kept(v)) {

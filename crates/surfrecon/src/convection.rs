@@ -1,7 +1,7 @@
 //! [`Method::Convection`](crate::Method::Convection): geometric convection
 //! over the exact Delaunay tetrahedralization of the points.
 
-use crate::error::{Classify, Error, ErrorKind, Result};
+use crate::error::{Classify, Result};
 use crate::report::*;
 use crate::{check, data_fit_report, ConvectionOptions, Output};
 use surfrecon_convection::{reconstruct, Params};
@@ -32,13 +32,7 @@ pub(crate) fn run(
     data_fit: bool,
     hook: Hook,
 ) -> Result<Output> {
-    let points = &input.points;
-    if points.positions.is_empty() {
-        return Err(Error::new(
-            ErrorKind::InvalidInput,
-            "the input has no points to reconstruct from",
-        ));
-    }
+    let points = crate::require_points(input, "reconstruct from")?;
     check(hook, "convection")?;
     let r = reconstruct(&points.positions, points.normals.as_deref(), &params(o))
         .map_err(|e| e.within("convection reconstruction failed"))?;

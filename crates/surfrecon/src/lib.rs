@@ -114,6 +114,18 @@ pub fn reconstruct_with(input: &Input, options: &Options, hook: Hook) -> Result<
     Ok(output)
 }
 
+/// The input's points, or an invalid-input error ("the input has no
+/// points to `purpose`").
+pub(crate) fn require_points<'a>(input: &'a Geometry, purpose: &str) -> Result<&'a PointCloud> {
+    if input.points.positions.is_empty() {
+        return Err(error::Error::new(
+            error::ErrorKind::InvalidInput,
+            format!("the input has no points to {purpose}"),
+        ));
+    }
+    Ok(&input.points)
+}
+
 /// Cancelled if `hook` says so at the start of `stage`.
 pub(crate) fn check(hook: Hook, stage: &'static str) -> Result<()> {
     match hook(Progress::stage(stage)) {

@@ -23,13 +23,7 @@ pub(crate) fn run(
     data_fit: bool,
     hook: Hook,
 ) -> Result<Output> {
-    let points = &input.points;
-    if points.positions.is_empty() {
-        return Err(Error::new(
-            ErrorKind::InvalidInput,
-            "the input has no points to fit",
-        ));
-    }
+    let points = crate::require_points(input, "fit")?;
     let started = Instant::now();
     let mut normals_estimated = None;
     let (model, fit) = match &o.model_in {
