@@ -90,25 +90,35 @@ impl TriMesh {
     /// vertices) whose bounding-box diagonal is below `min_extent`; with
     /// how many were removed. Vertices are renumbered in their old order.
     pub fn without_specks(&self, min_extent: f64) -> (TriMesh, usize) {
+        self.retain_pieces(|bounds, _| bounds.diagonal() >= min_extent)
+    }
+
+    /// The mesh with only the connected pieces (through shared vertices)
+    /// for which `keep(bounding box, vertex positions)` holds; with how many
+    /// were removed. Vertices are renumbered in their old order.
+    pub fn retain_pieces(&self, keep: impl Fn(&Aabb, &[DVec3]) -> bool) -> (TriMesh, usize) {
         let mut sets = crate::metrics::DisjointSets::new(self.vertices.len());
         for &[a, b, c] in &self.triangles {
             sets.union(a as usize, b as usize);
             sets.union(b as usize, c as usize);
         }
         let root: Vec<usize> = (0..self.vertices.len()).map(|v| sets.find(v)).collect();
-        let mut extent: std::collections::HashMap<usize, Aabb> = Default::default();
-        for t in &self.triangles {
-            let piece = extent.entry(root[t[0] as usize]).or_insert(Aabb::EMPTY);
-            for &v in t {
-                *piece = piece.grow(self.vertices[v as usize]);
+        let mut pieces: std::collections::HashMap<usize, (Aabb, Vec<DVec3>)> = Default::default();
+        let mut seen = vec![false; self.vertices.len()];
+        for &v in self.triangles.iter().flatten() {
+            let v = v as usize;
+            if !std::mem::replace(&mut seen[v], true) {
+                let piece = pieces.entry(root[v]).or_insert((Aabb::EMPTY, Vec::new()));
+                piece.0 = piece.0.grow(self.vertices[v]);
+                piece.1.push(self.vertices[v]);
             }
         }
-        let large: std::collections::HashSet<usize> = extent
+        let large: std::collections::HashSet<usize> = pieces
             .iter()
-            .filter(|(_, b)| b.diagonal() >= min_extent)
+            .filter(|(_, (bounds, vertices))| keep(bounds, vertices))
             .map(|(&r, _)| r)
             .collect();
-        let specks = extent.len() - large.len();
+        let specks = pieces.len() - large.len();
         if specks == 0 {
             return (self.clone(), 0);
         }

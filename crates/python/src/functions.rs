@@ -191,8 +191,8 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
 ///     snapping/fairing; no_slices=False evolve contour stacks in 3D;
 ///     two_d=False closed curves in the xy plane.
 /// SVM (method="svm"):
-///   svm_c=1.0 (or "auto": C and epsilon by validation); svm_epsilon=5e-4
-///   tube width / diagonal; svm_accuracy=1e-3 fit accuracy / diagonal;
+///   svm_c=1.0 (or "auto": C and epsilon by validation); svm_epsilon=1e-4
+///   tube width / diagonal; svm_accuracy=2e-4 fit accuracy / diagonal;
 ///   loss="epsilon" or "squared"; drop_levels=0 finest levels left out;
 ///   model_out=None / model_in=None .svm model file; svm_normal_k=12.
 /// Convection (method="convection"):

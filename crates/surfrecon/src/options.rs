@@ -175,8 +175,8 @@ impl Default for SvmOptions {
     fn default() -> Self {
         SvmOptions {
             c: SvmC::Fixed(1.0),
-            epsilon: 5e-4,
-            accuracy: 1e-3,
+            epsilon: surfrecon_svm::FitOptions::default().epsilon,
+            accuracy: surfrecon_svm::FitOptions::default().accuracy,
             loss: Loss::Epsilon,
             drop_levels: 0,
             model_out: None,

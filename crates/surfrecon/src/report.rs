@@ -207,6 +207,9 @@ pub struct SvmFitReport {
     pub spacing: f64,
     pub noise_estimate: f64,
     pub isolated_samples: usize,
+    /// Sample normals the fit turned round (they pointed against the
+    /// coarser levels' surface beside them).
+    pub normals_flipped: usize,
     pub epsilon_used: f64,
     pub accuracy_used: f64,
     pub min_width: f64,

@@ -98,6 +98,7 @@ fn fit_model(points: &PointCloud, o: &SvmOptions, hook: Hook) -> Result<(SvmMode
         },
         epsilon: o.epsilon,
         accuracy: o.accuracy,
+        reorient_normals: points.normals.is_none(),
         ..Default::default()
     };
     opts.validate()
@@ -148,6 +149,7 @@ fn fit_model(points: &PointCloud, o: &SvmOptions, hook: Hook) -> Result<(SvmMode
         spacing: report.spacing,
         noise_estimate: report.noise,
         isolated_samples: report.isolated,
+        normals_flipped: report.normals_flipped,
         epsilon_used: report.epsilon,
         accuracy_used: report.tolerance,
         min_width: report.min_width,

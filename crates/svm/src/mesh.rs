@@ -14,6 +14,7 @@ use crate::cells::{FastMap, FastSet};
 use crate::error::{Result, SvmError};
 use crate::model::SvmModel;
 use glam::DVec3;
+use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{Aabb, TriMesh};
 use surfrecon_grid::sparse::{marching_cubes_sparse, BlockGrid};
 use surfrecon_grid::{GridSize, GridSpec};
@@ -46,7 +47,8 @@ pub struct MeshReport {
     pub cells_visited: usize,
     /// Grid nodes where f was evaluated.
     pub nodes_evaluated: usize,
-    /// Closed pieces smaller than [`SPECK_CELLS`] dropped from the mesh.
+    /// Closed pieces dropped from the mesh: smaller than [`SPECK_CELLS`],
+    /// or away from the data ([`DATA_CELLS`]).
     pub specks_removed: usize,
 }
 
@@ -55,6 +57,11 @@ pub struct MeshReport {
 /// beyond where a thin tip narrows under a cell), which the mesh cannot
 /// show faithfully and a user would not want.
 pub const SPECK_CELLS: f64 = 3.0;
+
+/// A closed piece none of whose vertices lies within this many cells of a
+/// seed (an input point) is a speck too, whatever its size: a bubble of f
+/// inside the solid or beside it that no data asked for.
+pub const DATA_CELLS: f64 = 1.0;
 
 /// An implicit function the mesher can follow: negative inside, and near
 /// its zero set close to a signed distance (growth stops a cell diagonal
@@ -99,8 +106,16 @@ pub fn mesh_model(
     let background = 2.0 * spec.spacing;
     let nodes = outside_on_the_rim(values.nodes, spec.dims, background);
     let grid = BlockGrid::from_nodes(spec, background, nodes)?;
+    let seed_tree = KdTree::new(seeds);
+    let near_data = |p: &DVec3| {
+        seed_tree
+            .nearest(*p)
+            .is_some_and(|n| n.distance <= DATA_CELLS * spec.spacing)
+    };
     let (mut mesh, specks_removed) =
-        marching_cubes_sparse(&grid, 0.0).without_specks(SPECK_CELLS * spec.spacing);
+        marching_cubes_sparse(&grid, 0.0).retain_pieces(|bounds, vertices| {
+            bounds.diagonal() >= SPECK_CELLS * spec.spacing && vertices.iter().any(near_data)
+        });
     let report = MeshReport {
         grid_dims: spec.dims,
         spacing: spec.spacing,
@@ -325,4 +340,61 @@ fn is_near_surface(values: &FastMap<f64>, c: [usize; 3], near: f64) -> bool {
         close |= v.abs() <= near;
     }
     (pos && neg) || close
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The union of two balls (distance to the nearer sphere, negative inside).
+    struct TwoBalls([(DVec3, f64); 2]);
+
+    impl TwoBalls {
+        fn value(&self, p: DVec3) -> f64 {
+            self.0
+                .iter()
+                .map(|&(c, r)| p.distance(c) - r)
+                .fold(f64::INFINITY, f64::min)
+        }
+    }
+
+    impl Implicit for TwoBalls {
+        fn values_grouped(&self, points: &[DVec3], _: &[Vec<u32>]) -> Vec<f64> {
+            points.iter().map(|&p| self.value(p)).collect()
+        }
+
+        fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
+            let h = 1e-6;
+            points
+                .iter()
+                .map(|&p| {
+                    let d = |e: DVec3| (self.value(p + e * h) - self.value(p - e * h)) / (2.0 * h);
+                    DVec3::new(d(DVec3::X), d(DVec3::Y), d(DVec3::Z))
+                })
+                .collect()
+        }
+    }
+
+    #[test]
+    fn a_piece_away_from_the_data_is_dropped() {
+        // Seeds on the big ball only; the small ball sits 0.04 (4 cells)
+        // beside it: found by the mesher, but no datum asked for it.
+        let balls = TwoBalls([(DVec3::ZERO, 0.5), (DVec3::new(0.62, 0.0, 0.0), 0.08)]);
+        let seeds: Vec<DVec3> = (0..2000)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / 2000.0;
+                let phi = i as f64 * 2.399963;
+                let r = (1.0 - z * z).sqrt();
+                DVec3::new(r * phi.cos(), r * phi.sin(), z) * 0.5
+            })
+            .collect();
+        let opts = MeshOptions {
+            resolution: 128,
+            margin: 0.1,
+        };
+        let (mesh, report) = mesh_model(&balls, &seeds, Aabb::from_points(&seeds), &opts).unwrap();
+        assert_eq!(report.specks_removed, 1);
+        let farthest = mesh.vertices.iter().map(|v| v.length()).fold(0.0, f64::max);
+        assert!(farthest < 0.51, "the small ball is still there: {farthest}");
+    }
 }

@@ -9,7 +9,7 @@
 use crate::error::{Result, SvmError};
 use glam::DVec3;
 use rayon::prelude::*;
-use surfrecon_geom::spatial::KdTree;
+use surfrecon_geom::spatial::{KdTree, Neighbour};
 use surfrecon_geom::Aabb;
 
 /// A position with the value f should take there, and the weight of its
@@ -44,8 +44,9 @@ pub struct SurfaceSamples {
     /// Median of `reach`.
     pub typical_reach: f64,
     /// When set, the samples the off-surface consistency check looks at
-    /// (all samples otherwise): see [`Self::exclude_from_consistency`].
-    consistency_tree: Option<KdTree>,
+    /// (all samples otherwise) with their indices in `points`: see
+    /// [`Self::exclude_from_consistency`].
+    consistency_tree: Option<(KdTree, Vec<usize>)>,
     /// Noise σ the consistency check allows for (see [`Self::set_noise`]).
     noise: f64,
     /// Per sample: its normal agrees with the mean normal of its
@@ -146,25 +147,62 @@ impl SurfaceSamples {
         } else {
             &[]
         };
-        // Where the other side of a thin part (or another sheet) is nearer
-        // than y, the point moves closer, down to y / 4 but not into the
-        // noise: without it a part thinner than the level's offset has no
-        // inside at all.
+        // Where the other side of a thin part is nearer than y, the point
+        // moves closer, down to y / 4 but not into the noise: without it a
+        // part thinner than the level's offset has no inside at all. A
+        // sheet facing the same way (two misregistered scans of one
+        // surface) is no thin part: a point between the sheets would claim
+        // the wrong side of one of them and pit the surface.
         let least = (NOISE_OFFSET_FLOOR * self.noise).min(y);
         signs.iter().filter_map(move |&sign| {
-            (0..OFFSET_HALVINGS).find_map(|k| {
+            for k in 0..OFFSET_HALVINGS {
                 let d = y / f64::from(1u32 << k);
                 if d < least {
                     return None;
                 }
                 let position = self.points[i] + self.normals[i] * (sign * d);
-                self.is_consistent(position, d).then_some(TrainingPoint {
-                    position,
-                    target: sign * d,
-                    weight,
-                })
-            })
+                match self.blocking_sample(position, d) {
+                    None => {
+                        return Some(TrainingPoint {
+                            position,
+                            target: sign * d,
+                            weight,
+                        })
+                    }
+                    Some(b) if self.normals[b].dot(self.normals[i]) > 0.0 => return None,
+                    Some(_) => {}
+                }
+            }
+            None
         })
+    }
+
+    /// Flip the normals of samples `flips` (see
+    /// [`crate::multiscale::FitReport::normals_flipped`]) and recompute
+    /// which normals agree with their neighbours'.
+    pub fn flip_normals(&mut self, flips: &[usize]) {
+        for &i in flips {
+            self.normals[i] = -self.normals[i];
+        }
+        // A flip changes the agreement of the samples that have the flipped
+        // one among their nearest: those near it.
+        let mut touched: Vec<usize> = flips
+            .par_iter()
+            .flat_map_iter(|&i| self.tree.knn(self.points[i], 2 * LOCAL_NEIGHBOURS + 1))
+            .map(|n| n.index)
+            .collect();
+        touched.par_sort_unstable();
+        touched.dedup();
+        let agrees: Vec<bool> = touched
+            .par_iter()
+            .map(|&i| {
+                let near = self.tree.knn(self.points[i], LOCAL_NEIGHBOURS + 1);
+                agrees_with(i, &near, &self.normals)
+            })
+            .collect();
+        for (i, a) in touched.into_iter().zip(agrees) {
+            self.normal_agrees[i] = a;
+        }
     }
 
     /// Indices of the samples that are not isolated: whose [`Self::reach`]
@@ -193,7 +231,7 @@ impl SurfaceSamples {
             self.consistency_tree = None;
         } else {
             let points: Vec<DVec3> = kept.iter().map(|&i| self.points[i]).collect();
-            self.consistency_tree = Some(KdTree::new(&points));
+            self.consistency_tree = Some((KdTree::new(&points), kept.to_vec()));
         }
     }
 
@@ -210,15 +248,16 @@ impl SurfaceSamples {
         self.noise
     }
 
-    /// No surface sample lies closer to `position` than 0.9·y (less the
-    /// noise scatter, but never under half of y).
-    fn is_consistent(&self, position: DVec3, y: f64) -> bool {
+    /// The sample (index into `points`) nearest to `position` when it is
+    /// closer than 0.9·y (less the noise scatter, but never under half of
+    /// y): an off-surface point there would claim that sample's side.
+    fn blocking_sample(&self, position: DVec3, y: f64) -> Option<usize> {
         let least = (0.9 * y - NOISE_SCATTER * self.noise).max(0.5 * y);
-        self.consistency_tree
-            .as_ref()
-            .unwrap_or(&self.tree)
-            .nearest(position)
-            .is_none_or(|n| n.distance >= least)
+        let nearest = match &self.consistency_tree {
+            Some((tree, kept)) => tree.nearest(position).map(|n| (kept[n.index], n.distance)),
+            None => self.tree.nearest(position).map(|n| (n.index, n.distance)),
+        };
+        nearest.and_then(|(i, distance)| (distance < least).then_some(i))
     }
 }
 
@@ -246,23 +285,26 @@ fn local_reach_and_agreement(
     normals: &[DVec3],
     tree: &KdTree,
 ) -> (Vec<f64>, Vec<bool>) {
-    points
-        .par_iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let near = tree.knn(*p, LOCAL_NEIGHBOURS + 1);
+    (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            let near = tree.knn(points[i], LOCAL_NEIGHBOURS + 1);
             let reach = near.last().map_or(f64::INFINITY, |n| n.distance);
-            let mean: DVec3 = near
-                .iter()
-                .filter(|n| n.index != i)
-                .map(|n| normals[n.index])
-                .sum();
-            let agrees = mean
-                .try_normalize()
-                .is_none_or(|m| m.dot(normals[i]) >= MIN_NORMAL_AGREEMENT);
-            (reach, agrees)
+            (reach, agrees_with(i, &near, normals))
         })
         .unzip()
+}
+
+/// Whether sample `i`'s normal agrees with the mean normal of the other
+/// samples in `near`.
+fn agrees_with(i: usize, near: &[Neighbour], normals: &[DVec3]) -> bool {
+    let mean: DVec3 = near
+        .iter()
+        .filter(|n| n.index != i)
+        .map(|n| normals[n.index])
+        .sum();
+    mean.try_normalize()
+        .is_none_or(|m| m.dot(normals[i]) >= MIN_NORMAL_AGREEMENT)
 }
 
 fn median(values: &[f64]) -> f64 {
@@ -367,6 +409,28 @@ fn spread(v: u64) -> u64 {
 mod tests {
     use super::*;
     use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
+
+    #[test]
+    fn a_second_sheet_facing_the_same_way_keeps_points_out_between() {
+        // Two parallel sheets 0.2 apart, both facing +z (two misregistered
+        // scans of one surface): an offset of 0.3 from the lower sheet lands
+        // next to the upper one; moving it closer (to 0.075) would put an
+        // "outside" point between the two sheets, so there is none.
+        let grid = |z: f64| {
+            (0..400).map(move |i| DVec3::new((i % 20) as f64 * 0.05, (i / 20) as f64 * 0.05, z))
+        };
+        let points: Vec<DVec3> = grid(0.0).chain(grid(0.2)).collect();
+        let normals = vec![DVec3::Z; points.len()];
+        let s = SurfaceSamples::new(&points, &normals).unwrap();
+        let lower: Vec<usize> = (0..400).collect();
+        let outside = s
+            .off_surface(&lower, 0.3)
+            .into_iter()
+            .filter(|p| p.target > 0.0);
+        assert!(outside
+            .into_iter()
+            .all(|p| p.target == 0.3 || p.position.z > 0.1));
+    }
 
     #[test]
     fn off_surface_points_pass_the_consistency_check() {

@@ -199,3 +199,42 @@ fn a_hole_in_a_sampled_sphere_is_closed_smoothly() {
         assert!(n.dot(v.normalize()) > 0.9, "normal {n} at {v}");
     }
 }
+
+/// A sphere whose normals on a cap (as orientation propagation can leave
+/// them where scans overlap) point inward: with `reorient_normals` the fit
+/// turns them round and the surface is the sphere, without a pit.
+#[test]
+fn a_flipped_patch_of_normals_is_turned_round() {
+    let mut pc = sample_surface(&icosphere(DVec3::ZERO, 1.0, 5), 6000, 3);
+    let normals = pc.normals.as_mut().unwrap();
+    let cap: Vec<usize> = (0..pc.positions.len())
+        .filter(|&i| pc.positions[i].z > 0.95)
+        .collect();
+    for &i in &cap {
+        normals[i] = -normals[i];
+    }
+    let opts = FitOptions {
+        reorient_normals: true,
+        ..Default::default()
+    };
+    let (model, report) = fit(&pc.positions, pc.normals.as_ref().unwrap(), &opts).unwrap();
+    assert!(
+        report.normals_flipped >= cap.len() * 9 / 10 && report.normals_flipped <= cap.len() + 20,
+        "{} flipped, cap of {}",
+        report.normals_flipped,
+        cap.len()
+    );
+    let opts = MeshOptions {
+        resolution: 64,
+        ..Default::default()
+    };
+    let (mesh, _) = mesh_model(&model, &pc.positions, pc.bounds(), &opts).unwrap();
+    let t = topology(&mesh);
+    assert!(t.watertight && t.components == 1 && t.euler == 2, "{t:?}");
+    let worst = mesh
+        .vertices
+        .iter()
+        .map(|v| (v.length() - 1.0).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 0.02, "farthest vertex {worst} off the sphere");
+}

@@ -5,6 +5,7 @@
 
 use crate::context::Context;
 use std::path::PathBuf;
+use surfrecon_svm::FitOptions;
 
 /// Residual penalty of the SVM fit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -24,12 +25,12 @@ pub struct SvmArgs {
     pub svm_c: CSetting,
     /// Width of the ε-insensitive tube, relative to the bounding-box
     /// diagonal; raised to the estimated noise level of the input.
-    #[arg(long = "svm-epsilon", default_value_t = 5e-4)]
+    #[arg(long = "svm-epsilon", default_value_t = FitOptions::default().epsilon)]
     pub svm_epsilon: f64,
     /// Fitting accuracy relative to the diagonal: refinement stops when all
     /// proposed base points are fitted within it; raised to twice the
     /// estimated noise level of the input.
-    #[arg(long = "svm-accuracy", default_value_t = 1e-3)]
+    #[arg(long = "svm-accuracy", default_value_t = FitOptions::default().accuracy)]
     pub svm_accuracy: f64,
     /// Residual penalty.
     #[arg(long, value_enum, default_value_t = LossArg::Epsilon)]
