@@ -10,10 +10,9 @@
 //! puts in that cell (in units of h²), the spring term keeps grid edges
 //! near their rest length h and the orthogonality term keeps the edges at
 //! a sample (and at its neighbours) perpendicular. The search is the
-//! paper's, over the 26 lattice directions instead of its six (a corner's
-//! octant is often reached only diagonally): per sample try a step each
-//! way (plus a jump onto a feature point in reach), take the best legal
-//! move, halve the step each round. Before it, the samples whose boxes a
+//! paper's: per sample try ±x, ±y, ±z steps (plus a jump onto a feature
+//! point in reach, and the other side for a sample on the surface), take
+//! the best legal move, halve the step each round. Before it, the samples whose boxes a
 //! feature passes through are put onto it (corners first) and stay there
 //! (the paper's alignment of samples with features); on the surface a
 //! sample may take either side. A move is legal when the sample stays in
@@ -530,14 +529,11 @@ impl<'a> Search<'a> {
                 .min_by(|a, b| a.1.total_cmp(&b.1))
                 .map(|(v, _)| (node, here, v));
         }
-        // The 26 directions to the neighbours of a lattice point: the six
-        // axis steps alone cannot reach a corner's octant when the first
-        // step leaves the energy unchanged.
-        let mut tries: Vec<DVec3> = (0..27)
-            .filter(|&k| k != 13)
+        let mut tries: Vec<DVec3> = (0..6)
             .map(|k| {
-                let d = DVec3::new((k % 3) as f64, ((k / 3) % 3) as f64, (k / 9) as f64);
-                here + (d - DVec3::ONE) * step
+                let mut d = DVec3::ZERO;
+                d[k / 2] = if k % 2 == 0 { step } else { -step };
+                here + d
             })
             .collect();
         tries.push(here); // on the surface: the other side
