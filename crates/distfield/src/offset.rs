@@ -461,8 +461,7 @@ impl<'a> Search<'a> {
         let mut count = BTreeSet::new();
         // Corners first: the samples on the edges leading to a corner
         // must leave room for the corner's own sample.
-        let (corners, edges): (Vec<_>, Vec<_>) =
-            targets.iter().partition(|(_, t)| t.corner);
+        let (corners, edges): (Vec<_>, Vec<_>) = targets.iter().partition(|(_, t)| t.corner);
         for (&node, t) in corners.into_iter().chain(edges) {
             let p = t.point;
             if !self.interior(node)
@@ -481,7 +480,9 @@ impl<'a> Search<'a> {
                 .count();
             let ordered = values.iter().copied().rev().filter(|_| inside >= 3);
             let ordered = ordered.chain(values.iter().copied().filter(|_| inside < 3));
-            let legal = ordered.filter_map(|v| self.same_topology(&*field, node, v)).next();
+            let legal = ordered
+                .filter_map(|v| self.same_topology(&*field, node, v))
+                .next();
             if let Some(v) = legal {
                 field.set(node, p, v);
                 count.insert(node);
@@ -540,7 +541,7 @@ impl<'a> Search<'a> {
             })
             .collect();
         tries.push(here); // on the surface: the other side
-        // The nearest surface point: a sample on the surface pins it there.
+                          // The nearest surface point: a sample on the surface pins it there.
         tries.push(self.query.closest_point(here));
         tries.extend(self.feature_points_near(node, here));
         let home = node_position(self.spec, node);
