@@ -970,3 +970,36 @@ fn parity(spec: &GridSpec<3>, node: usize) -> usize {
     let idx = spec.unlinear(node);
     (idx[0] & 1) | (idx[1] & 1) << 1 | (idx[2] & 1) << 2
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec() -> GridSpec<3> {
+        GridSpec {
+            origin: [0.0; 3],
+            spacing: 1.0,
+            dims: [5, 5, 5],
+        }
+    }
+
+    #[test]
+    fn a_dent_keeps_the_topology_and_a_cavity_does_not() {
+        let spec = spec();
+        let centre = spec.linear([2, 2, 2]);
+        // The half-space z < 2.5: one disk (χ = 1) with one loop.
+        let plane = |n: usize| spec.unlinear(n)[2] as f64 - 2.5;
+        let flat = local_topology(&spec, centre, plane);
+        assert_eq!(flat.len(), 1);
+        assert_eq!((flat[0].0.len(), flat[0].1), (1, 1));
+        // The centre sample just below the plane turned outside: a dent
+        // open to the outside above it.
+        let dent = |n: usize| if n == centre { 0.5 } else { plane(n) };
+        assert_eq!(local_topology(&spec, centre, dent), flat);
+        // Inside a solid, the same flip opens a cavity: a new closed piece.
+        let solid = |_: usize| -1.0;
+        let cavity = |n: usize| if n == centre { 1.0 } else { -1.0 };
+        assert!(local_topology(&spec, centre, solid).is_empty());
+        assert_eq!(local_topology(&spec, centre, cavity), vec![(vec![], 2)]);
+    }
+}

@@ -76,6 +76,25 @@ fn udf_of(
     .unwrap()
 }
 
+/// The offset field of `shape` with default options at `size`.
+fn odf_of(
+    shape: &TriMesh,
+    size: GridSize,
+) -> (
+    surfrecon_distfield::offset::OffsetField,
+    surfrecon_distfield::offset::OdfReport,
+) {
+    use surfrecon_distfield::offset::{build_odf, OdfOptions};
+    build_odf(
+        shape,
+        &OdfOptions {
+            size,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
 /// The regular signed distance field of `shape` (2 cells of padding).
 fn regular_field(shape: &TriMesh, size: GridSize) -> surfrecon_grid::Field3 {
     signed_distance(shape, &grid_for(shape, size, 2).unwrap(), None).unwrap()
@@ -281,17 +300,9 @@ fn field_files_round_trip_exactly_and_refuse_truncation() {
 
 #[test]
 fn odf_moves_samples_onto_the_features_and_lowers_the_error() {
-    use surfrecon_distfield::offset::{build_odf, OdfOptions};
     let shape = rotated_cube();
     let size = GridSize::Resolution(20);
-    let (odf, report) = build_odf(
-        &shape,
-        &OdfOptions {
-            size,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (odf, report) = odf_of(&shape, size);
     let h = odf.spec.spacing;
     assert!(
         report.energy_after < 0.6 * report.energy_before,
@@ -315,20 +326,12 @@ fn odf_moves_samples_onto_the_features_and_lowers_the_error() {
 /// around them outside), and of a rotated cube.
 #[test]
 fn odf_reaches_the_corners() {
-    use surfrecon_distfield::offset::{build_odf, OdfOptions};
     // 20 cells along x: the far y and z faces lie 0.4 h and 0.2 h off
     // the grid planes.
     let boxed = cuboid(DVec3::ZERO, DVec3::new(1.0, 0.77, 0.66));
     for (name, shape) in [("box", boxed), ("rotated cube", rotated_cube())] {
         let size = GridSize::Resolution(20);
-        let (odf, report) = build_odf(
-            &shape,
-            &OdfOptions {
-                size,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let (odf, report) = odf_of(&shape, size);
         let h = odf.spec.spacing;
         let (mesh, _) = odf.extract();
         assert_closed_manifold(&mesh, 2);
