@@ -99,6 +99,7 @@ fn udf_and_odf_files_extract_to_closed_surfaces_with_sharp_corners() {
             );
         } else {
             assert!(counts["samples_moved"].as_u64().unwrap() > 0, "{v}");
+            assert!(counts["samples_aligned"].as_u64().unwrap() > 0, "{v}");
         }
         let mesh_path = dir.path().join(format!("box_{kind}.ply"));
         let v = json_of(&surfrecon(&[

@@ -68,8 +68,13 @@ fn main() {
     let t = Instant::now();
     let (out, _) = odf.extract();
     let stored = format!(
-        "{} samples moved ({} smoothed) of {} candidates; feature energy {:.1} -> {:.1}",
-        report.moved, report.smoothed, report.candidates, report.energy_before, report.energy_after
+        "{} samples moved ({} aligned with features, {} smoothed) of {} candidates; feature energy {:.1} -> {:.1}",
+        report.moved,
+        report.aligned,
+        report.smoothed,
+        report.candidates,
+        report.energy_before,
+        report.energy_after
     );
     row(
         "ODF",

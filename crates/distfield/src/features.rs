@@ -264,7 +264,7 @@ pub fn cell_of(spec: &GridSpec<3>, p: DVec3) -> Option<usize> {
 }
 
 /// The pieces of segment `a`-`b` inside each cell it crosses.
-fn clip_to_cells(spec: &GridSpec<3>, a: DVec3, b: DVec3) -> Vec<(usize, [DVec3; 2])> {
+pub(crate) fn clip_to_cells(spec: &GridSpec<3>, a: DVec3, b: DVec3) -> Vec<(usize, [DVec3; 2])> {
     let (ga, gb) = (spec.to_grid(a.to_array()), spec.to_grid(b.to_array()));
     let lo: [usize; 3] = std::array::from_fn(|k| ga[k].min(gb[k]).floor().max(0.0) as usize);
     let hi: [usize; 3] = std::array::from_fn(|k| {

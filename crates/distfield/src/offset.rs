@@ -11,14 +11,20 @@
 //! near their rest length h and the orthogonality term keeps the edges at
 //! a sample (and at its neighbours) perpendicular. The search is the
 //! paper's: per sample try ±x, ±y, ±z steps (plus a jump onto a feature
-//! point in reach), take the best legal move, halve the step each round.
-//! A move is legal when the sample stays in its box and every cell around
-//! it stays convex. Samples of the same index parity share no cell and no
+//! point in reach, and the other side for a sample on the surface), take
+//! the best legal move, halve the step each round. Before it, the samples whose boxes a
+//! feature passes through are put onto it (corners first) and stay there
+//! (the paper's alignment of samples with features); on the surface a
+//! sample may take either side. A move is legal when the sample stays in
+//! its box, every cell around it stays convex and the surface in its
+//! cells keeps its topology. Samples of the same index parity share no cell and no
 //! energy term, so each parity class moves in parallel and the result
 //! does not depend on the thread count.
 
 use crate::extract::{corner_nodes, crosses, extract, ExtractReport, SampledField};
-use crate::features::{cells_with_features, closest_on_segment, CellFeatures, Features};
+use crate::features::{
+    cells_with_features, clip_to_cells, closest_on_segment, CellFeatures, Features,
+};
 use crate::query::MeshQuery;
 use crate::unified::BAND_CELLS;
 use crate::{check_mesh, grid_for, DistFieldError};
@@ -92,6 +98,8 @@ pub struct OdfReport {
     pub feature_cells: usize,
     /// Samples the search considered.
     pub candidates: usize,
+    /// Samples put onto a corner or a feature edge before the search.
+    pub aligned: usize,
     pub moved: usize,
     /// Samples moved by Laplacian smoothing away from the surface.
     pub smoothed: usize,
@@ -128,6 +136,8 @@ pub fn build_odf(
         moved: BTreeMap::new(),
     };
     let search = Search::new(mesh, &spec, &query, &cells, w);
+    let aligned = search.align(&mut field, &feature_targets(mesh, &features, &spec));
+    // Samples on features stay there; the search fits the rest around them.
     let candidates = search.candidates();
     let mut report = OdfReport {
         samples: field.values.len(),
@@ -136,9 +146,10 @@ pub fn build_odf(
         energy_before: search.total_energy(&field),
         ..Default::default()
     };
+    report.aligned = aligned.len();
     let mut step = 0.25 * field.spec.spacing;
     for _ in 0..options.iterations {
-        search.round(&mut field, &candidates, step);
+        search.round(&mut field, &candidates, &aligned, step);
         step *= 0.5;
     }
     report.smoothed = search.smooth_away_from_surface(&mut field);
@@ -311,6 +322,62 @@ fn cell_probes(spec: &GridSpec<3>, query: &MeshQuery, cell: usize, f: &CellFeatu
     probes
 }
 
+/// Where each sample whose box (half a spacing around its node) a
+/// feature passes through should sit to hold it: on the corner in its
+/// box, else in the middle of the piece of feature edge in its box (of
+/// several, the piece whose middle lies nearest its node). Samples so
+/// placed line up along each feature line, one per box it crosses, and
+/// marching cubes then runs the surface through them (the paper's
+/// alignment of samples with features, its Figure 2). The middles keep
+/// them spread along the line: fandisk 0.43 h, against 0.56 h with the
+/// points nearest the nodes, which crowd where a line grazes a box.
+fn feature_targets(
+    mesh: &TriMesh,
+    features: &Features,
+    spec: &GridSpec<3>,
+) -> BTreeMap<usize, AlignTarget> {
+    // Node boxes are the cells of the grid shifted by half a spacing.
+    let half = 0.5 * spec.spacing;
+    let boxes = GridSpec::<3> {
+        origin: spec.origin.map(|o| o - half),
+        ..*spec
+    };
+    let mut targets: BTreeMap<usize, (f64, DVec3)> = BTreeMap::new();
+    for &[a, b] in &features.edges {
+        let (a, b) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
+        for (node, [p, q]) in clip_to_cells(&boxes, a, b) {
+            let home = node_position(spec, node);
+            let point = (p + q) * 0.5;
+            let d = point.distance(home);
+            let slot = targets.entry(node).or_insert((f64::INFINITY, point));
+            if d < slot.0 {
+                *slot = (d, point);
+            }
+        }
+    }
+    for &c in &features.corners {
+        let p = mesh.vertices[c as usize];
+        if let Some(node) = crate::features::cell_of(&boxes, p) {
+            // A corner outranks any edge point.
+            targets.insert(node, (-1.0, p));
+        }
+    }
+    targets
+        .into_iter()
+        .map(|(n, (d, point))| {
+            let corner = d < 0.0;
+            (n, AlignTarget { point, corner })
+        })
+        .collect()
+}
+
+/// Where [`Search::align`] puts a sample.
+pub(crate) struct AlignTarget {
+    point: DVec3,
+    /// On a corner (placed before the samples on edges).
+    corner: bool,
+}
+
 /// Read and write access to samples that may move.
 pub(crate) trait Movable: Sync {
     fn value(&self, node: usize) -> f64;
@@ -381,13 +448,64 @@ impl<'a> Search<'a> {
         !on_outer_layer(self.spec, node)
     }
 
+    /// Put samples onto their `targets` (see [`feature_targets`]) where
+    /// that is legal: the sample stays in its box, its cells convex, and
+    /// the surface keeps its topology ([`Self::same_topology`]). Returns
+    /// the samples moved.
+    pub fn align(
+        &self,
+        field: &mut impl Movable,
+        targets: &BTreeMap<usize, AlignTarget>,
+    ) -> BTreeSet<usize> {
+        let reach = 0.5 * self.spec.spacing * (1.0 - 1e-9);
+        let mut count = BTreeSet::new();
+        // Corners first: the samples on the edges leading to a corner
+        // must leave room for the corner's own sample.
+        let (corners, edges): (Vec<_>, Vec<_>) = targets.iter().partition(|(_, t)| t.corner);
+        for (&node, t) in corners.into_iter().chain(edges) {
+            let p = t.point;
+            if !self.interior(node)
+                || (p - node_position(self.spec, node)).abs().max_element() > reach
+                || !self.stays_convex(&*field, node, p)
+            {
+                continue;
+            }
+            let values = on_surface_values(self.query.signed_distance(p), self.spec.spacing);
+            // On the surface, the side against most of its neighbours
+            // first, so that the edges to them cross at the sample.
+            let strides = self.spec.strides();
+            let inside = (0..3)
+                .flat_map(|a| [node - strides[a], node + strides[a]])
+                .filter(|&m| field.value(m) < 0.0)
+                .count();
+            let ordered = values.iter().copied().rev().filter(|_| inside >= 3);
+            let ordered = ordered.chain(values.iter().copied().filter(|_| inside < 3));
+            let legal = ordered
+                .filter_map(|v| self.same_topology(&*field, node, v))
+                .next();
+            if let Some(v) = legal {
+                field.set(node, p, v);
+                count.insert(node);
+            }
+        }
+        count
+    }
+
     /// One round over the candidates, parity class by parity class.
-    pub fn round(&self, field: &mut impl Movable, candidates: &[usize], step: f64) {
+    /// Samples in `pinned` stay where they are but may change side when
+    /// they lie on the surface.
+    pub fn round(
+        &self,
+        field: &mut impl Movable,
+        candidates: &[usize],
+        pinned: &BTreeSet<usize>,
+        step: f64,
+    ) {
         for class in 0..8 {
             let moves: Vec<(usize, DVec3, f64)> = candidates
                 .par_iter()
                 .filter(|&&n| parity(self.spec, n) == class)
-                .filter_map(|&n| self.best_move(&*field, n, step))
+                .filter_map(|&n| self.best_move(&*field, n, step, pinned.contains(&n)))
                 .collect();
             for (n, p, v) in moves {
                 field.set(n, p, v);
@@ -401,9 +519,20 @@ impl<'a> Search<'a> {
         field: &impl Movable,
         node: usize,
         step: f64,
+        pinned: bool,
     ) -> Option<(usize, DVec3, f64)> {
         let here = field.position(node);
         let current = self.local_energy(field, node, here, field.value(node));
+        if pinned {
+            return on_surface_values(field.value(node), self.spec.spacing)
+                .into_iter()
+                .filter(|&v| v != field.value(node))
+                .filter_map(|v| self.same_topology(field, node, v))
+                .map(|v| (v, self.local_energy(field, node, here, v)))
+                .filter(|&(_, e)| e < current - 1e-12)
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(v, _)| (node, here, v));
+        }
         let mut tries: Vec<DVec3> = (0..6)
             .map(|k| {
                 let mut d = DVec3::ZERO;
@@ -411,6 +540,9 @@ impl<'a> Search<'a> {
                 here + d
             })
             .collect();
+        tries.push(here); // on the surface: the other side
+                          // The nearest surface point: a sample on the surface pins it there.
+        tries.push(self.query.closest_point(here));
         tries.extend(self.feature_points_near(node, here));
         let home = node_position(self.spec, node);
         let reach = 0.5 * self.spec.spacing * (1.0 - 1e-9);
@@ -418,11 +550,11 @@ impl<'a> Search<'a> {
             .into_iter()
             .filter(|p| (*p - home).abs().max_element() <= reach)
             .filter(|&p| self.stays_convex(field, node, p))
-            .filter_map(|p| {
-                Some((
-                    p,
-                    self.same_topology(field, node, self.query.signed_distance(p))?,
-                ))
+            .flat_map(|p| {
+                let h = self.spec.spacing;
+                on_surface_values(self.query.signed_distance(p), h)
+                    .into_iter()
+                    .filter_map(move |v| Some((p, self.same_topology(field, node, v)?)))
             })
             .map(|(p, v)| (p, v, self.local_energy(field, node, p, v)))
             .filter(|&(_, _, e)| e < current - 1e-12)
@@ -430,15 +562,27 @@ impl<'a> Search<'a> {
             .map(|(p, v, _)| (node, p, v))
     }
 
-    /// The value `node` takes at a new position where the exact distance
-    /// is `v`, if marching cubes keeps its topology: the sample stays on
-    /// its side (one landing on the surface keeps its old side) and no
-    /// ambiguous face around it changes its decision, so every cell keeps
-    /// its case. (Letting simple points cross, as [`may_take`] allows,
-    /// gave fandisk and a rotated box a spurious handle: the decider's
+    /// The value `v` if sample `node` may take it: when the sample stays
+    /// on its side and no ambiguous face around it changes its decision
+    /// (every cell keeps its case), or else when the surface inside its
+    /// eight cells keeps its topology ([`local_topology`]). Samples on a
+    /// feature often must cross, or tip an ambiguous face, for the surface
+    /// to pass through them: beside a ridge whose sample sits on a cell
+    /// face corner, that face's segment reaches the sample only if the
+    /// sample is inside and the face's inside diagonal connected.
+    /// (Allowing any simple point to cross, as digital topology does, gave
+    /// fandisk and a rotated box a spurious handle: the decider's
     /// connectivity is not digital topology's.)
     fn same_topology(&self, field: &impl Movable, node: usize, v: f64) -> Option<f64> {
-        same_cases(self.spec, node, v, |n| field.value(n))
+        let value = |n: usize| field.value(n);
+        if (v < 0.0) == (field.value(node) < 0.0) {
+            if let Some(v) = same_cases(self.spec, node, v, value) {
+                return Some(v);
+            }
+        }
+        let after = |n: usize| if n == node { v } else { field.value(n) };
+        (local_topology(self.spec, node, value) == local_topology(self.spec, node, after))
+            .then_some(v)
     }
 
     /// Corners and bends in the cells around `node`, and the points of
@@ -710,6 +854,111 @@ pub(crate) fn same_cases(
     (decisions(&value) == decisions(&after)).then_some(v)
 }
 
+/// The topology of the marching-cubes surface inside the 2×2×2 cells
+/// around `node`: per connected piece, the loops it has on the block's
+/// outer faces (each named by its smallest vertex) and its Euler
+/// characteristic, sorted. The outer faces do not touch `node`, so its
+/// value leaves the loops there unchanged; two values giving the same
+/// pieces give surfaces of the same topology (a piece is fixed, up to
+/// homeomorphism, by its boundary loops and Euler characteristic).
+pub(crate) fn local_topology(
+    spec: &GridSpec<3>,
+    node: usize,
+    value: impl Fn(usize) -> f64,
+) -> Vec<(Vec<u64>, i64)> {
+    let table = cube_table();
+    let mut triangles: Vec<[u64; 3]> = Vec::new();
+    for cell in cells_around(spec, node) {
+        let corners = corner_nodes(spec, cell);
+        let (config, bits) = cell_case(&corners.map(&value), 0.0);
+        for t in table.triangles(config, bits) {
+            triangles.push(t.map(|e| {
+                if e < 12 {
+                    let lower = EDGE_CORNERS[e as usize][0] as usize;
+                    2 * (corners[lower] as u64 * 3 + e as u64 / 4)
+                } else {
+                    2 * (cell as u64 * 16 + e as u64 - 12) + 1
+                }
+            }));
+        }
+    }
+    let mut ids: Vec<u64> = triangles.iter().flatten().copied().collect();
+    ids.sort_unstable();
+    ids.dedup();
+    let index = |v: u64| ids.binary_search(&v).expect("a vertex of the block");
+    let mut parent: Vec<usize> = (0..ids.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut edges: BTreeMap<(usize, usize), usize> = BTreeMap::new();
+    for t in &triangles {
+        let v = t.map(index);
+        for k in 0..3 {
+            let (a, b) = (v[k], v[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+            let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+            parent[ra] = rb;
+        }
+    }
+    // Per piece: V - E + F, and the boundary loops (edges used once).
+    let mut euler: BTreeMap<usize, i64> = BTreeMap::new();
+    for v in 0..ids.len() {
+        *euler.entry(root(&mut parent, v)).or_default() += 1;
+    }
+    for t in &triangles {
+        *euler.entry(root(&mut parent, index(t[0]))).or_default() += 1;
+    }
+    let mut ring: Vec<usize> = (0..ids.len()).collect();
+    for (&(a, b), &count) in &edges {
+        *euler.entry(root(&mut parent, a)).or_default() -= 1;
+        if count == 1 {
+            let (ra, rb) = (root(&mut ring, a), root(&mut ring, b));
+            ring[ra] = rb;
+        }
+    }
+    let mut loops: BTreeMap<usize, BTreeMap<usize, u64>> = BTreeMap::new();
+    for (&(a, b), &count) in &edges {
+        if count == 1 {
+            for v in [a, b] {
+                let name = loops
+                    .entry(root(&mut parent, v))
+                    .or_default()
+                    .entry(root(&mut ring, v))
+                    .or_insert(u64::MAX);
+                *name = (*name).min(ids[v]);
+            }
+        }
+    }
+    let mut pieces: Vec<(Vec<u64>, i64)> = euler
+        .into_iter()
+        .map(|(piece, chi)| {
+            let mut names: Vec<u64> = loops
+                .get(&piece)
+                .map(|l| l.values().copied().collect())
+                .unwrap_or_default();
+            names.sort_unstable();
+            (names, chi)
+        })
+        .collect();
+    pieces.sort_unstable();
+    pieces
+}
+
+/// The values a sample may take where the exact distance is `v`: `v`
+/// itself, or on the surface (within 1e-6 h) either side of it, just
+/// inside (−1e-9 h) or outside (0; marching cubes counts 0 as outside).
+fn on_surface_values(v: f64, h: f64) -> Vec<f64> {
+    if v.abs() <= 1e-6 * h {
+        vec![-1e-9 * h, 0.0]
+    } else {
+        vec![v]
+    }
+}
+
 /// Whether `node` lies on the grid's outer layer.
 pub(crate) fn on_outer_layer(spec: &GridSpec<3>, node: usize) -> bool {
     let idx = spec.unlinear(node);
@@ -720,4 +969,37 @@ pub(crate) fn on_outer_layer(spec: &GridSpec<3>, node: usize) -> bool {
 fn parity(spec: &GridSpec<3>, node: usize) -> usize {
     let idx = spec.unlinear(node);
     (idx[0] & 1) | (idx[1] & 1) << 1 | (idx[2] & 1) << 2
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec() -> GridSpec<3> {
+        GridSpec {
+            origin: [0.0; 3],
+            spacing: 1.0,
+            dims: [5, 5, 5],
+        }
+    }
+
+    #[test]
+    fn a_dent_keeps_the_topology_and_a_cavity_does_not() {
+        let spec = spec();
+        let centre = spec.linear([2, 2, 2]);
+        // The half-space z < 2.5: one disk (χ = 1) with one loop.
+        let plane = |n: usize| spec.unlinear(n)[2] as f64 - 2.5;
+        let flat = local_topology(&spec, centre, plane);
+        assert_eq!(flat.len(), 1);
+        assert_eq!((flat[0].0.len(), flat[0].1), (1, 1));
+        // The centre sample just below the plane turned outside: a dent
+        // open to the outside above it.
+        let dent = |n: usize| if n == centre { 0.5 } else { plane(n) };
+        assert_eq!(local_topology(&spec, centre, dent), flat);
+        // Inside a solid, the same flip opens a cavity: a new closed piece.
+        let solid = |_: usize| -1.0;
+        let cavity = |n: usize| if n == centre { 1.0 } else { -1.0 };
+        assert!(local_topology(&spec, centre, solid).is_empty());
+        assert_eq!(local_topology(&spec, centre, cavity), vec![(vec![], 2)]);
+    }
 }

@@ -46,6 +46,7 @@ pub fn run(args: &Args, size: GridSize, ctx: &Context) -> anyhow::Result<()> {
             "feature_cells": r.feature_cells,
             "candidates": r.candidates,
             "samples_moved": r.moved,
+            "samples_aligned": r.aligned,
             "smoothed": r.smoothed,
             "energy_before": r.energy_before,
             "energy_after": r.energy_after,
