@@ -33,11 +33,13 @@
 //! Dynamic correction ([`dynamic`]): a [`DynamicSurface`] inserts and
 //! removes points and updates the Gabriel pseudo-surface locally (the same
 //! facets as a run from scratch); [`dynamic::apply_brush`] re-decides the
-//! points under a brush and applies the difference.
+//! points under a brush and applies the difference; [`refine()`] puts
+//! decimated points back where triangles are poorly shaped (ratio α) or
+//! the density jumps (γ), each a local update (`Params::refine_alpha`,
+//! `Params::refine_gamma` in [`reconstruct`]).
 //!
 //! Not done yet (see the paper): decimation on the fly during the
-//! convection, triangle-quality refinement, pockets and thin parts in the
-//! dynamic update.
+//! convection, pockets and thin parts in the dynamic update.
 
 pub mod decimate;
 pub mod dynamic;
@@ -45,10 +47,12 @@ mod error;
 pub mod gabriel;
 pub mod manifold;
 mod reconstruct;
+pub mod refine;
 pub mod surface;
 pub mod thin;
 
 pub use dynamic::{DynamicSurface, UpdateStats};
 pub use error::{ConvectionError, Result};
 pub use reconstruct::{reconstruct, Params, Reconstruction, Report, Timings};
+pub use refine::{refine, Quality, RefineStats};
 pub use surface::OrientedFacet;

@@ -1,8 +1,10 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
 use crate::decimate::{decimate, Brush, Decimation};
+use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
+use crate::refine::{refine, Quality, RefineStats};
 use crate::surface::{Opening, OrientedFacet, PseudoSurface};
 use crate::thin::thicken;
 use serde::Serialize;
@@ -47,6 +49,11 @@ pub struct Params {
     /// manifold clean-up, by ear clipping through their own vertices (0:
     /// leave every hole open).
     pub max_hole_edges: usize,
+    /// Triangle-quality refinement after the decimation ([`crate::refine`]):
+    /// largest circumradius-to-shortest-edge ratio `α` (0: off).
+    pub refine_alpha: f64,
+    /// ... and smallest ratio `γ` of the vertex radii in a triangle (0: off).
+    pub refine_gamma: f64,
 }
 
 impl Default for Params {
@@ -62,6 +69,8 @@ impl Default for Params {
             rho_topo: 0.95,
             brush: None,
             max_hole_edges: 24,
+            refine_alpha: 0.0,
+            refine_gamma: 0.0,
         }
     }
 }
@@ -70,6 +79,9 @@ impl Default for Params {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Timings {
     pub decimation: f64,
+    /// Triangle-quality refinement (its own triangulation and convection
+    /// of the decimated points, then the insertions).
+    pub refine: f64,
     pub delaunay: f64,
     pub normals: f64,
     pub convection: f64,
@@ -82,8 +94,10 @@ pub struct Timings {
 pub struct Report {
     /// Input points.
     pub points: usize,
-    /// Input points removed by the decimation (`rho`).
+    /// Input points removed by the decimation (`rho`), after refinement.
     pub decimated: usize,
+    /// Triangle-quality refinement (`refine_alpha`, `refine_gamma`).
+    pub refine: RefineStats,
     /// Input points that are exact duplicates of an earlier one.
     pub duplicates: usize,
     /// Points used by the output faces.
@@ -162,7 +176,24 @@ pub fn reconstruct(
             ..b
         }),
     };
-    let keep = decimate(points, &unit, &settings);
+    let mut keep = decimate(points, &unit, &settings);
+    let seconds = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
+    let quality = Quality {
+        alpha: params.refine_alpha,
+        gamma: params.refine_gamma,
+    };
+    let mut refined = RefineStats::default();
+    if !quality.is_off() {
+        let start: Vec<DVec3> = (0..points.len())
+            .filter(|&i| keep[i])
+            .map(|i| points[i])
+            .collect();
+        let mut surface = DynamicSurface::new(&start)?;
+        refined = refine(&mut surface, points, &mut keep, &quality)?;
+    }
+    let refine_seconds = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
     let kept: Vec<usize> = (0..points.len()).filter(|&i| keep[i]).collect();
     let sub_points: Vec<DVec3> = kept.iter().map(|&i| points[i]).collect();
     // Estimated normals can vanish on degenerate neighbourhoods.
@@ -173,7 +204,7 @@ pub fn reconstruct(
             _ => DVec3::Z,
         })
         .collect();
-    let seconds = clock.elapsed().as_secs_f64();
+    let seconds = seconds + clock.elapsed().as_secs_f64();
     let mut r = reconstruct_all(&sub_points, Some(&sub_normals), params)?;
     for t in &mut r.mesh.triangles {
         *t = t.map(|v| kept[v as usize] as u32);
@@ -182,6 +213,8 @@ pub fn reconstruct(
     r.report.points = points.len();
     r.report.decimated = points.len() - kept.len();
     r.report.seconds.decimation = seconds;
+    r.report.seconds.refine = refine_seconds;
+    r.report.refine = refined;
     Ok(r)
 }
 
@@ -271,6 +304,21 @@ fn check_params(params: &Params) -> Result<()> {
     }
     if let Some(b) = &params.brush {
         check_brush(b)?;
+    }
+    let alpha = params.refine_alpha;
+    if !(alpha.is_finite() && alpha >= 0.0) {
+        return Err(ConvectionError::BadParameter {
+            name: "refine_alpha",
+            value: alpha,
+            range: "0 (off) or more",
+        });
+    }
+    if !(0.0..=1.0).contains(&params.refine_gamma) {
+        return Err(ConvectionError::BadParameter {
+            name: "refine_gamma",
+            value: params.refine_gamma,
+            range: "0 (off) to 1",
+        });
     }
     let c = params.pocket_cosine;
     if !(0.0..=1.0).contains(&c) {
