@@ -121,66 +121,86 @@ pub fn refine(
     }
     let tree = KdTree::new(points);
     let mut hopeless = HashSet::new();
+    let mut spacing = Vec::new();
     loop {
         stats.rounds += 1;
-        let (planned, unmet) = plan_round(surface, points, kept, quality, &tree, &mut hopeless)?;
+        let round = Round {
+            points,
+            quality,
+            tree: &tree,
+        };
+        let (planned, unmet) = round.plan(surface, kept, &mut hopeless, &mut spacing)?;
         if planned.is_empty() {
             stats.unmet = unmet;
             return Ok(stats);
         }
         for q in planned {
-            surface.insert(points[q])?;
+            let v = surface.insert(points[q])?;
             stats.inserted += 1;
+            closer_neighbours(surface, v, &mut spacing);
         }
     }
 }
 
-/// The points to insert this round (marked kept) and the number of failing
-/// triangles with no candidate.
-fn plan_round(
-    surface: &DynamicSurface,
-    points: &[DVec3],
-    kept: &mut [bool],
-    quality: &Quality,
-    tree: &KdTree,
-    hopeless: &mut HashSet<[VertexId; 3]>,
-) -> Result<(Vec<usize>, usize)> {
-    let tri = surface.triangulation();
-    let mut spacing = vec![f64::NAN; tri.points().len()];
-    let mut served = vec![false; tri.points().len()];
-    let (mut planned, mut unmet) = (Vec::new(), 0);
-    for f in surface.boundary_facets() {
-        let corners = f.map(|v| tri.point(v));
-        let radii = f.map(|v| vertex_spacing(surface, v, &mut spacing));
-        if meets(quality, corners, radii) {
-            continue;
-        }
-        // A triangle with no usable point never gets one: later rounds
-        // only remove points from its ball and bring vertices closer.
-        let mut key = f;
-        key.sort_unstable();
-        if hopeless.contains(&key) {
-            unmet += 1;
-            continue;
-        }
-        if f.iter().any(|v| served[v.index()]) {
-            continue;
-        }
-        match candidate(surface, corners, f[0], points, kept, tree)? {
-            Some(q) => {
-                kept[q] = true;
-                planned.push(q);
-                for v in f {
-                    served[v.index()] = true;
+/// What a round of refinement reads.
+struct Round<'a> {
+    points: &'a [DVec3],
+    quality: &'a Quality,
+    tree: &'a KdTree,
+}
+
+impl Round<'_> {
+    /// The points to insert this round (marked kept) and the number of
+    /// failing triangles with no candidate.
+    fn plan(
+        &self,
+        surface: &DynamicSurface,
+        kept: &mut [bool],
+        hopeless: &mut HashSet<[VertexId; 3]>,
+        spacing: &mut Vec<f64>,
+    ) -> Result<(Vec<usize>, usize)> {
+        let Round {
+            points,
+            quality,
+            tree,
+        } = *self;
+        let tri = surface.triangulation();
+        spacing.resize(tri.points().len(), f64::NAN);
+        let mut served = vec![false; tri.points().len()];
+        let (mut planned, mut unmet) = (Vec::new(), 0);
+        for f in surface.boundary_facets() {
+            let corners = f.map(|v| tri.point(v));
+            let radii = f.map(|v| vertex_spacing(surface, v, spacing));
+            if meets(quality, corners, radii) {
+                continue;
+            }
+            // A triangle with no usable point never gets one: later rounds
+            // only remove points from its ball and bring vertices closer.
+            let mut key = f;
+            key.sort_unstable();
+            if hopeless.contains(&key) {
+                unmet += 1;
+                continue;
+            }
+            if f.iter().any(|v| served[v.index()]) {
+                continue;
+            }
+            match candidate(surface, corners, f[0], points, kept, tree)? {
+                Some(q) => {
+                    kept[q] = true;
+                    planned.push(q);
+                    for v in f {
+                        served[v.index()] = true;
+                    }
+                }
+                None => {
+                    hopeless.insert(key);
+                    unmet += 1;
                 }
             }
-            None => {
-                hopeless.insert(key);
-                unmet += 1;
-            }
         }
+        Ok((planned, unmet))
     }
-    Ok((planned, unmet))
 }
 
 /// Whether a triangle with these corners and vertex radii meets both
@@ -200,7 +220,7 @@ pub fn meets(quality: &Quality, corners: [DVec3; 3], radii: [f64; 3]) -> bool {
 }
 
 /// Distance from `v` to its nearest other vertex (a Delaunay neighbour),
-/// cached in `spacing` for the round.
+/// cached in `spacing` (NaN: not known yet).
 fn vertex_spacing(surface: &DynamicSurface, v: VertexId, spacing: &mut [f64]) -> f64 {
     let cached = spacing[v.index()];
     if !cached.is_nan() {
@@ -217,6 +237,27 @@ fn vertex_spacing(surface: &DynamicSurface, v: VertexId, spacing: &mut [f64]) ->
         .fold(f64::INFINITY, f64::min);
     spacing[v.index()] = nearest;
     nearest
+}
+
+/// After inserting `v`: its neighbours' known spacings can only have
+/// dropped to their distance to `v` (a nearest neighbour is a Delaunay
+/// neighbour, and refinement only inserts), and `v`'s own is computed
+/// when needed.
+fn closer_neighbours(surface: &DynamicSurface, v: VertexId, spacing: &mut Vec<f64>) {
+    let tri = surface.triangulation();
+    spacing.resize(tri.points().len(), f64::NAN);
+    spacing[v.index()] = f64::NAN;
+    let p = tri.point(v);
+    for w in tri
+        .incident_tets(v)
+        .into_iter()
+        .flat_map(|t| tri.tet_vertices(t))
+    {
+        if w != v && !w.is_infinite() && !spacing[w.index()].is_nan() {
+            let d = tri.point(w).distance(p);
+            spacing[w.index()] = spacing[w.index()].min(d);
+        }
+    }
 }
 
 /// The removed point inside the triangle's enclosing ball farthest from
