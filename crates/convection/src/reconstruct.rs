@@ -157,6 +157,15 @@ pub fn reconstruct(
         check_normals(points, n)?;
     }
     let decimates = params.rho > 0.0 || params.brush.is_some_and(|b| b.rho_centre > 0.0);
+    if !decimates && (params.refine_alpha > 0.0 || params.refine_gamma > 0.0) {
+        // Refinement only puts decimated points back: without decimation
+        // it would silently do nothing.
+        return Err(ConvectionError::BadParameter {
+            name: "refine_alpha/refine_gamma without rho",
+            value: params.refine_alpha.max(params.refine_gamma),
+            range: "refinement needs decimation: rho above 0",
+        });
+    }
     if !decimates || points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
         // Bad points get their error from the triangulation.
         return reconstruct_all(points, normals, params);

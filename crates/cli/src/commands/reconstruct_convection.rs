@@ -27,7 +27,7 @@ pub struct ConvectionArgs {
     /// ρ + (ρ_c − ρ)/R²·(R² − d²). RHO_C below --rho keeps more detail there.
     #[arg(long, value_name = "X,Y,Z,R,RHO_C", value_parser = parse_brush, allow_hyphen_values = true)]
     pub brush: Option<Box<Brush>>,
-    /// Triangle-quality refinement after the decimation (needs --rho):
+    /// Triangle-quality refinement after the decimation (an error without --rho):
     /// removed points are put back where a surface triangle's
     /// circumradius-to-shortest-edge ratio reaches A (the paper's α; an
     /// equilateral triangle has 0.577; 0: off).
