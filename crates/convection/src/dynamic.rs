@@ -456,6 +456,24 @@ mod tests {
         (points, normals)
     }
 
+    /// The paper's decimation criteria with ball radius `radius`.
+    fn decimation(radius: f64) -> Decimation {
+        Decimation {
+            radius,
+            geometric: 0.9,
+            topological: 0.95,
+            brush: None,
+        }
+    }
+
+    /// The points `keep` marks.
+    fn selected(points: &[DVec3], keep: &[bool]) -> Vec<DVec3> {
+        (0..points.len())
+            .filter(|&i| keep[i])
+            .map(|i| points[i])
+            .collect()
+    }
+
     /// A refining brush inserts points only within its reach, and the
     /// updated surface is the one a run from scratch on the new kept points
     /// gives; a coarsening brush removes points there.
@@ -463,19 +481,9 @@ mod tests {
     fn brush_updates_locally_and_matches_a_run_from_scratch() {
         use crate::decimate::{decimate, Brush};
         let (points, normals) = sphere_with_normals(3000, 3);
-        let mut settings = Decimation {
-            radius: 0.12,
-            geometric: 0.9,
-            topological: 0.95,
-            brush: None,
-        };
+        let mut settings = decimation(0.12);
         let mut keep = decimate(&points, &normals, &settings);
-        let kept = |keep: &[bool]| -> Vec<DVec3> {
-            (0..points.len())
-                .filter(|&i| keep[i])
-                .map(|i| points[i])
-                .collect()
-        };
+        let kept = |keep: &[bool]| selected(&points, keep);
         let mut surface = DynamicSurface::new(&kept(&keep)).unwrap();
         let centre = DVec3::new(0.0, 0.0, 1.0);
         let inside = |i: usize| points[i].distance(centre) < 0.5;
@@ -516,19 +524,9 @@ mod tests {
         use crate::decimate::decimate;
         use crate::refine::{refine, Quality, SHORTEST_EDGE_SHARE};
         let (points, normals) = sphere_with_normals(4000, 5);
-        let settings = Decimation {
-            radius: 0.2,
-            geometric: 0.9,
-            topological: 0.95,
-            brush: None,
-        };
+        let settings = decimation(0.2);
         let mut keep = decimate(&points, &normals, &settings);
-        let kept = |keep: &[bool]| -> Vec<DVec3> {
-            (0..points.len())
-                .filter(|&i| keep[i])
-                .map(|i| points[i])
-                .collect()
-        };
+        let kept = |keep: &[bool]| selected(&points, keep);
         let quality = Quality {
             alpha: 0.9,
             gamma: 0.5,
