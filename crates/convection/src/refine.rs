@@ -38,7 +38,7 @@
 //! one point of a finite set, so refinement ends.
 
 use crate::dynamic::DynamicSurface;
-use crate::error::Result;
+use crate::error::{ConvectionError, Result};
 use serde::Serialize;
 use std::collections::HashSet;
 use surfrecon_delaunay::VertexId;
@@ -107,14 +107,22 @@ pub fn radius_edge_ratio(corners: [DVec3; 3]) -> f64 {
 }
 
 /// Put removed points back into `surface` until its triangles meet
-/// `quality` or hold no removed point in their enclosing balls.
+/// `quality` or hold no usable removed point in their enclosing balls.
 /// `kept[i]` says whether `points[i]` is in the surface; it is updated.
+/// Errors when `kept` and `points` differ in length.
 pub fn refine(
     surface: &mut DynamicSurface,
     points: &[DVec3],
     kept: &mut [bool],
     quality: &Quality,
 ) -> Result<RefineStats> {
+    if kept.len() != points.len() {
+        return Err(ConvectionError::BadParameter {
+            name: "kept flags",
+            value: kept.len() as f64,
+            range: "one per point",
+        });
+    }
     let mut stats = RefineStats::default();
     if quality.is_off() || kept.iter().all(|&k| k) {
         return Ok(stats);
