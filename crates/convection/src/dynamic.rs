@@ -85,6 +85,12 @@ impl DynamicSurface {
         &self.tri
     }
 
+    /// Whether each tetrahedron slot is swept by the surface (every ghost
+    /// is), by [`TetId::index`].
+    pub fn swept(&self) -> &[bool] {
+        &self.external
+    }
+
     /// What the last [`DynamicSurface::insert`] or [`DynamicSurface::remove`] did.
     pub fn last_update(&self) -> UpdateStats {
         self.last
@@ -547,7 +553,9 @@ mod tests {
         };
         let mut surface = DynamicSurface::new(&kept(&keep)).unwrap();
         let (before, kept_before) = (worst(&surface), kept(&keep).len());
-        let stats = refine(&mut surface, &points, &mut keep, &quality).unwrap();
+        let (stats, placed) = refine(&mut surface, &points, &mut keep, &quality).unwrap();
+        let tri = surface.triangulation();
+        assert!(placed.iter().all(|&(v, q)| tri.point(v) == points[q]));
         let after = worst(&surface);
         let final_points = kept(&keep);
         eprintln!(

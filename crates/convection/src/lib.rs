@@ -38,8 +38,13 @@
 //! the density jumps (γ), each a local update (`Params::refine_alpha`,
 //! `Params::refine_gamma` in [`reconstruct`]).
 //!
+//! With refinement, [`reconstruct`] makes the mesh on the updated
+//! triangulation: pockets, thin parts and the output stage run globally on
+//! its converged Gabriel surface.
+//!
 //! Not done yet (see the paper): decimation on the fly during the
-//! convection, pockets and thin parts in the dynamic update.
+//! convection, pockets and thin parts updated locally by the dynamic
+//! update itself.
 
 pub mod decimate;
 pub mod dynamic;

@@ -109,13 +109,14 @@ pub fn radius_edge_ratio(corners: [DVec3; 3]) -> f64 {
 /// Put removed points back into `surface` until its triangles meet
 /// `quality` or hold no usable removed point in their enclosing balls.
 /// `kept[i]` says whether `points[i]` is in the surface; it is updated.
-/// Errors when `kept` and `points` differ in length.
+/// Returns what was done and each inserted point's (vertex, index in
+/// `points`). Errors when `kept` and `points` differ in length.
 pub fn refine(
     surface: &mut DynamicSurface,
     points: &[DVec3],
     kept: &mut [bool],
     quality: &Quality,
-) -> Result<RefineStats> {
+) -> Result<(RefineStats, Vec<(VertexId, usize)>)> {
     if kept.len() != points.len() {
         return Err(ConvectionError::BadParameter {
             name: "kept flags",
@@ -124,8 +125,9 @@ pub fn refine(
         });
     }
     let mut stats = RefineStats::default();
+    let mut placed = Vec::new();
     if quality.is_off() || kept.iter().all(|&k| k) {
-        return Ok(stats);
+        return Ok((stats, placed));
     }
     let tree = KdTree::new(points);
     let mut hopeless = HashSet::new();
@@ -140,10 +142,11 @@ pub fn refine(
         let (planned, unmet) = round.plan(surface, kept, &mut hopeless, &mut spacing)?;
         if planned.is_empty() {
             stats.unmet = unmet;
-            return Ok(stats);
+            return Ok((stats, placed));
         }
         for q in planned {
             let v = surface.insert(points[q])?;
+            placed.push((v, q));
             stats.inserted += 1;
             closer_neighbours(surface, v, &mut spacing);
         }
