@@ -288,21 +288,33 @@ pub fn candidate(
     let (centre, radius) = enclosing_ball(corners);
     let [a, b, c] = corners;
     let shortest = a.distance(b).min(b.distance(c)).min(c.distance(a));
-    let tri = surface.triangulation();
-    let mut best: Option<(f64, usize)> = None;
-    // Query a hair wider, then decide membership by one strict test.
-    for i in tree
+    let guard = SHORTEST_EDGE_SHARE * shortest;
+    // The distance to the triangle's corners bounds the distance to the
+    // vertices from above: look at the largest bounds first and stop once
+    // no bound can beat the best exact distance (same choice as testing
+    // every point, far fewer walks).
+    let mut inside: Vec<(f64, usize)> = tree
         .within(centre, radius * (1.0 + 1e-9))
         .into_iter()
         .map(|n| n.index)
-    {
-        if kept[i] || !in_ball(points[i], centre, radius) {
-            continue;
+        .filter(|&i| !kept[i] && in_ball(points[i], centre, radius))
+        .map(|i| {
+            let q = points[i];
+            (q.distance(a).min(q.distance(b)).min(q.distance(c)), i)
+        })
+        .filter(|&(bound, _)| bound >= guard)
+        .collect();
+    inside.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+    let tri = surface.triangulation();
+    let mut best: Option<(f64, usize)> = None;
+    for (bound, i) in inside {
+        if best.is_some_and(|(d, _)| bound < d) {
+            break;
         }
         let nearest = tri.nearest_vertex_from(points[i], start)?;
         let d = tri.point(nearest).distance(points[i]);
         let better = best.is_none_or(|(e, j)| d > e || (d == e && i < j));
-        if d >= SHORTEST_EDGE_SHARE * shortest && better {
+        if d >= guard && better {
             best = Some((d, i));
         }
     }
