@@ -38,9 +38,11 @@
 //! the density jumps (γ), each a local update (`Params::refine_alpha`,
 //! `Params::refine_gamma` in [`reconstruct`]).
 //!
-//! With refinement, [`reconstruct`] makes the mesh on the updated
-//! triangulation: pockets, thin parts and the output stage run globally on
-//! its converged Gabriel surface.
+//! [`DynamicSurface::reconstruction`] makes the mesh after edits (pockets,
+//! thin parts and the output stage re-run globally on the kept-up-to-date
+//! Gabriel surface, the same mesh as [`reconstruct`] from scratch); with
+//! refinement, [`reconstruct`] makes its mesh that way on the refined
+//! triangulation.
 //!
 //! Not done yet (see the paper): decimation on the fly during the
 //! convection, pockets and thin parts updated locally by the dynamic

@@ -299,6 +299,35 @@ impl Refined {
     }
 }
 
+impl DynamicSurface {
+    /// The mesh [`reconstruct`] makes from scratch on the surface's current
+    /// vertices (no decimation): pockets, thin parts and the manifold
+    /// output re-run, globally, on the converged Gabriel surface kept up to
+    /// date by the edits. Mesh vertices are the surface's vertices in id
+    /// order ([`Triangulation::vertices`]); normals are estimated.
+    pub fn reconstruction(&self, params: &Params) -> Result<Reconstruction> {
+        check_params(params)?;
+        let tri = self.triangulation();
+        let mut site_of_vertex = vec![None; tri.points().len()];
+        let mut sites = Vec::with_capacity(tri.num_vertices());
+        for v in tri.vertices() {
+            site_of_vertex[v.index()] = Some(sites.len());
+            sites.push(tri.point(v));
+        }
+        let mut report = Report {
+            points: sites.len(),
+            ..Default::default()
+        };
+        let surface = PseudoSurface::from_swept(tri, self.swept().to_vec());
+        let site = Sites {
+            points: &sites,
+            of_vertex: &|v| site_of_vertex.get(v.index()).copied().flatten(),
+        };
+        let mesh = finish(tri, surface, &site, None, params, &mut report)?;
+        Ok(Reconstruction { mesh, report })
+    }
+}
+
 fn bounding_diagonal(points: &[DVec3]) -> f64 {
     let lo = points.iter().fold(DVec3::splat(f64::MAX), |a, &p| a.min(p));
     let hi = points.iter().fold(DVec3::splat(f64::MIN), |a, &p| a.max(p));
@@ -782,5 +811,30 @@ mod tests {
             )
         };
         assert_eq!(counts(&dynamic.report), counts(&scratch.report));
+    }
+
+    /// After insertions and removals, the dynamic surface's mesh (pockets,
+    /// thin parts and output re-run on it) is the one `reconstruct` makes
+    /// from scratch on the same points.
+    #[test]
+    fn dynamic_reconstruction_after_edits_equals_a_run_from_scratch() {
+        let all = sample_surface(&torus(1.0, 0.35, 160, 64), 5000, 10).positions;
+        let (start, extra) = all.split_at(4000);
+        let mut surface = DynamicSurface::new(start).unwrap();
+        for &p in extra {
+            surface.insert(p).unwrap();
+        }
+        for &p in start.iter().step_by(7) {
+            surface.remove_point(p).unwrap();
+        }
+        let params = Params::default();
+        let dynamic = surface.reconstruction(&params).unwrap();
+        let tri = surface.triangulation();
+        let sites: Vec<DVec3> = tri.vertices().map(|v| tri.point(v)).collect();
+        assert_eq!(sites.len(), 5000 - 4000usize.div_ceil(7));
+        let scratch = reconstruct(&sites, None, &params).unwrap();
+        assert!(scratch.mesh.triangles.len() > 5000);
+        assert_eq!(face_set(&dynamic.mesh), face_set(&scratch.mesh));
+        assert_eq!(dynamic.report.boundary_edges, 0);
     }
 }
