@@ -85,6 +85,12 @@ impl DynamicSurface {
         &self.tri
     }
 
+    /// Whether each tetrahedron slot is swept by the surface (every ghost
+    /// is), by [`TetId::index`].
+    pub fn swept(&self) -> &[bool] {
+        &self.external
+    }
+
     /// What the last [`DynamicSurface::insert`] or [`DynamicSurface::remove`] did.
     pub fn last_update(&self) -> UpdateStats {
         self.last
@@ -151,6 +157,25 @@ impl DynamicSurface {
             let (t, slot) = self.tri.mirror(g, 3);
             if self.external[t.index()] && !self.violates(t, slot) {
                 out.push(self.tri.facet(g, 3));
+            }
+        }
+        out
+    }
+
+    /// The surface triangles without the coupled sheets: facets between a
+    /// swept and an unswept tetrahedron, ordered so that `(b − a) × (c − a)`
+    /// points inside.
+    pub fn boundary_facets(&self) -> Vec<[VertexId; 3]> {
+        let mut out = Vec::new();
+        for t in self.tri.finite_tets() {
+            if self.external[t.index()] {
+                continue;
+            }
+            for slot in 0..4 {
+                let (u, _) = self.tri.mirror(t, slot);
+                if self.external[u.index()] {
+                    out.push(self.tri.facet(t, slot));
+                }
             }
         }
         out
@@ -437,6 +462,24 @@ mod tests {
         (points, normals)
     }
 
+    /// The paper's decimation criteria with ball radius `radius`.
+    fn decimation(radius: f64) -> Decimation {
+        Decimation {
+            radius,
+            geometric: 0.9,
+            topological: 0.95,
+            brush: None,
+        }
+    }
+
+    /// The points `keep` marks.
+    fn selected(points: &[DVec3], keep: &[bool]) -> Vec<DVec3> {
+        (0..points.len())
+            .filter(|&i| keep[i])
+            .map(|i| points[i])
+            .collect()
+    }
+
     /// A refining brush inserts points only within its reach, and the
     /// updated surface is the one a run from scratch on the new kept points
     /// gives; a coarsening brush removes points there.
@@ -444,19 +487,9 @@ mod tests {
     fn brush_updates_locally_and_matches_a_run_from_scratch() {
         use crate::decimate::{decimate, Brush};
         let (points, normals) = sphere_with_normals(3000, 3);
-        let mut settings = Decimation {
-            radius: 0.12,
-            geometric: 0.9,
-            topological: 0.95,
-            brush: None,
-        };
+        let mut settings = decimation(0.12);
         let mut keep = decimate(&points, &normals, &settings);
-        let kept = |keep: &[bool]| -> Vec<DVec3> {
-            (0..points.len())
-                .filter(|&i| keep[i])
-                .map(|i| points[i])
-                .collect()
-        };
+        let kept = |keep: &[bool]| selected(&points, keep);
         let mut surface = DynamicSurface::new(&kept(&keep)).unwrap();
         let centre = DVec3::new(0.0, 0.0, 1.0);
         let inside = |i: usize| points[i].distance(centre) < 0.5;
@@ -485,5 +518,114 @@ mod tests {
                 keyed(surface.triangulation(), &surface.facets())
             );
         }
+    }
+    /// Triangle-quality refinement of a decimated sphere: afterwards every
+    /// surface triangle meets α and γ or has no removed point in its
+    /// enclosing ball far enough from the kept points to be inserted
+    /// (checked by brute force), fewer triangles fail α, and
+    /// the updated surface is the one a run from scratch on the final
+    /// points gives.
+    #[test]
+    fn quality_refinement_meets_the_bound_and_matches_a_run_from_scratch() {
+        use crate::decimate::decimate;
+        use crate::refine::{refine, Quality, SHORTEST_EDGE_SHARE};
+        let (points, normals) = sphere_with_normals(4000, 5);
+        let settings = decimation(0.2);
+        let mut keep = decimate(&points, &normals, &settings);
+        let kept = |keep: &[bool]| selected(&points, keep);
+        let quality = Quality {
+            alpha: 0.9,
+            gamma: 0.5,
+        };
+        // Brute force: the ratio, the nearest other kept point, the ball.
+        let ratio = |[a, b, c]: [DVec3; 3]| {
+            let (la, lb, lc) = (b.distance(c), c.distance(a), a.distance(b));
+            let area2 = (b - a).cross(c - a).length();
+            // R = abc / (4 · area).
+            la * lb * lc / (2.0 * area2) / la.min(lb).min(lc)
+        };
+        let worst = |s: &DynamicSurface| {
+            let tri = s.triangulation();
+            s.boundary_facets()
+                .iter()
+                .map(|f| ratio(f.map(|v| tri.point(v))))
+                .fold(0.0, f64::max)
+        };
+        let mut surface = DynamicSurface::new(&kept(&keep)).unwrap();
+        let (before, kept_before) = (worst(&surface), kept(&keep).len());
+        let (stats, placed) = refine(&mut surface, &points, &mut keep, &quality).unwrap();
+        let tri = surface.triangulation();
+        assert!(placed.iter().all(|&(v, q)| tri.point(v) == points[q]));
+        let after = worst(&surface);
+        let final_points = kept(&keep);
+        eprintln!(
+            "{stats:?}: {kept_before} -> {} points, worst ratio {before:.2} -> {after:.2}",
+            final_points.len()
+        );
+        assert!(stats.inserted > 0 && final_points.len() == kept_before + stats.inserted);
+        let spacing = |p: DVec3| {
+            final_points
+                .iter()
+                .map(|q| q.distance(p))
+                .filter(|&d| d > 0.0)
+                .fold(f64::INFINITY, f64::min)
+        };
+        let tri = surface.triangulation();
+        let mut unmet = 0;
+        for f in surface.boundary_facets() {
+            let corners = f.map(|v| tri.point(v));
+            let radii = corners.map(spacing);
+            let lo = radii.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = radii.iter().copied().fold(0.0, f64::max);
+            if ratio(corners) < quality.alpha && lo >= quality.gamma * hi {
+                continue;
+            }
+            unmet += 1;
+            let (centre, radius) = crate::refine::enclosing_ball(corners);
+            assert!(corners
+                .iter()
+                .all(|c| c.distance(centre) <= radius * (1.0 + 1e-9)));
+            let [a, b, c] = corners;
+            let shortest = a.distance(b).min(b.distance(c)).min(c.distance(a));
+            let nearest_kept = |p: DVec3| {
+                final_points
+                    .iter()
+                    .map(|q| q.distance(p))
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let usable = (0..points.len())
+                .filter(|&i| !keep[i] && points[i].distance(centre) < radius)
+                .filter(|&i| nearest_kept(points[i]) >= SHORTEST_EDGE_SHARE * shortest)
+                .count();
+            assert_eq!(usable, 0, "a failing triangle has usable points left");
+        }
+        assert_eq!(unmet, stats.unmet);
+        let bad_share = |s: &DynamicSurface| {
+            let tri = s.triangulation();
+            let f = s.boundary_facets();
+            let bad = f
+                .iter()
+                .filter(|f| ratio(f.map(|v| tri.point(v))) >= quality.alpha)
+                .count();
+            bad as f64 / f.len() as f64
+        };
+        let unrefined =
+            DynamicSurface::new(&kept(&decimate(&points, &normals, &settings))).unwrap();
+        eprintln!(
+            "failing α: {} before, {} after",
+            bad_share(&unrefined),
+            bad_share(&surface)
+        );
+        assert!(
+            bad_share(&surface) < 0.5 * bad_share(&unrefined),
+            "{} vs {}",
+            bad_share(&surface),
+            bad_share(&unrefined)
+        );
+        let scratch = DynamicSurface::new(&final_points).unwrap();
+        assert_eq!(
+            keyed(scratch.triangulation(), &scratch.facets()),
+            keyed(surface.triangulation(), &surface.facets())
+        );
     }
 }

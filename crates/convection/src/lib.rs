@@ -33,11 +33,20 @@
 //! Dynamic correction ([`dynamic`]): a [`DynamicSurface`] inserts and
 //! removes points and updates the Gabriel pseudo-surface locally (the same
 //! facets as a run from scratch); [`dynamic::apply_brush`] re-decides the
-//! points under a brush and applies the difference.
+//! points under a brush and applies the difference; [`refine()`] puts
+//! decimated points back where triangles are poorly shaped (ratio α) or
+//! the density jumps (γ), each a local update (`Params::refine_alpha`,
+//! `Params::refine_gamma` in [`reconstruct`]).
+//!
+//! [`DynamicSurface::reconstruction`] makes the mesh after edits (pockets,
+//! thin parts and the output stage re-run globally on the kept-up-to-date
+//! Gabriel surface, the same mesh as [`reconstruct`] from scratch); with
+//! refinement, [`reconstruct`] makes its mesh that way on the refined
+//! triangulation.
 //!
 //! Not done yet (see the paper): decimation on the fly during the
-//! convection, triangle-quality refinement, pockets and thin parts in the
-//! dynamic update.
+//! convection, pockets and thin parts updated locally by the dynamic
+//! update itself.
 
 pub mod decimate;
 pub mod dynamic;
@@ -45,10 +54,12 @@ mod error;
 pub mod gabriel;
 pub mod manifold;
 mod reconstruct;
+pub mod refine;
 pub mod surface;
 pub mod thin;
 
 pub use dynamic::{DynamicSurface, UpdateStats};
 pub use error::{ConvectionError, Result};
 pub use reconstruct::{reconstruct, Params, Reconstruction, Report, Timings};
+pub use refine::{refine, Quality, RefineStats};
 pub use surface::OrientedFacet;

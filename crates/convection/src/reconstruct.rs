@@ -1,14 +1,16 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
 use crate::decimate::{decimate, Brush, Decimation};
+use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
+use crate::refine::{refine, Quality, RefineStats};
 use crate::surface::{Opening, OrientedFacet, PseudoSurface};
 use crate::thin::thicken;
 use serde::Serialize;
 use std::collections::HashMap;
 use std::time::Instant;
-use surfrecon_delaunay::Triangulation;
+use surfrecon_delaunay::{Triangulation, VertexId};
 use surfrecon_geom::normals::estimate_normals;
 use surfrecon_geom::{DVec3, TriMesh};
 
@@ -47,6 +49,11 @@ pub struct Params {
     /// manifold clean-up, by ear clipping through their own vertices (0:
     /// leave every hole open).
     pub max_hole_edges: usize,
+    /// Triangle-quality refinement after the decimation ([`crate::refine`]):
+    /// largest circumradius-to-shortest-edge ratio `α` (0: off).
+    pub refine_alpha: f64,
+    /// ... and smallest ratio `γ` of the vertex radii in a triangle (0: off).
+    pub refine_gamma: f64,
 }
 
 impl Default for Params {
@@ -62,6 +69,8 @@ impl Default for Params {
             rho_topo: 0.95,
             brush: None,
             max_hole_edges: 24,
+            refine_alpha: 0.0,
+            refine_gamma: 0.0,
         }
     }
 }
@@ -70,6 +79,9 @@ impl Default for Params {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Timings {
     pub decimation: f64,
+    /// Triangle-quality refinement (its own triangulation and convection
+    /// of the decimated points, then the insertions).
+    pub refine: f64,
     pub delaunay: f64,
     pub normals: f64,
     pub convection: f64,
@@ -82,8 +94,10 @@ pub struct Timings {
 pub struct Report {
     /// Input points.
     pub points: usize,
-    /// Input points removed by the decimation (`rho`).
+    /// Input points removed by the decimation (`rho`), after refinement.
     pub decimated: usize,
+    /// Triangle-quality refinement (`refine_alpha`, `refine_gamma`).
+    pub refine: RefineStats,
     /// Input points that are exact duplicates of an earlier one.
     pub duplicates: usize,
     /// Points used by the output faces.
@@ -143,6 +157,15 @@ pub fn reconstruct(
         check_normals(points, n)?;
     }
     let decimates = params.rho > 0.0 || params.brush.is_some_and(|b| b.rho_centre > 0.0);
+    if !decimates && (params.refine_alpha > 0.0 || params.refine_gamma > 0.0) {
+        // Refinement only puts decimated points back: without decimation
+        // it would silently do nothing.
+        return Err(ConvectionError::BadParameter {
+            name: "refine_alpha/refine_gamma without rho",
+            value: params.refine_alpha.max(params.refine_gamma),
+            range: "refinement needs decimation: rho above 0",
+        });
+    }
     if !decimates || points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
         // Bad points get their error from the triangulation.
         return reconstruct_all(points, normals, params);
@@ -162,7 +185,17 @@ pub fn reconstruct(
             ..b
         }),
     };
-    let keep = decimate(points, &unit, &settings);
+    let mut keep = decimate(points, &unit, &settings);
+    let seconds = clock.elapsed().as_secs_f64();
+    let quality = Quality {
+        alpha: params.refine_alpha,
+        gamma: params.refine_gamma,
+    };
+    let refined = match quality.is_off() {
+        true => None,
+        false => Some(Refined::run(points, &mut keep, &quality)?),
+    };
+    let clock = Instant::now();
     let kept: Vec<usize> = (0..points.len()).filter(|&i| keep[i]).collect();
     let sub_points: Vec<DVec3> = kept.iter().map(|&i| points[i]).collect();
     // Estimated normals can vanish on degenerate neighbourhoods.
@@ -173,8 +206,18 @@ pub fn reconstruct(
             _ => DVec3::Z,
         })
         .collect();
-    let seconds = clock.elapsed().as_secs_f64();
-    let mut r = reconstruct_all(&sub_points, Some(&sub_normals), params)?;
+    let seconds = seconds + clock.elapsed().as_secs_f64();
+    let (mut r, refine_seconds, refine_stats) = match refined {
+        None => (
+            reconstruct_all(&sub_points, Some(&sub_normals), params)?,
+            0.0,
+            RefineStats::default(),
+        ),
+        Some(refined) => {
+            let r = refined.finish(points.len(), &kept, &sub_points, &sub_normals, params)?;
+            (r, refined.seconds, refined.stats)
+        }
+    };
     for t in &mut r.mesh.triangles {
         *t = t.map(|v| kept[v as usize] as u32);
     }
@@ -182,7 +225,107 @@ pub fn reconstruct(
     r.report.points = points.len();
     r.report.decimated = points.len() - kept.len();
     r.report.seconds.decimation = seconds;
+    r.report.seconds.refine = refine_seconds;
+    r.report.refine = refine_stats;
     Ok(r)
+}
+
+/// A decimated set refined on a [`DynamicSurface`]: the final mesh is
+/// built on its triangulation and converged Gabriel surface (pockets, thin
+/// parts and the output run on them as from scratch), not triangulated
+/// again.
+struct Refined {
+    surface: DynamicSurface,
+    /// Input index of each point the surface started with.
+    start: Vec<usize>,
+    /// Vertices inserted by the refinement and their input indices.
+    placed: Vec<(VertexId, usize)>,
+    stats: RefineStats,
+    seconds: f64,
+}
+
+impl Refined {
+    fn run(points: &[DVec3], keep: &mut [bool], quality: &Quality) -> Result<Refined> {
+        let clock = Instant::now();
+        let start: Vec<usize> = (0..points.len()).filter(|&i| keep[i]).collect();
+        let start_points: Vec<DVec3> = start.iter().map(|&i| points[i]).collect();
+        let mut surface = DynamicSurface::new(&start_points)?;
+        let (stats, placed) = refine(&mut surface, points, keep, quality)?;
+        Ok(Refined {
+            surface,
+            start,
+            placed,
+            stats,
+            seconds: clock.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The reconstruction through `sites`, the kept points (indices `kept`
+    /// among the `inputs` input points) with their `normals`.
+    fn finish(
+        &self,
+        inputs: usize,
+        kept: &[usize],
+        sites: &[DVec3],
+        normals: &[DVec3],
+        params: &Params,
+    ) -> Result<Reconstruction> {
+        let tri = self.surface.triangulation();
+        let mut site_of_input = vec![None; inputs];
+        for (j, &i) in kept.iter().enumerate() {
+            site_of_input[i] = Some(j);
+        }
+        let mut site_of_vertex = vec![None; tri.points().len()];
+        for v in tri.vertices() {
+            if let Some(j) = tri.input_of_vertex(v) {
+                site_of_vertex[v.index()] = site_of_input[self.start[j]];
+            }
+        }
+        for &(v, q) in &self.placed {
+            site_of_vertex[v.index()] = site_of_input[q];
+        }
+        let mut report = Report {
+            points: sites.len(),
+            duplicates: tri.merged_duplicates(),
+            ..Default::default()
+        };
+        let surface = PseudoSurface::from_swept(tri, self.surface.swept().to_vec());
+        let site = Sites {
+            points: sites,
+            of_vertex: &|v| site_of_vertex.get(v.index()).copied().flatten(),
+        };
+        let mesh = finish(tri, surface, &site, Some(normals), params, &mut report)?;
+        Ok(Reconstruction { mesh, report })
+    }
+}
+
+impl DynamicSurface {
+    /// The mesh [`reconstruct`] makes from scratch on the surface's current
+    /// vertices (no decimation): pockets, thin parts and the manifold
+    /// output re-run, globally, on the converged Gabriel surface kept up to
+    /// date by the edits. Mesh vertices are the surface's vertices in id
+    /// order ([`Triangulation::vertices`]); normals are estimated.
+    pub fn reconstruction(&self, params: &Params) -> Result<Reconstruction> {
+        check_params(params)?;
+        let tri = self.triangulation();
+        let mut site_of_vertex = vec![None; tri.points().len()];
+        let mut sites = Vec::with_capacity(tri.num_vertices());
+        for v in tri.vertices() {
+            site_of_vertex[v.index()] = Some(sites.len());
+            sites.push(tri.point(v));
+        }
+        let mut report = Report {
+            points: sites.len(),
+            ..Default::default()
+        };
+        let surface = PseudoSurface::from_swept(tri, self.swept().to_vec());
+        let site = Sites {
+            points: &sites,
+            of_vertex: &|v| site_of_vertex.get(v.index()).copied().flatten(),
+        };
+        let mesh = finish(tri, surface, &site, None, params, &mut report)?;
+        Ok(Reconstruction { mesh, report })
+    }
 }
 
 fn bounding_diagonal(points: &[DVec3]) -> f64 {
@@ -210,19 +353,43 @@ fn reconstruct_all(
     let clock = Instant::now();
     surface.convect(|s, f| s.violates_gabriel(f).then_some(Opening::Gabriel));
     report.seconds.convection = clock.elapsed().as_secs_f64();
+    let site = Sites {
+        points,
+        of_vertex: &|v| tri.input_of_vertex(v),
+    };
+    let mesh = finish(&tri, surface, &site, normals, params, &mut report)?;
+    Ok(Reconstruction { mesh, report })
+}
 
+/// The triangulated points and the point of each vertex (`None` for none).
+struct Sites<'a> {
+    points: &'a [DVec3],
+    of_vertex: &'a dyn Fn(VertexId) -> Option<usize>,
+}
+
+/// Pockets, thin parts and the manifold mesh over a converged Gabriel
+/// surface; the mesh's vertices are `site.points`.
+fn finish(
+    tri: &Triangulation,
+    mut surface: PseudoSurface,
+    site: &Sites,
+    normals: Option<&[DVec3]>,
+    params: &Params,
+    report: &mut Report,
+) -> Result<TriMesh> {
+    let points = site.points;
     let thin_parts = params.thin_size > 0.0;
     let (mut unit_normals, mut spacing) = (Vec::new(), Vec::new());
     if params.pockets {
         let clock = Instant::now();
-        unit_normals = vertex_normals(&tri, points, normals, params.normal_k)?;
+        unit_normals = vertex_normals(tri, site, normals, params.normal_k)?;
         report.seconds.normals = clock.elapsed().as_secs_f64();
     } else if let Some(n) = normals {
         check_normals(points, n)?;
     }
     if params.pockets || thin_parts {
         let clock = Instant::now();
-        spacing = vertex_spacing(&tri, points);
+        spacing = vertex_spacing(tri, site);
         report.seconds.pockets = clock.elapsed().as_secs_f64();
     }
     if params.pockets {
@@ -238,15 +405,15 @@ fn reconstruct_all(
     let clock = Instant::now();
     let solid = match thin_parts {
         true => {
-            let thick = thicken(&surface, &tri, &spacing, params.thin_size);
+            let thick = thicken(&surface, tri, &spacing, params.thin_size);
             report.thin_sheet_kept = thick.sheet_kept;
             thick.restored
         }
         false => Vec::new(),
     };
-    let mesh = extract_mesh(&surface, &tri, &solid, points, params, &mut report);
+    let mesh = extract_mesh(&surface, tri, &solid, site, params, report);
     report.seconds.output = clock.elapsed().as_secs_f64();
-    Ok(Reconstruction { mesh, report })
+    Ok(mesh)
 }
 
 fn check_params(params: &Params) -> Result<()> {
@@ -271,6 +438,21 @@ fn check_params(params: &Params) -> Result<()> {
     }
     if let Some(b) = &params.brush {
         check_brush(b)?;
+    }
+    let alpha = params.refine_alpha;
+    if !(alpha.is_finite() && alpha >= 0.0) {
+        return Err(ConvectionError::BadParameter {
+            name: "refine_alpha",
+            value: alpha,
+            range: "0 (off) or more",
+        });
+    }
+    if !(0.0..=1.0).contains(&params.refine_gamma) {
+        return Err(ConvectionError::BadParameter {
+            name: "refine_gamma",
+            value: params.refine_gamma,
+            range: "0 (off) to 1",
+        });
     }
     let c = params.pocket_cosine;
     if !(0.0..=1.0).contains(&c) {
@@ -331,10 +513,11 @@ fn check_normals(points: &[DVec3], normals: &[DVec3]) -> Result<()> {
 /// Unit normal of every vertex id (given or estimated on the input).
 fn vertex_normals(
     tri: &Triangulation,
-    points: &[DVec3],
+    site: &Sites,
     normals: Option<&[DVec3]>,
     k: usize,
 ) -> Result<Vec<DVec3>> {
+    let points = site.points;
     let by_input = match normals {
         Some(n) => {
             check_normals(points, n)?;
@@ -343,10 +526,7 @@ fn vertex_normals(
         None => estimate_normals(points, k),
     };
     Ok((0..tri.points().len())
-        .map(|v| {
-            tri.input_of_vertex(surfrecon_delaunay::VertexId(v as u32))
-                .map_or(DVec3::ZERO, |i| by_input[i])
-        })
+        .map(|v| (site.of_vertex)(VertexId(v as u32)).map_or(DVec3::ZERO, |i| by_input[i]))
         .collect())
 }
 
@@ -397,24 +577,25 @@ fn extract_mesh(
     surface: &PseudoSurface,
     tri: &Triangulation,
     restored: &[bool],
-    points: &[DVec3],
+    site: &Sites,
     params: &Params,
     report: &mut Report,
 ) -> TriMesh {
+    let points = site.points;
     let sheet: Vec<OrientedFacet> = surface
         .facets()
         .filter(|&f| surface.is_coupled(f) && f < surface.mirror(f))
         .collect();
     report.thin_facet_pairs = sheet.len();
     report.thin_parts = count_sheets(surface, &sheet);
-    let mut best = closed_boundary(surface, tri, &[], points, params);
+    let mut best = closed_boundary(surface, tri, &[], site, params);
     report.thin_tets_restored = 0;
     if restored.iter().any(|&r| r) {
         // Restoring can still pinch the surface where a thin part meets the
         // rest, or (on noisy samples, whose sheets pass for thin parts) fill
         // a volume that swallows points: keep it only where it pays off as
         // a whole.
-        let thick = closed_boundary(surface, tri, restored, points, params);
+        let thick = closed_boundary(surface, tri, restored, site, params);
         if thick.boundary_edges <= best.boundary_edges
             && thick.pieces < best.pieces
             && thick.points_used >= best.points_used
@@ -454,9 +635,10 @@ fn closed_boundary(
     surface: &PseudoSurface,
     tri: &Triangulation,
     restored: &[bool],
-    points: &[DVec3],
+    site: &Sites,
     params: &Params,
 ) -> Boundary {
+    let points = site.points;
     let solid = |t: surfrecon_delaunay::TetId| {
         !surface.is_external(t) || restored.get(t.index()).copied().unwrap_or(false)
     };
@@ -466,7 +648,7 @@ fn closed_boundary(
             if solid(u) && !tri.is_ghost(u) {
                 continue;
             }
-            let input = tri.facet(t, slot).map(|v| tri.input_of_vertex(v));
+            let input = tri.facet(t, slot).map(|v| (site.of_vertex)(v));
             if let [Some(a), Some(b), Some(c)] = input {
                 // Facets face inward: swap two corners to face out.
                 triangles.push([a as u32, c as u32, b as u32]);
@@ -552,7 +734,8 @@ fn count_sheets(surface: &PseudoSurface, sheet: &[OrientedFacet]) -> usize {
 
 /// Mean distance from each vertex to its nearest neighbours: the local
 /// sampling spacing.
-fn vertex_spacing(tri: &Triangulation, points: &[DVec3]) -> Vec<f64> {
+fn vertex_spacing(tri: &Triangulation, site: &Sites) -> Vec<f64> {
+    let points = site.points;
     const NEIGHBOURS: usize = 6;
     let tree = surfrecon_geom::spatial::KdTree::new(points);
     let by_input: Vec<f64> = points
@@ -564,9 +747,94 @@ fn vertex_spacing(tri: &Triangulation, points: &[DVec3]) -> Vec<f64> {
         })
         .collect();
     (0..tri.points().len())
-        .map(|v| {
-            tri.input_of_vertex(surfrecon_delaunay::VertexId(v as u32))
-                .map_or(0.0, |i| by_input[i])
-        })
+        .map(|v| (site.of_vertex)(VertexId(v as u32)).map_or(0.0, |i| by_input[i]))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use surfrecon_geom::shapes::{sample_surface, torus};
+
+    /// Faces as sets of rotated index triples (the clean-up's face order
+    /// differs with the triangulation's slot order).
+    fn face_set(mesh: &TriMesh) -> std::collections::BTreeSet<[u32; 3]> {
+        mesh.triangles
+            .iter()
+            .map(|&[a, b, c]| match a.min(b).min(c) {
+                m if m == a => [a, b, c],
+                m if m == b => [b, c, a],
+                _ => [c, a, b],
+            })
+            .collect()
+    }
+
+    /// The refined mesh, built on the dynamic surface (pockets, thin parts
+    /// and clean-up re-run on its converged Gabriel surface), equals the
+    /// mesh a run from scratch gives on the final points, and so do the
+    /// counts of the convection.
+    #[test]
+    fn refined_mesh_equals_a_run_from_scratch_on_the_final_points() {
+        let points = sample_surface(&torus(1.0, 0.35, 160, 64), 6000, 9).positions;
+        let normals = estimate_normals(&points, 12);
+        let settings = Decimation {
+            radius: 0.02 * bounding_diagonal(&points),
+            geometric: 0.9,
+            topological: 0.95,
+            brush: None,
+        };
+        let mut keep = decimate(&points, &normals, &settings);
+        let quality = Quality {
+            alpha: 1.0,
+            gamma: 0.5,
+        };
+        let refined = Refined::run(&points, &mut keep, &quality).unwrap();
+        assert!(refined.stats.inserted > 0);
+        let kept: Vec<usize> = (0..points.len()).filter(|&i| keep[i]).collect();
+        let sites: Vec<DVec3> = kept.iter().map(|&i| points[i]).collect();
+        let site_normals: Vec<DVec3> = kept.iter().map(|&i| normals[i]).collect();
+        let params = Params::default();
+        let dynamic = refined
+            .finish(points.len(), &kept, &sites, &site_normals, &params)
+            .unwrap();
+        let scratch = reconstruct_all(&sites, Some(&site_normals), &params).unwrap();
+        assert!(scratch.mesh.triangles.len() > 1000);
+        assert_eq!(face_set(&dynamic.mesh), face_set(&scratch.mesh));
+        let counts = |r: &Report| {
+            (
+                r.tets_opened,
+                r.collapses,
+                r.pockets_opened,
+                r.pseudo_surface_facets,
+                r.thin_facet_pairs,
+                r.boundary_edges,
+            )
+        };
+        assert_eq!(counts(&dynamic.report), counts(&scratch.report));
+    }
+
+    /// After insertions and removals, the dynamic surface's mesh (pockets,
+    /// thin parts and output re-run on it) is the one `reconstruct` makes
+    /// from scratch on the same points.
+    #[test]
+    fn dynamic_reconstruction_after_edits_equals_a_run_from_scratch() {
+        let all = sample_surface(&torus(1.0, 0.35, 160, 64), 5000, 10).positions;
+        let (start, extra) = all.split_at(4000);
+        let mut surface = DynamicSurface::new(start).unwrap();
+        for &p in extra {
+            surface.insert(p).unwrap();
+        }
+        for &p in start.iter().step_by(7) {
+            surface.remove_point(p).unwrap();
+        }
+        let params = Params::default();
+        let dynamic = surface.reconstruction(&params).unwrap();
+        let tri = surface.triangulation();
+        let sites: Vec<DVec3> = tri.vertices().map(|v| tri.point(v)).collect();
+        assert_eq!(sites.len(), 5000 - 4000usize.div_ceil(7));
+        let scratch = reconstruct(&sites, None, &params).unwrap();
+        assert!(scratch.mesh.triangles.len() > 5000);
+        assert_eq!(face_set(&dynamic.mesh), face_set(&scratch.mesh));
+        assert_eq!(dynamic.report.boundary_edges, 0);
+    }
 }

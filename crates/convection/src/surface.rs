@@ -93,6 +93,60 @@ impl<'a> PseudoSurface<'a> {
         surface
     }
 
+    /// The converged Gabriel surface of a triangulation whose swept
+    /// tetrahedra are `external` (every ghost among them), as the
+    /// convection from the hull leaves it: a facet facing an unswept
+    /// tetrahedron from a swept one, and both sides of a facet between two
+    /// swept ones that neither side violates (a pair the convection did not
+    /// collapse; see [`crate::dynamic`]). Nothing is queued.
+    pub fn from_swept(tri: &'a Triangulation, external: Vec<bool>) -> Self {
+        let slots = tri.tet_slots();
+        let mut surface = PseudoSurface {
+            tri,
+            on_surface: vec![false; 4 * slots],
+            external,
+            queue: VecDeque::new(),
+            facets: 0,
+            tets_opened: 0,
+            collapses: 0,
+            collapsed: Vec::new(),
+            pockets_opened: 0,
+        };
+        let mut between_swept = 0;
+        let mut coupled = 0;
+        for t in tri.finite_tets() {
+            if surface.external[t.index()] {
+                surface.tets_opened += 1;
+            }
+            for slot in 0..4 {
+                let f = OrientedFacet::new(t, slot);
+                let m = surface.mirror(f);
+                if !surface.external[m.tet().index()] {
+                    continue;
+                }
+                if !surface.external[t.index()] {
+                    surface.add(f);
+                    continue;
+                }
+                // Each facet between two swept tetrahedra once from here;
+                // those facing a ghost are met only from this side.
+                if tri.is_ghost(m.tet()) || f < m {
+                    between_swept += 1;
+                    if !surface.violates_gabriel(f) && !surface.violates_gabriel(m) {
+                        surface.add(f);
+                        surface.add(m);
+                        coupled += 1;
+                    }
+                }
+            }
+        }
+        surface.queue.clear();
+        // Every swept tetrahedron was entered through one facet; the other
+        // facets between swept ones either stayed coupled or collapsed.
+        surface.collapses = between_swept - surface.tets_opened - coupled;
+        surface
+    }
+
     pub fn num_facets(&self) -> usize {
         self.facets
     }

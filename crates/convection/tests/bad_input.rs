@@ -118,3 +118,27 @@ fn decimation_settings_out_of_range_are_errors() {
         ConvectionError::Delaunay(_)
     ));
 }
+
+/// Refinement settings out of range, or refinement without decimation
+/// (nothing to put back), are errors rather than silently ignored.
+#[test]
+fn refinement_settings_out_of_range_are_errors() {
+    for (rho, refine_alpha, refine_gamma) in [
+        (0.01, -1.0, 0.0),
+        (0.01, f64::NAN, 0.0),
+        (0.01, f64::INFINITY, 0.0),
+        (0.01, 0.0, 1.5),
+        (0.01, 0.0, f64::NAN),
+        (0.0, 1.0, 0.0),
+        (0.0, 0.0, 0.5),
+    ] {
+        let params = Params {
+            rho,
+            refine_alpha,
+            refine_gamma,
+            ..Params::default()
+        };
+        let e = reconstruct(&cube_corners(), None, &params).unwrap_err();
+        assert!(matches!(e, ConvectionError::BadParameter { .. }), "{e}");
+    }
+}

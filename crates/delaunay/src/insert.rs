@@ -163,6 +163,46 @@ impl Triangulation {
         })
     }
 
+    /// The vertex nearest to `p`: from a corner of the tetrahedron where
+    /// `p` lies, see [`Triangulation::nearest_vertex_from`].
+    pub fn nearest_vertex(&self, p: DVec3) -> Result<VertexId> {
+        let t = match self.locate(p)? {
+            Location::Inside(t) | Location::Outside(t) => t,
+        };
+        let start = self.cells[t.index()].v[0];
+        self.nearest_vertex_from(p, VertexId(start))
+    }
+
+    /// The vertex nearest to `p`, by moving from vertex `start` (a vertex
+    /// near `p` makes it fast) to a closer Delaunay neighbour while there
+    /// is one: in a Delaunay triangulation a vertex that is not the nearest
+    /// has a closer neighbour (the segment to `p` leaves its Voronoi cell
+    /// through a neighbour's).
+    pub fn nearest_vertex_from(&self, p: DVec3, start: VertexId) -> Result<VertexId> {
+        if !p.is_finite() {
+            return Err(DelaunayError::NonFinite { index: 0 });
+        }
+        if start.is_infinite() || !self.contains_vertex(start) {
+            return Err(DelaunayError::UnknownVertex(start.0));
+        }
+        let distance = |v: u32| self.points[v as usize].distance_squared(p);
+        let mut best = start.0;
+        let mut star = Vec::new();
+        loop {
+            self.star(best, &mut star);
+            let closer = star
+                .iter()
+                .flat_map(|&t| self.cells[t as usize].v)
+                .filter(|&v| v != INF)
+                .min_by(|&a, &b| distance(a).total_cmp(&distance(b)).then(a.cmp(&b)))
+                .filter(|&v| distance(v) < distance(best));
+            match closer {
+                Some(v) => best = v,
+                None => return Ok(VertexId(best)),
+            }
+        }
+    }
+
     /// Make vertex `v` (its point already stored) part of the triangulation.
     /// Returns the existing vertex if `v`'s point is a duplicate.
     pub(crate) fn insert_vertex(&mut self, v: u32) -> Result<Option<u32>> {

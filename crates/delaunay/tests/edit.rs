@@ -246,3 +246,38 @@ fn tracked_changes_account_for_every_tetrahedron() {
     assert_valid(&tri, tri.num_vertices());
     assert!(tri.take_changes().freed.is_empty(), "taken");
 }
+
+/// `nearest_vertex` (and `nearest_vertex_from` any vertex) agrees with a
+/// brute-force search, for queries inside
+/// and outside the hull, on random points and on a lattice (ties: any of
+/// the nearest), and after removals.
+#[test]
+fn nearest_vertex_matches_brute_force() {
+    for points in [uniform(3000, 31), lattice(9)] {
+        let mut tri = Triangulation::bulk_load(&points).unwrap();
+        for (k, v) in tri.vertices().collect::<Vec<_>>().into_iter().enumerate() {
+            if k % 3 == 0 {
+                tri.remove(v).unwrap();
+            }
+        }
+        let scale = points.iter().fold(0.0f64, |m, p| m.max(p.max_element()));
+        let mut r = rng(32);
+        for _ in 0..2000 {
+            let q = DVec3::new(r.random(), r.random(), r.random()) * 1.6 * scale - 0.3 * scale;
+            let v = tri.nearest_vertex(q).unwrap();
+            assert!(tri.contains_vertex(v));
+            let best = tri
+                .vertices()
+                .map(|w| tri.point(w).distance(q))
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(tri.point(v).distance(q), best, "query {q}");
+            // From any start vertex (the walk crosses the whole set).
+            let start = tri
+                .vertices()
+                .nth(r.random_range(0..tri.num_vertices()))
+                .unwrap();
+            let w = tri.nearest_vertex_from(q, start).unwrap();
+            assert_eq!(tri.point(w).distance(q), best, "query {q} from {start:?}");
+        }
+    }
+}

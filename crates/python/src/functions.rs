@@ -291,8 +291,11 @@ pub fn reconstruct<'py>(
             pockets: !no_pockets,
             thin_parts: !no_thin_parts,
             normal_k: convection_normal_k.unwrap_or(cv.normal_k),
-            // The brush is a CLI and library option only so far.
+            // The brush and the quality refinement are CLI and library
+            // options only so far.
             brush: None,
+            refine_alpha: cv.refine_alpha,
+            refine_gamma: cv.refine_gamma,
         },
     };
     let options = Options {

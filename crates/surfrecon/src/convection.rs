@@ -22,6 +22,8 @@ pub(crate) fn params(o: &ConvectionOptions) -> Params {
         rho: o.rho,
         rho_geometric: o.rho_geom,
         rho_topo: o.rho_topo,
+        refine_alpha: o.refine_alpha,
+        refine_gamma: o.refine_gamma,
         ..Params::default()
     }
 }

@@ -205,6 +205,11 @@ pub struct ConvectionOptions {
     pub normal_k: usize,
     /// The paper's brush: a decimation radius varying around a centre.
     pub brush: Option<surfrecon_convection::decimate::Brush>,
+    /// Triangle-quality refinement after the decimation: largest
+    /// circumradius-to-shortest-edge ratio (0: off).
+    pub refine_alpha: f64,
+    /// ... and smallest ratio of the vertex radii in a triangle (0: off).
+    pub refine_gamma: f64,
 }
 
 impl Default for ConvectionOptions {
@@ -219,6 +224,8 @@ impl Default for ConvectionOptions {
             thin_parts: true,
             normal_k: p.normal_k,
             brush: None,
+            refine_alpha: p.refine_alpha,
+            refine_gamma: p.refine_gamma,
         }
     }
 }

@@ -27,6 +27,16 @@ pub struct ConvectionArgs {
     /// ρ + (ρ_c − ρ)/R²·(R² − d²). RHO_C below --rho keeps more detail there.
     #[arg(long, value_name = "X,Y,Z,R,RHO_C", value_parser = parse_brush, allow_hyphen_values = true)]
     pub brush: Option<Box<Brush>>,
+    /// Triangle-quality refinement after the decimation (an error without --rho):
+    /// removed points are put back where a surface triangle's
+    /// circumradius-to-shortest-edge ratio reaches A (the paper's α; an
+    /// equilateral triangle has 0.577; 0: off).
+    #[arg(long = "refine-alpha", default_value_t = 0.0, value_name = "A")]
+    pub refine_alpha: f64,
+    /// ... or where the smallest of a triangle's vertex spacings is below
+    /// G times the largest (the paper's density γ, 0 to 1; 0: off).
+    #[arg(long = "refine-gamma", default_value_t = 0.0, value_name = "G")]
+    pub refine_gamma: f64,
     /// Close boundary loops of at most this many edges left where the
     /// surface pinched (0: leave them open and report them).
     #[arg(long = "fill-holes", default_value_t = 24, value_name = "EDGES")]
@@ -55,6 +65,8 @@ impl ConvectionArgs {
             thin_parts: !self.no_thin_parts,
             normal_k: self.normal_k,
             brush: self.brush.as_deref().copied(),
+            refine_alpha: self.refine_alpha,
+            refine_gamma: self.refine_gamma,
         }
     }
 }
