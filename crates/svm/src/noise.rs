@@ -36,6 +36,13 @@ const MAX_PROBES: usize = 4000;
 /// rough unit `normals`; 0 when no neighbourhood could be fitted (e.g. all
 /// samples lie on curves, where the quadric is not determined).
 pub fn estimate_noise(points: &[DVec3], normals: &[DVec3], tree: &KdTree) -> f64 {
+    residual_medians(points, normals, tree)
+        .map_or(0.0, |(wide, narrow)| noise_without_detail(wide, narrow))
+}
+
+/// Median RMS residuals of the wide and the narrow quadric fits over a
+/// spread-out subset of the samples; None when no neighbourhood fits.
+fn residual_medians(points: &[DVec3], normals: &[DVec3], tree: &KdTree) -> Option<(f64, f64)> {
     let k = NEIGHBOURS.min(points.len());
     let stride = (points.len() / MAX_PROBES).max(1);
     let (mut wide, mut narrow): (Vec<f64>, Vec<f64>) = (0..points.len())
@@ -54,10 +61,7 @@ pub fn estimate_noise(points: &[DVec3], normals: &[DVec3], tree: &KdTree) -> f64
             ))
         })
         .unzip();
-    if wide.is_empty() {
-        return 0.0;
-    }
-    noise_without_detail(median(&mut wide), median(&mut narrow))
+    (!wide.is_empty()).then(|| (median(&mut wide), median(&mut narrow)))
 }
 
 /// The noise part of the wide fit's residual `wide`, given the narrow fit's
@@ -167,21 +171,7 @@ mod tests {
             .collect();
         let tree = KdTree::new(&bumpy);
         let estimate = estimate_noise(&bumpy, &n, &tree);
-        let k = NEIGHBOURS;
-        let wide: f64 = {
-            let mut rms: Vec<f64> = (0..bumpy.len())
-                .step_by(7)
-                .filter_map(|i| {
-                    let nb: Vec<DVec3> = tree
-                        .knn(bumpy[i], k)
-                        .iter()
-                        .map(|m| bumpy[m.index])
-                        .collect();
-                    quadric_residual_rms(bumpy[i], n[i], &nb)
-                })
-                .collect();
-            median(&mut rms)
-        };
+        let (wide, _) = residual_medians(&bumpy, &n, &tree).unwrap();
         assert!(wide > 5e-4, "the bumps must show in the wide fit: {wide}");
         assert!(
             estimate < 0.3 * wide,
