@@ -24,8 +24,12 @@ seconds="${1:?usage: fuzz/run.sh SECONDS [TARGET...]}"
 shift
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(ply obj off stl xyz nrrd vtk shell svm odf udf)
+  targets=(ply obj off stl xyz nrrd vtk shell svm odf udf
+    recon_levelset recon_svm recon_convection distance feature_field extract normals eval)
 fi
+# One thread per fuzzing process (the algorithms use rayon): runs stay
+# reproducible and leave the other cores alone.
+export RAYON_NUM_THREADS="${RAYON_NUM_THREADS:-1}"
 
 if ! cargo fuzz --version >/dev/null 2>&1; then
   cargo install cargo-fuzz --locked
@@ -50,14 +54,18 @@ for t in "${targets[@]}"; do
   artifacts="$here/artifacts/$t"
   rm -rf "$corpus"
   mkdir -p "$corpus" "$artifacts"
-  cp "$here/corpus-seeds/$t/"* "$corpus/"
+  # The structured (algorithm) targets have no seed files or dictionary:
+  # any bytes decode to a valid input.
+  if [ -d "$here/corpus-seeds/$t" ]; then cp "$here/corpus-seeds/$t/"* "$corpus/"; fi
+  dict=()
+  if [ -f "$here/dict/$t.dict" ]; then dict=(-dict="$here/dict/$t.dict"); fi
   before=$(ls "$artifacts" | wc -l)
   log="$here/corpus/$t.log"
   # -timeout: a single input taking > 10 s is a hang finding.
   # -rss_limit_mb / -malloc_limit_mb: an allocation beyond 1 GiB from a
   # tiny input is a finding (inputs are at most -max_len bytes).
   "${cargo[@]}" fuzz run "${flags[@]}" "$t" "$corpus" -- \
-    -max_total_time="$seconds" -dict="$here/dict/$t.dict" -max_len=65536 \
+    -max_total_time="$seconds" "${dict[@]}" -max_len=65536 \
     -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 \
     -print_final_stats=1 -artifact_prefix="$artifacts/" >"$log" 2>&1 || true
   execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")

@@ -110,8 +110,33 @@ pub fn reconstruct_with(input: &Input, options: &Options, hook: Hook) -> Result<
         (None, Method::Svm(o)) => svm::run(input, o, resolution, fit, hook),
         (None, Method::Convection(o)) => convection::run(input, o, fit, hook),
     }?;
+    let method = match network {
+        Some(_) => "curve-network",
+        None => options.method.name(),
+    };
+    require_surface(&output, method)?;
     check(hook, "done")?;
     Ok(output)
+}
+
+/// An empty result is an error rather than a file without faces: the
+/// method found nothing to close (zero-volume data such as a flat or
+/// collinear set, data too sparse for the grid, or a loaded SVM model
+/// whose surface does not pass near the data).
+fn require_surface(output: &Output, method: &str) -> Result<()> {
+    let empty = match &output.curves {
+        Some(curves) => curves.lines.is_empty(),
+        None => output.mesh.triangles.is_empty(),
+    };
+    if empty {
+        return Err(Error::new(
+            ErrorKind::Failed,
+            format!(
+                "the {method} reconstruction found no surface (flat, collinear or too sparse data for the grid, or a model that does not fit the data)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The input's points, or an invalid-input error ("the input has no
