@@ -4,6 +4,15 @@
 use surfrecon::geom::shapes::icosphere;
 use surfrecon::{DVec3, ErrorKind, Geometry, Loss, Method, Options, SvmC, SvmOptions};
 
+/// The error of a run that must fail (without printing a whole mesh
+/// when it does not).
+fn error_of(input: &Geometry, options: &Options) -> surfrecon::Error {
+    match surfrecon::reconstruct(input, options) {
+        Ok(_) => panic!("reconstruct succeeded"),
+        Err(e) => e,
+    }
+}
+
 /// The fuzzer's input: the 12 vertices of an icosahedron (with its
 /// normals) flattened into the plane x = 0 and shrunk to a quarter.
 fn flat_icosahedron() -> Geometry {
@@ -34,11 +43,56 @@ fn svm_on_flat_data_is_an_error_not_an_empty_surface() {
         curve_network: false,
         data_fit: false,
     };
-    let e = surfrecon::reconstruct(&flat_icosahedron(), &options).unwrap_err();
+    let e = error_of(&flat_icosahedron(), &options);
     assert_eq!(e.kind, ErrorKind::Failed);
     assert!(
         e.to_string()
             .contains("svm reconstruction found no surface"),
         "{e}"
     );
+}
+
+/// Coordinates near 1e300: a k-d tree search of the SVM's training set
+/// compared NaN squared distances and panicked (kiddo's `unwrap` of
+/// `partial_cmp`). Such data are now refused up front, whatever the
+/// method, with a message that says what to do.
+#[test]
+fn coordinates_near_the_f64_limit_are_refused() {
+    let mut mesh = icosphere(DVec3::ZERO, 1.0, 1);
+    for v in &mut mesh.vertices {
+        *v *= DVec3::new(0.0, 3.25, 3.75);
+    }
+    mesh.vertices[28] = DVec3::new(-1.0, -3.75, -2.5);
+    for v in &mut mesh.vertices {
+        *v *= 1e300;
+    }
+    let input = Geometry::from_mesh(mesh);
+    let svm = Method::Svm(SvmOptions {
+        loss: Loss::Squared,
+        normal_k: 0,
+        ..SvmOptions::default()
+    });
+    for method in [
+        svm,
+        Method::LevelSet(Default::default()),
+        Method::Convection(Default::default()),
+    ] {
+        let options = Options {
+            method,
+            resolution: Some(0),
+            curve_network: false,
+            data_fit: false,
+        };
+        let e = error_of(&input, &options);
+        assert_eq!(e.kind, ErrorKind::InvalidInput);
+        assert!(e.to_string().contains("rescale the data"), "{e}");
+    }
+    // Data spanning less than 1e-100 are refused the same way.
+    let mut tiny = flat_icosahedron();
+    tiny.points
+        .positions
+        .iter_mut()
+        .for_each(|p| *p = *p * 1e-200 + DVec3::X);
+    let e = error_of(&tiny, &Options::default());
+    assert!(e.to_string().contains("the data span only"), "{e}");
 }
