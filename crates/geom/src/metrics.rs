@@ -104,6 +104,17 @@ pub struct EvalReport {
     pub sample_counts: (usize, usize),
 }
 
+/// Largest coordinate magnitude [`evaluate`] measures.
+const MAX_COORDINATE: f64 = 1e100;
+
+/// The vertices or points of a surface.
+fn surface_positions(surface: &Surface) -> impl Iterator<Item = &DVec3> {
+    match surface {
+        Surface::Mesh(m) => m.vertices.iter(),
+        Surface::Points(p) => p.positions.iter(),
+    }
+}
+
 /// Score `candidate` against `reference`. Errors when either side has no
 /// points or no area to sample.
 pub fn evaluate(
@@ -111,6 +122,15 @@ pub fn evaluate(
     reference: &Surface,
     options: &EvalOptions,
 ) -> Result<EvalReport, GeomError> {
+    // Squared distances between points past 1e100 leave the f64 range
+    // (the fuzzer found NaN Chamfer distances near 1e300).
+    for (surface, name) in [(candidate, "candidate"), (reference, "reference")] {
+        if surface_positions(surface).any(|p| p.abs().max_element() > MAX_COORDINATE) {
+            return Err(GeomError::InvalidInput(format!(
+                "{name}: coordinates beyond {MAX_COORDINATE:e} are not supported; rescale both surfaces"
+            )));
+        }
+    }
     let diagonal = reference_bounds(reference).diagonal();
     let cand = samples_of(candidate, options.samples, options.seed, "candidate")?;
     // A different stream for the reference, so a surface compared with
@@ -704,6 +724,25 @@ mod tests {
 
     fn options(samples: usize) -> EvalOptions {
         EvalOptions { samples, seed: 9 }
+    }
+
+    /// Fuzz input (target `eval`): a cube near 4e300 against a flattened
+    /// icosahedron gave NaN Chamfer distances; now an error.
+    #[test]
+    fn huge_coordinates_are_refused() {
+        let mut cube = cuboid(DVec3::splat(-1.0), DVec3::ONE);
+        cube.vertices
+            .iter_mut()
+            .for_each(|v| *v *= DVec3::new(3.25, 4.0, 4.0) * 1e300);
+        let mut flat = icosphere(DVec3::ZERO, 1.0, 0);
+        flat.vertices
+            .iter_mut()
+            .for_each(|v| *v *= DVec3::new(0.0, 4.0, 2.25));
+        let e = evaluate(&Surface::Mesh(cube), &Surface::Mesh(flat), &options(64)).unwrap_err();
+        assert!(
+            e.to_string().contains("candidate: coordinates beyond"),
+            "{e}"
+        );
     }
 
     #[test]
