@@ -104,6 +104,13 @@ pub struct EvalReport {
     pub sample_counts: (usize, usize),
 }
 
+/// |cos| of the angle between two normals: files may hold normals of any
+/// length (the fuzzer found a consistency of 2); a zero normal agrees with
+/// nothing.
+fn cosine(a: DVec3, b: DVec3) -> f64 {
+    a.normalize_or_zero().dot(b.normalize_or_zero()).abs()
+}
+
 /// Largest coordinate magnitude [`evaluate`] measures.
 const MAX_COORDINATE: f64 = 1e100;
 
@@ -309,7 +316,7 @@ fn distances_to(samples: &Samples, target: &Surface) -> Directed {
     let agreement = samples.normals.as_ref().and_then(|own| {
         own.iter()
             .zip(&closest)
-            .map(|(n, (_, m))| m.map(|m| n.dot(m).abs()))
+            .map(|(n, (_, m))| m.map(|m| cosine(*n, m)))
             .collect::<Option<Vec<f64>>>()
     });
     Directed {
@@ -724,6 +731,22 @@ mod tests {
 
     fn options(samples: usize) -> EvalOptions {
         EvalOptions { samples, seed: 9 }
+    }
+
+    /// Fuzz input (target `eval`): normals of length 2 gave a normal
+    /// consistency of 2; now measured on unit directions.
+    #[test]
+    fn normal_consistency_ignores_normal_lengths() {
+        let sphere = icosphere(DVec3::ZERO, 1.0, 1);
+        let cloud = |scale: f64| {
+            Surface::Points(PointCloud {
+                positions: sphere.vertices.clone(),
+                normals: Some(sphere.vertices.iter().map(|v| *v * scale).collect()),
+                scalars: None,
+            })
+        };
+        let r = evaluate(&cloud(2.0), &cloud(-3.0), &options(64)).unwrap();
+        assert!((r.normal_consistency.unwrap() - 1.0).abs() < 1e-12, "{r:?}");
     }
 
     /// Fuzz input (target `eval`): a cube near 4e300 against a flattened
