@@ -17,7 +17,9 @@
 # installed with `cargo install cargo-fuzz --locked` when missing.
 # Environment: FUZZ_TARGET_DIR (default fuzz/target); FUZZ_STABLE=1 uses
 # the default toolchain even when nightly exists; FUZZ_SEED=N fixes
-# libFuzzer's random seed (CI); RAYON_NUM_THREADS (default 1 per target).
+# libFuzzer's random seed (CI); FUZZ_RUNS=N stops each target after N
+# inputs (with FUZZ_SEED: the same inputs on every machine, whatever its
+# speed); RAYON_NUM_THREADS (default 1 per target).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 cd "$here"
@@ -67,7 +69,7 @@ for t in "${targets[@]}"; do
   # tiny input is a finding (inputs are at most -max_len bytes).
   "${cargo[@]}" fuzz run "${flags[@]}" "$t" "$corpus" -- \
     -max_total_time="$seconds" "${dict[@]}" -max_len=65536 \
-    -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 ${FUZZ_SEED:+-seed="$FUZZ_SEED"} \
+    -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 ${FUZZ_SEED:+-seed="$FUZZ_SEED"} ${FUZZ_RUNS:+-runs="$FUZZ_RUNS"} \
     -print_final_stats=1 -artifact_prefix="$artifacts/" >"$log" 2>&1 || true
   execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")
   rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")
