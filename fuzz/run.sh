@@ -16,7 +16,10 @@
 # no `unsafe`, and stable has no sanitizer runtime). cargo-fuzz itself is
 # installed with `cargo install cargo-fuzz --locked` when missing.
 # Environment: FUZZ_TARGET_DIR (default fuzz/target); FUZZ_STABLE=1 uses
-# the default toolchain even when nightly exists.
+# the default toolchain even when nightly exists; FUZZ_SEED=N fixes
+# libFuzzer's random seed (CI); FUZZ_RUNS=N stops each target after N
+# inputs (with FUZZ_SEED: the same inputs on every machine, whatever its
+# speed); RAYON_NUM_THREADS (default 1 per target).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 cd "$here"
@@ -24,8 +27,12 @@ seconds="${1:?usage: fuzz/run.sh SECONDS [TARGET...]}"
 shift
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(ply obj off stl xyz nrrd vtk shell svm odf udf)
+  targets=(ply obj off stl xyz nrrd vtk shell svm odf udf
+    recon_levelset recon_svm recon_convection distance feature_field extract normals eval)
 fi
+# One thread per fuzzing process (the algorithms use rayon): runs stay
+# reproducible and leave the other cores alone.
+export RAYON_NUM_THREADS="${RAYON_NUM_THREADS:-1}"
 
 if ! cargo fuzz --version >/dev/null 2>&1; then
   cargo install cargo-fuzz --locked
@@ -50,15 +57,19 @@ for t in "${targets[@]}"; do
   artifacts="$here/artifacts/$t"
   rm -rf "$corpus"
   mkdir -p "$corpus" "$artifacts"
-  cp "$here/corpus-seeds/$t/"* "$corpus/"
+  # The structured (algorithm) targets have no seed files or dictionary:
+  # any bytes decode to a valid input.
+  if [ -d "$here/corpus-seeds/$t" ]; then cp "$here/corpus-seeds/$t/"* "$corpus/"; fi
+  dict=()
+  if [ -f "$here/dict/$t.dict" ]; then dict=(-dict="$here/dict/$t.dict"); fi
   before=$(ls "$artifacts" | wc -l)
   log="$here/corpus/$t.log"
   # -timeout: a single input taking > 10 s is a hang finding.
   # -rss_limit_mb / -malloc_limit_mb: an allocation beyond 1 GiB from a
   # tiny input is a finding (inputs are at most -max_len bytes).
   "${cargo[@]}" fuzz run "${flags[@]}" "$t" "$corpus" -- \
-    -max_total_time="$seconds" -dict="$here/dict/$t.dict" -max_len=65536 \
-    -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 \
+    -max_total_time="$seconds" "${dict[@]}" -max_len=65536 \
+    -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 ${FUZZ_SEED:+-seed="$FUZZ_SEED"} ${FUZZ_RUNS:+-runs="$FUZZ_RUNS"} \
     -print_final_stats=1 -artifact_prefix="$artifacts/" >"$log" 2>&1 || true
   execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")
   rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")

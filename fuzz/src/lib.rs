@@ -3,6 +3,9 @@
 //! writer refuses it with an error, which is reported as a finding: what a
 //! reader accepts, its writer must write).
 
+pub mod algo;
+pub mod scene;
+
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 use surfrecon_geom::io::{read_bytes, to_bytes, Encoding, Format, WriteOptions};

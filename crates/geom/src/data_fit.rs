@@ -26,6 +26,9 @@ pub struct DataFit {
     pub farthest: [f64; 3],
 }
 
+/// Largest coordinate magnitude measured.
+const MAX_COORDINATE: f64 = 1e100;
+
 /// Exact distances from `data` to the triangles of `mesh` (parallel; the
 /// result does not depend on the thread count).
 pub fn data_fit(mesh: &TriMesh, data: &[DVec3]) -> Result<DataFit, GeomError> {
@@ -35,6 +38,14 @@ pub fn data_fit(mesh: &TriMesh, data: &[DVec3]) -> Result<DataFit, GeomError> {
     if let Some(i) = data.iter().position(|p| !p.is_finite()) {
         return Err(GeomError::InvalidInput(format!(
             "data fit: data point {i} is not finite"
+        )));
+    }
+    // Distances between points past 1e100 square out of the f64 range (the
+    // fuzzer found a NaN mean at 1e299).
+    let huge = |p: &DVec3| p.abs().max_element() > MAX_COORDINATE;
+    if data.iter().any(huge) || mesh.vertices.iter().any(huge) {
+        return Err(GeomError::InvalidInput(format!(
+            "data fit: coordinates beyond {MAX_COORDINATE:e} are not supported; rescale the data and the mesh"
         )));
     }
     let bvh = TriangleBvh::new(mesh);
@@ -70,6 +81,17 @@ mod tests {
     use super::*;
     use crate::metrics::closest_point_on_triangle;
     use crate::shapes::icosphere;
+
+    /// Fuzz input (target `eval`): one datum near 2.5e154 against a mesh
+    /// near 4e299 gave a NaN mean; now an error.
+    #[test]
+    fn huge_coordinates_are_refused() {
+        let mut mesh = icosphere(DVec3::ZERO, 1.0, 0);
+        mesh.vertices.iter_mut().for_each(|v| *v *= 4e299);
+        let datum = DVec3::new(-2.500000000000001e154, -2.4999750000000008e154, -4.0004e154);
+        let e = data_fit(&mesh, &[datum]).unwrap_err();
+        assert!(e.to_string().contains("rescale"), "{e}");
+    }
 
     #[test]
     fn distances_match_brute_force() {

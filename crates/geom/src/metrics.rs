@@ -104,6 +104,24 @@ pub struct EvalReport {
     pub sample_counts: (usize, usize),
 }
 
+/// |cos| of the angle between two normals: files may hold normals of any
+/// length (the fuzzer found a consistency of 2); a zero normal agrees with
+/// nothing.
+fn cosine(a: DVec3, b: DVec3) -> f64 {
+    a.normalize_or_zero().dot(b.normalize_or_zero()).abs()
+}
+
+/// Largest coordinate magnitude [`evaluate`] measures.
+const MAX_COORDINATE: f64 = 1e100;
+
+/// The vertices or points of a surface.
+fn surface_positions(surface: &Surface) -> impl Iterator<Item = &DVec3> {
+    match surface {
+        Surface::Mesh(m) => m.vertices.iter(),
+        Surface::Points(p) => p.positions.iter(),
+    }
+}
+
 /// Score `candidate` against `reference`. Errors when either side has no
 /// points or no area to sample.
 pub fn evaluate(
@@ -111,6 +129,15 @@ pub fn evaluate(
     reference: &Surface,
     options: &EvalOptions,
 ) -> Result<EvalReport, GeomError> {
+    // Squared distances between points past 1e100 leave the f64 range
+    // (the fuzzer found NaN Chamfer distances near 1e300).
+    for (surface, name) in [(candidate, "candidate"), (reference, "reference")] {
+        if surface_positions(surface).any(|p| p.abs().max_element() > MAX_COORDINATE) {
+            return Err(GeomError::InvalidInput(format!(
+                "{name}: coordinates beyond {MAX_COORDINATE:e} are not supported; rescale both surfaces"
+            )));
+        }
+    }
     let diagonal = reference_bounds(reference).diagonal();
     let cand = samples_of(candidate, options.samples, options.seed, "candidate")?;
     // A different stream for the reference, so a surface compared with
@@ -289,7 +316,7 @@ fn distances_to(samples: &Samples, target: &Surface) -> Directed {
     let agreement = samples.normals.as_ref().and_then(|own| {
         own.iter()
             .zip(&closest)
-            .map(|(n, (_, m))| m.map(|m| n.dot(m).abs()))
+            .map(|(n, (_, m))| m.map(|m| cosine(*n, m)))
             .collect::<Option<Vec<f64>>>()
     });
     Directed {
@@ -704,6 +731,41 @@ mod tests {
 
     fn options(samples: usize) -> EvalOptions {
         EvalOptions { samples, seed: 9 }
+    }
+
+    /// Fuzz input (target `eval`): normals of length 2 gave a normal
+    /// consistency of 2; now measured on unit directions.
+    #[test]
+    fn normal_consistency_ignores_normal_lengths() {
+        let sphere = icosphere(DVec3::ZERO, 1.0, 1);
+        let cloud = |scale: f64| {
+            Surface::Points(PointCloud {
+                positions: sphere.vertices.clone(),
+                normals: Some(sphere.vertices.iter().map(|v| *v * scale).collect()),
+                scalars: None,
+            })
+        };
+        let r = evaluate(&cloud(2.0), &cloud(-3.0), &options(64)).unwrap();
+        assert!((r.normal_consistency.unwrap() - 1.0).abs() < 1e-12, "{r:?}");
+    }
+
+    /// Fuzz input (target `eval`): a cube near 4e300 against a flattened
+    /// icosahedron gave NaN Chamfer distances; now an error.
+    #[test]
+    fn huge_coordinates_are_refused() {
+        let mut cube = cuboid(DVec3::splat(-1.0), DVec3::ONE);
+        cube.vertices
+            .iter_mut()
+            .for_each(|v| *v *= DVec3::new(3.25, 4.0, 4.0) * 1e300);
+        let mut flat = icosphere(DVec3::ZERO, 1.0, 0);
+        flat.vertices
+            .iter_mut()
+            .for_each(|v| *v *= DVec3::new(0.0, 4.0, 2.25));
+        let e = evaluate(&Surface::Mesh(cube), &Surface::Mesh(flat), &options(64)).unwrap_err();
+        assert!(
+            e.to_string().contains("candidate: coordinates beyond"),
+            "{e}"
+        );
     }
 
     #[test]

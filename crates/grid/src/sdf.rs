@@ -17,7 +17,7 @@
 //! winding number degrades gracefully with cracks, holes and
 //! self-intersections, so such defects never flip whole regions.
 
-use crate::distance::{unsigned_distance_with, DataSet, DistanceOptions};
+use crate::distance::{rescale, unsigned_distance_with, DataSet, DistanceOptions};
 use crate::{Field3, GridError, GridSpec};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -75,7 +75,31 @@ pub fn signed_distance(
             )))
         }
     };
-    let mut field = unsigned_distance_with(&data, spec, &options)?.field;
+    // Huge or tiny coordinates: the winding numbers' products would leave
+    // the f64 range, so the whole field is computed on a copy scaled by a
+    // power of two (exact) and scaled back.
+    if let Some(s) = rescale::unit_scale(&data, spec) {
+        let mut field = signed_field(
+            &data.scaled(s),
+            &spec.scaled(s),
+            &options,
+            band.map(|w| w * s),
+        )?;
+        field.spec = *spec;
+        field.values.par_iter_mut().for_each(|v| *v /= s);
+        return Ok(field);
+    }
+    signed_field(&data, spec, &options, band)
+}
+
+/// Unsigned distances (clamped to the band), then the sign.
+fn signed_field(
+    data: &DataSet<3>,
+    spec: &GridSpec<3>,
+    options: &DistanceOptions,
+    band: Option<f64>,
+) -> Result<Field3, GridError> {
+    let mut field = unsigned_distance_with(data, spec, options)?.field;
     if let Some(w) = band {
         field.values.par_iter_mut().for_each(|v| *v = v.min(w));
     }

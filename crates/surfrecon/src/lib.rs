@@ -99,6 +99,7 @@ pub fn reconstruct(input: &Input, options: &Options) -> Result<Output> {
 /// stops there and returns an error of kind [`ErrorKind::Cancelled`].
 pub fn reconstruct_with(input: &Input, options: &Options, hook: Hook) -> Result<Output> {
     check(hook, "start")?;
+    check_scale(input)?;
     let network = options
         .curve_network
         .then(|| curves::detect(input))
@@ -110,8 +111,64 @@ pub fn reconstruct_with(input: &Input, options: &Options, hook: Hook) -> Result<
         (None, Method::Svm(o)) => svm::run(input, o, resolution, fit, hook),
         (None, Method::Convection(o)) => convection::run(input, o, fit, hook),
     }?;
+    let method = match network {
+        Some(_) => "curve-network",
+        None => options.method.name(),
+    };
+    require_surface(&output, method)?;
     check(hook, "done")?;
     Ok(output)
+}
+
+/// Largest coordinate magnitude, and smallest non-zero data extent, the
+/// methods support: squared distances, kernel values and products of
+/// coordinates must stay inside the f64 range (near 1e300 a k-d tree
+/// search compared NaN distances and panicked).
+const MAX_COORDINATE: f64 = 1e100;
+const MIN_EXTENT: f64 = 1e-100;
+
+/// Refuse data too large or too small in magnitude for the methods.
+fn check_scale(input: &Input) -> Result<()> {
+    let positions = &input.points.positions;
+    if positions.is_empty() || positions.iter().any(|p| !p.is_finite()) {
+        return Ok(()); // each method names these errors itself
+    }
+    let largest = positions
+        .iter()
+        .map(|p| p.abs().max_element())
+        .fold(0.0, f64::max);
+    // The largest side (a diagonal of tiny sides would underflow to 0).
+    let extent = input.bounds().size().max_element();
+    let message = if largest > MAX_COORDINATE {
+        format!("the data reach coordinate {largest:e}; at most {MAX_COORDINATE:e} is supported: rescale the data")
+    } else if extent > 0.0 && extent < MIN_EXTENT {
+        format!(
+            "the data span only {extent:e}; at least {MIN_EXTENT:e} is supported: rescale the data"
+        )
+    } else {
+        return Ok(());
+    };
+    Err(Error::new(ErrorKind::InvalidInput, message))
+}
+
+/// An empty result is an error rather than a file without faces: the
+/// method found nothing to close (zero-volume data such as a flat or
+/// collinear set, data too sparse for the grid, or a loaded SVM model
+/// whose surface does not pass near the data).
+fn require_surface(output: &Output, method: &str) -> Result<()> {
+    let empty = match &output.curves {
+        Some(curves) => curves.lines.is_empty(),
+        None => output.mesh.triangles.is_empty(),
+    };
+    if empty {
+        return Err(Error::new(
+            ErrorKind::Failed,
+            format!(
+                "the {method} reconstruction found no surface (flat, collinear or too sparse data for the grid, or a model that does not fit the data)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The input's points, or an invalid-input error ("the input has no

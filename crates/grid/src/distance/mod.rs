@@ -35,6 +35,7 @@ mod band;
 mod cone_sweep;
 mod primitives;
 mod propagate;
+pub(crate) mod rescale;
 
 pub use primitives::{segment_closest, segment_dist2, triangle_closest, triangle_dist2};
 pub use propagate::NEAR_CELLS;
@@ -325,6 +326,12 @@ pub fn unsigned_distance_with<const D: usize>(
             "band must be a finite non-negative number of cells, got {}",
             options.band_cells
         )));
+    }
+    if let Some(s) = rescale::unit_scale(data, spec) {
+        let mut scaled = unsigned_distance_with(&data.scaled(s), &spec.scaled(s), options)?;
+        scaled.field.spec = *spec;
+        scaled.field.values.par_iter_mut().for_each(|v| *v /= s);
+        return Ok(scaled);
     }
     // Per node at the peak: the datum and its foot (kept per datum for
     // points only), and the band's distance or the output distance (the

@@ -1,0 +1,7 @@
+#![no_main]
+//! Fuzz the library calls of `surfrecon normals` on small structured inputs
+//! (see `surfrecon_fuzz::algo::normals`).
+
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| surfrecon_fuzz::algo::normals(data));
