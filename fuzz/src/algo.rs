@@ -196,6 +196,8 @@ fn convection_options(u: &mut Unstructured) -> Result<surfrecon::ConvectionOptio
         thin_parts: u.arbitrary()?,
         normal_k: u.int_in_range(0..=16)?,
         brush: None,
+        refine_alpha: pick_f64(u, &[d.refine_alpha, 1.0, 0.5, -1.0])?,
+        refine_gamma: pick_f64(u, &[d.refine_gamma, 0.5, -1.0])?,
     })
 }
 
