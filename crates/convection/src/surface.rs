@@ -68,20 +68,24 @@ pub(crate) struct PseudoSurface<'a> {
 }
 
 impl<'a> PseudoSurface<'a> {
-    /// The convex hull, facets oriented inward, all queued.
-    pub fn from_hull(tri: &'a Triangulation) -> Self {
-        let slots = tri.tet_slots();
-        let mut surface = PseudoSurface {
+    /// No facet, nothing queued, the tetrahedra flagged in `external` swept.
+    fn empty(tri: &'a Triangulation, external: Vec<bool>) -> Self {
+        PseudoSurface {
             tri,
-            on_surface: vec![false; 4 * slots],
-            external: vec![false; slots],
+            on_surface: vec![false; 4 * tri.tet_slots()],
+            external,
             queue: VecDeque::new(),
             facets: 0,
             tets_opened: 0,
             collapses: 0,
             collapsed: Vec::new(),
             pockets_opened: 0,
-        };
+        }
+    }
+
+    /// The convex hull, facets oriented inward, all queued.
+    pub fn from_hull(tri: &'a Triangulation) -> Self {
+        let mut surface = Self::empty(tri, vec![false; tri.tet_slots()]);
         for g in tri.ghost_tets() {
             surface.external[g.index()] = true;
         }
@@ -100,18 +104,7 @@ impl<'a> PseudoSurface<'a> {
     /// swept ones that neither side violates (a pair the convection did not
     /// collapse; see [`crate::dynamic`]). Nothing is queued.
     pub fn from_swept(tri: &'a Triangulation, external: Vec<bool>) -> Self {
-        let slots = tri.tet_slots();
-        let mut surface = PseudoSurface {
-            tri,
-            on_surface: vec![false; 4 * slots],
-            external,
-            queue: VecDeque::new(),
-            facets: 0,
-            tets_opened: 0,
-            collapses: 0,
-            collapsed: Vec::new(),
-            pockets_opened: 0,
-        };
+        let mut surface = Self::empty(tri, external);
         let mut between_swept = 0;
         let mut coupled = 0;
         for t in tri.finite_tets() {
