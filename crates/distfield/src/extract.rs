@@ -283,6 +283,35 @@ pub(crate) fn fan_fits(field: &impl SampledField, cell: usize, point: DVec3) -> 
     fan_triangles(field, cell, point).is_some()
 }
 
+/// The triangles extraction gives `cell` alone: the fan around `point`
+/// where it fits, else the table triangles.
+pub(crate) fn cell_triangles(
+    field: &impl SampledField,
+    cell: usize,
+    point: Option<DVec3>,
+) -> Vec<[DVec3; 3]> {
+    if let Some(fan) = point.and_then(|p| fan_triangles(field, cell, p)) {
+        return fan;
+    }
+    let spec = field.spec();
+    let values = corner_nodes(spec, cell).map(|n| field.value(n));
+    let (config, bits) = cell_case(&values, 0.0);
+    let mut keys: Vec<u64> = (0..12).map(|e| cell_edge_key(spec, cell, e)).collect();
+    keys.sort_unstable();
+    let vertices: Vec<DVec3> = keys.iter().map(|&k| edge_point(field, k)).collect();
+    let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
+    patch
+        .triangles
+        .iter()
+        .map(|t| {
+            t.map(|v| match v {
+                Vertex::Edge(i) => vertices[i as usize],
+                Vertex::Extra(i) => patch.extra[i as usize],
+            })
+        })
+        .collect()
+}
+
 /// The triangles of `cell`'s fan around `point`, if extraction would fan
 /// it (alone).
 pub(crate) fn fan_triangles(

@@ -11,18 +11,22 @@
 //! edge (where the two surfaces meet) in each cell it crosses; an offset
 //! field gets a sample moved onto that edge instead.
 
-use crate::extract::{corner_nodes, crosses, fan_fits, SampledField};
-use crate::features::{nudge_into, Features, DEFAULT_FEATURE_ANGLE_DEG};
+use crate::extract::{
+    cell_triangles, corner_nodes, crosses, fan_fits, fan_triangles, SampledField,
+};
+use crate::features::{
+    cells_with_features, nudge_into, CellFeatures, Features, DEFAULT_FEATURE_ANGLE_DEG,
+};
 use crate::offset::{
     cells_around, may_take, node_position, on_outer_layer, stays_convex, OffsetField,
 };
 use crate::query::MeshQuery;
 use crate::sharp::clamp_near;
 use crate::sharp::Tangent;
-use crate::unified::{sharp_point, storage_for, Extra, UnifiedField};
+use crate::unified::{farthest_from, sharp_point, snap_corners, storage_for, Extra, UnifiedField};
 use crate::DistFieldError;
 use rayon::prelude::*;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::marching::tables::EDGE_CORNERS;
@@ -152,6 +156,11 @@ pub struct SculptReport {
     pub directed: usize,
     /// Old extra data dropped because the tool changed its cell.
     pub dropped: usize,
+    /// New corners that a sample was moved onto (UDF).
+    pub snapped: usize,
+    /// Cells whose feature point was replaced by one whose fan lies
+    /// nearer the result (UDF).
+    pub rechosen: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -306,10 +315,12 @@ pub fn sculpt_udf(
 ) -> Result<SculptReport, DistFieldError> {
     let surface = field.extract().0;
     let combined = Combined::new(&surface, tool, operation)?;
-    let corners = new_corners(&surface, tool);
+    let features = Features::detect(&surface, DEFAULT_FEATURE_ANGLE_DEG);
+    let mut corners = new_corners(&surface, &features, tool);
     let spec = field.spec;
     let h = spec.spacing;
-    let (changed, cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
+    let old_features = cells_with_features(&surface, &features, &spec, |_| true);
+    let (changed, mut cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
     // Old directed distances and feature points of changed samples no
     // longer describe the surface.
     for &n in &changed {
@@ -332,6 +343,22 @@ pub fn sculpt_udf(
     for i in stale {
         field.extras.remove(&i);
     }
+    // New corners a sample can sit on take it, as in construction: one
+    // feature point per cell cannot keep both an old edge and the new one
+    // where they meet.
+    let snapped = snap_corners(field, &corners);
+    corners.retain(|p| !snapped.contains(p));
+    for p in &snapped {
+        let node = field
+            .extras
+            .iter()
+            .find_map(|(&n, e)| (*e == Extra::Position(*p)).then_some(n as usize));
+        cells.extend(node.into_iter().flat_map(|n| cells_around(&spec, n)));
+    }
+    cells.sort_unstable();
+    cells.dedup();
+    cells.retain(|&c| crosses(&spec, &field.values, c));
+    report.snapped = snapped.len();
     // Exact crossings on the edges of the cells the tool changed.
     let mut edges: BTreeSet<(usize, usize)> = BTreeSet::new();
     for &c in &cells {
@@ -432,13 +459,200 @@ pub fn sculpt_udf(
             report.kept += 1;
         }
     }
+    report.rechosen = rechoose_points(field, &combined, &cells, &old_features, &corners);
+    if choose_sides(field, &combined, &snapped, &old_features, &corners) > 0 {
+        report.rechosen += rechoose_points(field, &combined, &cells, &old_features, &corners);
+    }
     Ok(report)
+}
+
+/// A sample moved onto a new corner sits on the surface and may count as
+/// either side; which one decides how the crossing loops of its cells
+/// join. Keep the side whose cells' patches lie nearer the result (see
+/// [`rechoose_points`]), where topology allows both. Returns the number of
+/// samples turned to the other side.
+fn choose_sides(
+    field: &mut UnifiedField,
+    combined: &Combined,
+    snapped: &[DVec3],
+    old_features: &BTreeMap<usize, CellFeatures>,
+    corners: &[DVec3],
+) -> usize {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let cube = Neighbourhood::new(&spec.strides());
+    let mut turned = 0;
+    for p in snapped {
+        let Some(n) = field
+            .extras
+            .iter()
+            .find_map(|(&n, e)| (*e == Extra::Position(*p)).then_some(n as usize))
+        else {
+            continue;
+        };
+        let other = if field.values[n] < 0.0 {
+            0.0
+        } else {
+            -1e-9 * h
+        };
+        if !may_take(&cube, n, other, |m| field.values[m]) {
+            continue;
+        }
+        let error = |field: &UnifiedField| {
+            let points = field.feature_points();
+            cells_around(&spec, n)
+                .filter(|&c| crosses(&spec, &field.values, c))
+                .map(|c| {
+                    let triangles = cell_triangles(field, c, points.get(&c).copied());
+                    let probes = result_features(&spec, combined, c, old_features.get(&c), corners);
+                    farthest_from(&triangles, &probes).max(farthest_off(combined, &triangles))
+                })
+                .fold(0.0, f64::max)
+        };
+        let before = error(field);
+        let old = std::mem::replace(&mut field.values[n], other);
+        if error(field) < before - RECHOOSE_GAIN * h {
+            turned += 1;
+        } else {
+            field.values[n] = old;
+        }
+    }
+    turned
+}
+
+/// Where a changed cell holds both an old feature and the new edge (or
+/// the new edge is all the steps above left it without a point), one
+/// feature point keeps one of them: of the candidates (the current point,
+/// the new corners, the old feature points still on the result, points on
+/// the new edge), take the one whose fan lies nearest the exact result,
+/// both ways: the largest of the features' distances to the fan and the
+/// fan's distances to the result. Returns the number of cells changed.
+fn rechoose_points(
+    field: &mut UnifiedField,
+    combined: &Combined,
+    cells: &[usize],
+    old_features: &BTreeMap<usize, CellFeatures>,
+    corners: &[DVec3],
+) -> usize {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let current = field.feature_points();
+    let choices: Vec<(usize, DVec3)> = cells
+        .par_iter()
+        .filter_map(|&c| {
+            let now = current.get(&c).copied();
+            if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(c)) {
+                return None; // a point beside the cell: its merged fan stays
+            }
+            let probes = result_features(&spec, combined, c, old_features.get(&c), corners);
+            if probes.is_empty() {
+                return None;
+            }
+            let score = |p: DVec3| {
+                let fan = fan_triangles(&*field, c, p)?;
+                Some(farthest_from(&fan, &probes).max(farthest_off(combined, &fan)))
+            };
+            let before = now.and_then(score).unwrap_or(f64::INFINITY);
+            let (best, p) = probes
+                .iter()
+                .map(|&p| nudge_into(&spec, c, p))
+                .filter_map(|p| Some((score(p)?, p)))
+                .min_by(|a, b| a.0.total_cmp(&b.0))?;
+            (best < before - RECHOOSE_GAIN * h).then_some((c, p))
+        })
+        .collect();
+    let mut changed = 0;
+    for (c, p) in choices {
+        let old = field.extras.iter().find_map(|(&n, e)| match *e {
+            Extra::FeaturePoint(q) if current.get(&c) == Some(&q) => Some(n),
+            _ => None,
+        });
+        let old_extra = old.and_then(|n| field.extras.remove(&n).map(|e| (n, e)));
+        match storage_for(field, c, p) {
+            Some(n) => {
+                field.extras.insert(n, Extra::FeaturePoint(p));
+                changed += 1;
+            }
+            None => {
+                if let Some((n, e)) = old_extra {
+                    field.extras.insert(n, e);
+                }
+            }
+        }
+    }
+    changed
+}
+
+/// A new point must fan nearer the result by this many spacings to
+/// replace a cell's current one.
+const RECHOOSE_GAIN: f64 = 0.01;
+
+/// Points on the sharp features of the result in `cell`: the object's
+/// old features that the tool left, the new corners, and points on the
+/// new edge (where object and tool meet).
+fn result_features(
+    spec: &GridSpec<3>,
+    combined: &Combined,
+    cell: usize,
+    old: Option<&CellFeatures>,
+    corners: &[DVec3],
+) -> Vec<DVec3> {
+    let h = spec.spacing;
+    let lo = node_position(spec, cell);
+    let inside = |p: DVec3| (p - lo).min_element() >= 0.0 && (p - lo).max_element() <= h;
+    // A new edge or corner lies on both surfaces: both pass within half a
+    // diagonal of the cell's centre.
+    let centre = lo + DVec3::splat(0.5 * h);
+    let reach = 0.5 * 3f64.sqrt() * h;
+    if combined.tool.signed_distance(centre).abs() > reach
+        || combined.object.signed_distance(centre).abs() > reach
+    {
+        return Vec::new();
+    }
+    let mut probes: Vec<DVec3> = old
+        .map(|f| f.probes())
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|&p| combined.signed_distance(p).abs() < 1e-6 * h)
+        .collect();
+    let before = probes.len();
+    probes.extend(corners.iter().copied().filter(|&p| inside(p)));
+    let starts = (0..27)
+        .map(|k| lo + DVec3::new((k % 3) as f64, ((k / 3) % 3) as f64, (k / 9) as f64) * (0.5 * h));
+    probes.extend(
+        starts
+            .filter_map(|s| combined.edge_point(s, 1e-6 * h))
+            .filter(|&p| inside(p) && combined.tool.signed_distance(p).abs() < 1e-6 * h),
+    );
+    // Only cells with a new edge or corner are revisited.
+    if probes.len() == before {
+        probes.clear();
+    }
+    probes
+}
+
+/// The largest distance of a fan's triangles (sampled at their corners,
+/// edge midpoints and centroids) from the combined surface.
+fn farthest_off(combined: &Combined, fan: &[[DVec3; 3]]) -> f64 {
+    fan.iter()
+        .flat_map(|&[a, b, c]| {
+            [
+                a,
+                b,
+                c,
+                (a + b) * 0.5,
+                (b + c) * 0.5,
+                (c + a) * 0.5,
+                (a + b + c) / 3.0,
+            ]
+        })
+        .map(|p| combined.signed_distance(p).abs())
+        .fold(0.0, f64::max)
 }
 
 /// Where the sharp edges of `surface` (the object as its field represents
 /// it) pierce the tool: the corners a new edge makes with an old one.
-fn new_corners(surface: &TriMesh, tool: &Tool) -> Vec<DVec3> {
-    let features = Features::detect(surface, DEFAULT_FEATURE_ANGLE_DEG);
+fn new_corners(surface: &TriMesh, features: &Features, tool: &Tool) -> Vec<DVec3> {
     features
         .edges
         .iter()

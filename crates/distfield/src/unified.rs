@@ -232,7 +232,7 @@ pub fn build_udf(
 /// but on the side of at least one of them, so it never becomes an island.
 /// Corners whose sample has all neighbours on one side are left to fans.
 /// Returns the corners taken.
-fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
+pub(crate) fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
     let spec = field.spec;
     let cube = Neighbourhood::new(&spec.strides());
     let mut snapped = Vec::new();
@@ -315,7 +315,7 @@ fn directed_distances(
 }
 
 /// The largest distance from `points` to the triangles.
-fn farthest_from(triangles: &[[DVec3; 3]], points: &[DVec3]) -> f64 {
+pub(crate) fn farthest_from(triangles: &[[DVec3; 3]], points: &[DVec3]) -> f64 {
     points
         .iter()
         .map(|&p| {
