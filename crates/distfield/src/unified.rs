@@ -98,9 +98,6 @@ pub struct UdfReport {
     /// Of the feature points, those of cells without a mesh feature inside
     /// whose crossings' normals disagree (a sharp edge runs beside them).
     pub sharp_cells: usize,
-    /// Cells around a sample moved onto a corner whose feature point was
-    /// changed (or dropped) for triangles nearer the mesh.
-    pub repicked: usize,
     /// Directed distances given up because all corners of a feature cell
     /// already carried extra data.
     pub directed_dropped: usize,
@@ -221,7 +218,6 @@ pub fn build_udf(
             report.sharp_cells += 1;
         }
     }
-    report.repicked = repick_around_corners(&mut field, &query, &cells);
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
@@ -284,103 +280,6 @@ pub(crate) fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<D
         snapped.push(q);
     }
     snapped
-}
-
-/// The cells around a sample moved onto a corner hold the pieces of two
-/// or more feature edges that end there. Their feature point (one of the
-/// pieces) or none (the table triangles, which reach the corner through
-/// the moved sample): whichever gives the cell's triangles the smallest
-/// two-way distance to the mesh (its features' probes to the triangles,
-/// the triangles to the mesh). Returns the number of cells changed.
-fn repick_around_corners(
-    field: &mut UnifiedField,
-    query: &MeshQuery,
-    cells: &BTreeMap<usize, CellFeatures>,
-) -> usize {
-    let spec = field.spec;
-    let h = spec.spacing;
-    let moved: Vec<usize> = field
-        .extras
-        .iter()
-        .filter_map(|(&n, e)| matches!(e, Extra::Position(_)).then_some(n as usize))
-        .collect();
-    let mut around: Vec<usize> = moved
-        .iter()
-        .flat_map(|&n| crate::offset::cells_around(&spec, n))
-        .filter(|&c| cells.contains_key(&c) && field.crosses(c))
-        .collect();
-    around.sort_unstable();
-    around.dedup();
-    let mut changed = 0;
-    for c in around {
-        let f = &cells[&c];
-        let points = field.feature_points();
-        let now = points.get(&c).copied();
-        if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(c)) {
-            continue;
-        }
-        let probes = f.probes();
-        if probes.is_empty() {
-            continue;
-        }
-        let error = |t: &[[DVec3; 3]]| {
-            let off = t
-                .iter()
-                .flat_map(|&[a, b, c]| {
-                    [
-                        (a + b + c) / 3.0,
-                        (a + b) * 0.5,
-                        (b + c) * 0.5,
-                        (c + a) * 0.5,
-                    ]
-                })
-                .map(|p| query.signed_distance(p).abs())
-                .fold(0.0, f64::max);
-            farthest_from(t, &probes).max(off)
-        };
-        let before = error(&crate::extract::cell_triangles(&*field, c, now));
-        let centroid = crossing_centroid(field, query, c).unwrap_or(probes[0]);
-        let options = std::iter::once(None).chain(
-            f.candidates(centroid)
-                .into_iter()
-                .map(|p| Some(nudge_into(&spec, c, p))),
-        );
-        let Some((best, choice)) = options
-            .filter_map(|p| match p {
-                None => Some((
-                    error(&crate::extract::cell_triangles(&*field, c, None)),
-                    None,
-                )),
-                Some(p) => Some((error(&fan_triangles(&*field, c, p)?), Some(p))),
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-        else {
-            continue;
-        };
-        if best >= before - 0.01 * h {
-            continue;
-        }
-        let old = field.extras.iter().find_map(|(&n, e)| match *e {
-            Extra::FeaturePoint(q) if now == Some(q) => Some(n),
-            _ => None,
-        });
-        let removed = old.and_then(|n| field.extras.remove(&n).map(|e| (n, e)));
-        match choice {
-            None => changed += removed.is_some() as usize,
-            Some(p) => match storage_for(field, c, p) {
-                Some(n) => {
-                    field.extras.insert(n, Extra::FeaturePoint(p));
-                    changed += 1;
-                }
-                None => {
-                    if let Some((n, e)) = removed {
-                        field.extras.insert(n, e);
-                    }
-                }
-            },
-        }
-    }
-    changed
 }
 
 /// Samples with an edge crossing that interpolation misplaces by more than
