@@ -11,9 +11,7 @@
 //! edge (where the two surfaces meet) in each cell it crosses; an offset
 //! field gets a sample moved onto that edge instead.
 
-use crate::extract::{
-    cell_triangles, corner_nodes, crosses, fan_fits, fan_triangles, SampledField,
-};
+use crate::extract::{cell_triangles, corner_nodes, crosses, fan_fits, SampledField};
 use crate::features::{
     cells_with_features, nudge_into, CellFeatures, Features, DEFAULT_FEATURE_ANGLE_DEG,
 };
@@ -158,9 +156,9 @@ pub struct SculptReport {
     pub dropped: usize,
     /// New corners that a sample was moved onto (UDF).
     pub snapped: usize,
-    /// Cells whose feature point did not fan given one that does and lies
-    /// nearer the result (UDF).
-    pub rechosen: usize,
+    /// Of those, samples given the side other than against most of their
+    /// neighbours, where that puts the cells' surface nearer the result.
+    pub turned: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -459,18 +457,16 @@ pub fn sculpt_udf(
             report.kept += 1;
         }
     }
-    report.rechosen = rechoose_points(field, &combined, &cells, &old_features, &corners);
-    if choose_sides(field, &combined, &snapped, &old_features, &corners) > 0 {
-        report.rechosen += rechoose_points(field, &combined, &cells, &old_features, &corners);
-    }
+    report.turned = choose_sides(field, &combined, &snapped, &old_features, &corners);
     Ok(report)
 }
 
 /// A sample moved onto a new corner sits on the surface and may count as
 /// either side; which one decides how the crossing loops of its cells
-/// join. Keep the side whose cells' patches lie nearer the result (see
-/// [`rechoose_points`]), where topology allows both. Returns the number of
-/// samples turned to the other side.
+/// join. Keep the side whose cells' triangles lie nearer the result, both
+/// ways (the largest of the result's features' distances to them and of
+/// their distances to the result), where topology allows both. Returns
+/// the number of samples turned to the other side.
 fn choose_sides(
     field: &mut UnifiedField,
     combined: &Combined,
@@ -511,7 +507,7 @@ fn choose_sides(
         };
         let before = error(field);
         let old = std::mem::replace(&mut field.values[n], other);
-        if error(field) < before - RECHOOSE_GAIN * h {
+        if error(field) < before - SIDE_GAIN * h {
             turned += 1;
         } else {
             field.values[n] = old;
@@ -520,79 +516,9 @@ fn choose_sides(
     turned
 }
 
-/// Changed cells that keep the new edge or corner but whose current
-/// feature point (if any) does not fan, so their table triangles cut the
-/// features: of the candidates (the new corners, the old features the
-/// tool left, points on the new edge), the one whose fan lies nearest the
-/// exact result, both ways (the largest of the features' distances to the
-/// fan and of the fan's distances to the result), if nearer than the
-/// table triangles. Returns the number of cells given a point.
-fn rechoose_points(
-    field: &mut UnifiedField,
-    combined: &Combined,
-    cells: &[usize],
-    old_features: &BTreeMap<usize, CellFeatures>,
-    corners: &[DVec3],
-) -> usize {
-    let spec = field.spec;
-    let h = spec.spacing;
-    let current = field.feature_points();
-    let choices: Vec<(usize, DVec3)> = cells
-        .par_iter()
-        .filter_map(|&c| {
-            let now = current.get(&c).copied();
-            if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(c)) {
-                return None; // a point beside the cell: its merged fan stays
-            }
-            let probes = result_features(&spec, combined, c, old_features.get(&c), corners);
-            if probes.is_empty() {
-                return None;
-            }
-            let error = |triangles: &[[DVec3; 3]]| {
-                farthest_from(triangles, &probes).max(farthest_off(combined, triangles))
-            };
-            let score = |p: DVec3| Some(error(&fan_triangles(&*field, c, p)?));
-            if now.and_then(score).is_some() {
-                // Its fan fits: it was chosen knowing the flips that join
-                // it to its neighbours, which a score of this cell alone
-                // does not see (picking by that score anywhere cut the
-                // bar test's corners by 0.29 h instead of 0.11 h).
-                return None;
-            }
-            let (best, p) = probes
-                .iter()
-                .map(|&p| nudge_into(&spec, c, p))
-                .filter_map(|p| Some((score(p)?, p)))
-                .min_by(|a, b| a.0.total_cmp(&b.0))?;
-            let table = error(&cell_triangles(&*field, c, None));
-            (best < table - RECHOOSE_GAIN * h).then_some((c, p))
-        })
-        .collect();
-    let mut changed = 0;
-    for (c, p) in choices {
-        let old = field.extras.iter().find_map(|(&n, e)| match *e {
-            Extra::FeaturePoint(q) if current.get(&c) == Some(&q) => Some(n),
-            _ => None,
-        });
-        let old_extra = old.and_then(|n| field.extras.remove(&n).map(|e| (n, e)));
-        match storage_for(field, c, p) {
-            Some(n) => {
-                field.extras.insert(n, Extra::FeaturePoint(p));
-                changed += 1;
-            }
-            None => {
-                if let Some((n, e)) = old_extra {
-                    field.extras.insert(n, e);
-                }
-            }
-        }
-    }
-    changed
-}
-
-/// A change (a feature point, a sample's side) must bring the cells'
-/// triangles nearer the result by this many spacings.
-const RECHOOSE_GAIN: f64 = 0.01;
+/// The other side must bring the cells' triangles nearer the result by
+/// this many spacings.
+const SIDE_GAIN: f64 = 0.01;
 
 /// Points on the sharp features of the result in `cell`: the object's
 /// old features that the tool left, the new corners, and points on the
@@ -607,41 +533,37 @@ fn result_features(
     let h = spec.spacing;
     let lo = node_position(spec, cell);
     let inside = |p: DVec3| (p - lo).min_element() >= 0.0 && (p - lo).max_element() <= h;
-    // A new edge or corner lies on both surfaces: both pass within half a
-    // diagonal of the cell's centre.
-    let centre = lo + DVec3::splat(0.5 * h);
-    let reach = 0.5 * 3f64.sqrt() * h;
-    if combined.tool.signed_distance(centre).abs() > reach
-        || combined.object.signed_distance(centre).abs() > reach
-    {
-        return Vec::new();
-    }
     let mut probes: Vec<DVec3> = old
         .map(|f| f.probes())
         .unwrap_or_default()
         .into_iter()
         .filter(|&p| combined.signed_distance(p).abs() < 1e-6 * h)
         .collect();
-    let before = probes.len();
     probes.extend(corners.iter().copied().filter(|&p| inside(p)));
-    let starts = (0..27)
-        .map(|k| lo + DVec3::new((k % 3) as f64, ((k / 3) % 3) as f64, (k / 9) as f64) * (0.5 * h));
-    probes.extend(
-        starts
-            .filter_map(|s| combined.edge_point(s, 1e-6 * h))
-            .filter(|&p| inside(p) && combined.tool.signed_distance(p).abs() < 1e-6 * h),
-    );
-    // Only cells with a new edge or corner are revisited.
-    if probes.len() == before {
-        probes.clear();
+    // A new edge lies on both surfaces: both pass within half a diagonal
+    // of the cell's centre (a cheap test before searching for it).
+    let centre = lo + DVec3::splat(0.5 * h);
+    let reach = 0.5 * 3f64.sqrt() * h;
+    if combined.tool.signed_distance(centre).abs() <= reach
+        && combined.object.signed_distance(centre).abs() <= reach
+    {
+        let starts = (0..27).map(|k| {
+            lo + DVec3::new((k % 3) as f64, ((k / 3) % 3) as f64, (k / 9) as f64) * (0.5 * h)
+        });
+        probes.extend(
+            starts
+                .filter_map(|s| combined.edge_point(s, 1e-6 * h))
+                .filter(|&p| inside(p) && combined.tool.signed_distance(p).abs() < 1e-6 * h),
+        );
     }
     probes
 }
 
-/// The largest distance of a fan's triangles (sampled at their corners,
-/// edge midpoints and centroids) from the combined surface.
-fn farthest_off(combined: &Combined, fan: &[[DVec3; 3]]) -> f64 {
-    fan.iter()
+/// The largest distance of triangles (sampled at their corners, edge
+/// midpoints and centroids) from the combined surface.
+fn farthest_off(combined: &Combined, triangles: &[[DVec3; 3]]) -> f64 {
+    triangles
+        .iter()
         .flat_map(|&[a, b, c]| {
             [
                 a,

@@ -52,8 +52,8 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "edge_points_kept": r.kept,
             "directed_distances": r.directed,
             "dropped": r.dropped,
-            "feature_points_rechosen": r.rechosen,
             "samples_moved_onto_corners": r.snapped,
+            "samples_turned": r.turned,
         }));
     }
     field.write(&args.output)?;
