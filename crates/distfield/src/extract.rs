@@ -293,23 +293,9 @@ pub(crate) fn cell_triangles(
     if let Some(fan) = point.and_then(|p| fan_triangles(field, cell, p)) {
         return fan;
     }
-    let spec = field.spec();
-    let values = corner_nodes(spec, cell).map(|n| field.value(n));
-    let (config, bits) = cell_case(&values, 0.0);
-    let mut keys: Vec<u64> = (0..12).map(|e| cell_edge_key(spec, cell, e)).collect();
-    keys.sort_unstable();
-    let vertices: Vec<DVec3> = keys.iter().map(|&k| edge_point(field, k)).collect();
-    let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
-    patch
-        .triangles
-        .iter()
-        .map(|t| {
-            t.map(|v| match v {
-                Vertex::Edge(i) => vertices[i as usize],
-                Vertex::Extra(i) => patch.extra[i as usize],
-            })
-        })
-        .collect()
+    cell_patch(field, cell)
+        .map(|(patch, _, vertices)| patch.positions(&vertices))
+        .unwrap_or_default()
 }
 
 /// The triangles of `cell`'s fan around `point`, if extraction would fan
@@ -319,6 +305,14 @@ pub(crate) fn fan_triangles(
     cell: usize,
     point: DVec3,
 ) -> Option<Vec<[DVec3; 3]>> {
+    let (patch, keys, vertices) = cell_patch(field, cell)?;
+    let fan = patch.fan(point, &vertices, &keys, field);
+    (fan.fanned == Some(true)).then(|| fan.positions(&vertices))
+}
+
+/// The table patch of `cell` alone, if the surface crosses it, with its
+/// edges' keys and crossings.
+fn cell_patch(field: &impl SampledField, cell: usize) -> Option<(Patch, Vec<u64>, Vec<DVec3>)> {
     let spec = field.spec();
     let values = corner_nodes(spec, cell).map(|n| field.value(n));
     let (config, bits) = cell_case(&values, 0.0);
@@ -329,18 +323,7 @@ pub(crate) fn fan_triangles(
     keys.sort_unstable();
     let vertices: Vec<DVec3> = keys.iter().map(|&k| edge_point(field, k)).collect();
     let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
-    let fan = patch.fan(point, &vertices, &keys, field);
-    (fan.fanned == Some(true)).then(|| {
-        fan.triangles
-            .iter()
-            .map(|t| {
-                t.map(|v| match v {
-                    Vertex::Edge(i) => vertices[i as usize],
-                    Vertex::Extra(i) => fan.extra[i as usize],
-                })
-            })
-            .collect()
-    })
+    Some((patch, keys, vertices))
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Hash, Debug)]
@@ -410,6 +393,19 @@ fn table_patch(
 }
 
 impl Patch {
+    /// The triangles' corner positions (`vertices`: the crossings).
+    fn positions(&self, vertices: &[DVec3]) -> Vec<[DVec3; 3]> {
+        self.triangles
+            .iter()
+            .map(|t| {
+                t.map(|v| match v {
+                    Vertex::Edge(i) => vertices[i as usize],
+                    Vertex::Extra(i) => self.extra[i as usize],
+                })
+            })
+            .collect()
+    }
+
     /// The directed edges of the patch that no other of its triangles
     /// shares (its crossing loops).
     fn boundary(&self) -> Vec<(Vertex, Vertex)> {

@@ -452,17 +452,22 @@ fn drilling_a_box_keeps_the_new_circular_edges() {
     );
 }
 
+/// Fandisk, from ../shared/data beside the repository.
+fn fandisk() -> TriMesh {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/fandisk/fandisk.off");
+    surfrecon_geom::io::read(&path)
+        .unwrap_or_else(|e| panic!("the shared fandisk data is needed beside the repository: {e}"))
+        .to_mesh()
+}
+
 /// Fandisk (../shared/data) at the paper's resolution: the unified and
 /// offset fields are closed single surfaces, far closer to the mesh than
 /// the regular field (figures in BENCHMARKS.md).
 #[test]
 fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
     use surfrecon_distfield::offset::{build_odf, OdfOptions};
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/fandisk/fandisk.off");
-    let shape = surfrecon_geom::io::read(&path)
-        .unwrap_or_else(|e| panic!("the shared fandisk data is needed beside the repository: {e}"))
-        .to_mesh();
+    let shape = fandisk();
     let size = GridSize::Resolution(64);
     let exact = MeshQuery::new(&shape).unwrap();
     let error = |m: &TriMesh| two_way_error(&shape, &exact, m, 4);
@@ -523,11 +528,7 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
 #[test]
 fn sculpting_fandisk_keeps_the_new_edge_beside_old_ones() {
     use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/fandisk/fandisk.off");
-    let shape = surfrecon_geom::io::read(&path)
-        .unwrap_or_else(|e| panic!("the shared fandisk data is needed beside the repository: {e}"))
-        .to_mesh();
+    let shape = fandisk();
     let (mut udf, _) = build_udf(
         &shape,
         &UdfOptions {
