@@ -282,6 +282,37 @@ pub(crate) fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<D
     snapped
 }
 
+/// The surface of the block of `side`³ samples of `field` from sample
+/// `lo` on (the triangles near the block's border may differ from the
+/// whole field's).
+pub(crate) fn local_surface(field: &UnifiedField, lo: [usize; 3], side: usize) -> Vec<[DVec3; 3]> {
+    let spec = field.spec;
+    let mut values = Vec::with_capacity(side * side * side);
+    let mut extras = BTreeMap::new();
+    for k in 0..side {
+        for j in 0..side {
+            for i in 0..side {
+                let n = spec.linear([lo[0] + i, lo[1] + j, lo[2] + k]);
+                if let Some(e) = field.extras.get(&(n as u32)) {
+                    extras.insert(values.len() as u32, *e);
+                }
+                values.push(field.values[n]);
+            }
+        }
+    }
+    let crop = UnifiedField {
+        spec: GridSpec {
+            origin: spec.position(lo),
+            spacing: spec.spacing,
+            dims: [side; 3],
+        },
+        values,
+        extras,
+    };
+    let (mesh, _) = crop.extract();
+    (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect()
+}
+
 /// Samples with an edge crossing that interpolation misplaces by more than
 /// `threshold` spacings, with their exact distances along the three axes.
 fn directed_distances(

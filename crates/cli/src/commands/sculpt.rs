@@ -54,6 +54,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "dropped": r.dropped,
             "samples_moved_onto_corners": r.snapped,
             "samples_turned": r.turned,
+            "feature_points_repicked": r.repicked,
         }));
     }
     field.write(&args.output)?;
