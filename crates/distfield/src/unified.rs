@@ -98,6 +98,9 @@ pub struct UdfReport {
     /// Of the feature points, those of cells without a mesh feature inside
     /// whose crossings' normals disagree (a sharp edge runs beside them).
     pub sharp_cells: usize,
+    /// Cells crossed by separate feature lines whose point was changed
+    /// for one whose surrounding surface lies nearer the mesh.
+    pub repicked: usize,
     /// Directed distances given up because all corners of a feature cell
     /// already carried extra data.
     pub directed_dropped: usize,
@@ -218,6 +221,7 @@ pub fn build_udf(
             report.sharp_cells += 1;
         }
     }
+    report.repicked = repick_multi_line(&mut field, &query, &cells);
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
@@ -280,6 +284,113 @@ pub(crate) fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<D
         snapped.push(q);
     }
     snapped
+}
+
+/// Cells crossed by separate feature lines, where one point keeps one
+/// line: of their point, none, and their candidates, the one that brings
+/// the surface within half a cell of the cell nearest the mesh both ways
+/// (the cell's feature probes to the surface, the surface to the mesh).
+/// That surface is extracted from a crop of the field, so fans, merges
+/// and the flips that join feature points count, which the choice above
+/// (by the cell's own fan) cannot see. Returns the number of cells
+/// changed.
+fn repick_multi_line(
+    field: &mut UnifiedField,
+    query: &MeshQuery,
+    cells: &BTreeMap<usize, CellFeatures>,
+) -> usize {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let mut changed = 0;
+    for (&c, f) in cells {
+        let idx = spec.unlinear(c);
+        if f.lines() < 2 || (0..3).any(|a| idx[a] < 3 || idx[a] + 5 > spec.dims[a]) {
+            continue;
+        }
+        let points = field.feature_points();
+        let now = points.get(&c).copied();
+        if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(c)) {
+            continue;
+        }
+        let Some(centroid) = crossing_centroid(field, query, c) else {
+            continue;
+        };
+        let probes = f.probes();
+        let lo = node_position(&spec, c) - DVec3::splat(0.5 * h);
+        let hi = lo + DVec3::splat(2.0 * h);
+        let error = |field: &UnifiedField| {
+            let triangles: Vec<[DVec3; 3]> = local_surface(field, idx.map(|i| i - 3), 8)
+                .into_iter()
+                .filter(|&[a, b, c]| {
+                    let m = (a + b + c) / 3.0;
+                    m.cmpge(lo).all() && m.cmple(hi).all()
+                })
+                .collect();
+            let off = triangles
+                .iter()
+                .flat_map(|&[a, b, c]| {
+                    [
+                        (a + b + c) / 3.0,
+                        (a + b) * 0.5,
+                        (b + c) * 0.5,
+                        (c + a) * 0.5,
+                    ]
+                })
+                .map(|p| query.signed_distance(p).abs())
+                .fold(0.0, f64::max);
+            farthest_from(&triangles, &probes).max(off)
+        };
+        let stored = field.extras.iter().find_map(|(&m, e)| match *e {
+            Extra::FeaturePoint(q) if now == Some(q) => Some(m),
+            _ => None,
+        });
+        let before = error(field);
+        if let Some(m) = stored {
+            field.extras.remove(&m);
+        }
+        let candidates = f.candidates(centroid);
+        let step = (candidates.len() / 16).max(1);
+        let options = std::iter::once(None).chain(
+            candidates
+                .into_iter()
+                .step_by(step)
+                .map(|p| Some(nudge_into(&spec, c, p))),
+        );
+        let mut best = (before - 0.01 * h, now);
+        for option in options {
+            let node = match option {
+                Some(p) => match storage_for(field, c, p) {
+                    Some(m) if fan_fits(&*field, c, p) => {
+                        field.extras.insert(m, Extra::FeaturePoint(p));
+                        Some(m)
+                    }
+                    _ => continue,
+                },
+                None => None,
+            };
+            let e = error(field);
+            if e < best.0 {
+                best = (e, option);
+            }
+            if let Some(m) = node {
+                field.extras.remove(&m);
+            }
+        }
+        if best.1 != now {
+            changed += 1;
+        }
+        if let Some(p) = best.1 {
+            let m = if best.1 == now {
+                stored
+            } else {
+                storage_for(field, c, p)
+            };
+            if let Some(m) = m {
+                field.extras.insert(m, Extra::FeaturePoint(p));
+            }
+        }
+    }
+    changed
 }
 
 /// The surface of the block of `side`³ samples of `field` from sample

@@ -506,11 +506,13 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
             max < 0.8 * regular_max,
             "{name} max {max} vs regular {regular_max}"
         );
-        // The unified field: 0.28 h where two feature lines share a cell
-        // (0.54 h before cells beside an edge joined their neighbour's fan,
-        // fans were checked against the crossings' directions and such
-        // cells chose the point that cuts both lines least).
-        assert!(name != "udf" || max < 0.35 * h, "udf max {} h", max / h);
+        // The unified field: 0.19 h (0.28 h before cells crossed by two
+        // feature lines re-picked their point by the surface extracted
+        // around them; 0.54 h before cells beside an edge joined their
+        // neighbour's fan, fans were checked against the crossings'
+        // directions and such cells chose the point that cuts both lines
+        // least).
+        assert!(name != "udf" || max < 0.25 * h, "udf max {} h", max / h);
         // The offset field: 0.43 h (0.78 h before samples were aligned
         // with the features and allowed to cross where topology allows).
         assert!(name != "odf" || max < 0.5 * h, "odf max {} h", max / h);
