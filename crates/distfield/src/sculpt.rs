@@ -21,7 +21,9 @@ use crate::offset::{
 use crate::query::MeshQuery;
 use crate::sharp::clamp_near;
 use crate::sharp::Tangent;
-use crate::unified::{farthest_from, sharp_point, snap_corners, storage_for, Extra, UnifiedField};
+use crate::unified::{
+    farthest_from, repick_cell, sharp_point, snap_corners, storage_for, Extra, UnifiedField,
+};
 use crate::DistFieldError;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -524,10 +526,10 @@ fn choose_sides(
 /// this many spacings.
 const SIDE_GAIN: f64 = 0.01;
 
-/// Changed cells with a new edge or corner: of their current feature
-/// point, none, and the result's feature points in the cell, the one
-/// that brings the surface near the cell (extracted from a crop of the
-/// field, so fans, merges and flips count) nearest the result both ways.
+/// Changed cells with a new edge or corner re-pick their feature point
+/// by [`repick_cell`] from the result's feature points in the cell,
+/// scored both ways against the exact result. Returns the number of
+/// cells changed.
 fn repick(
     field: &mut UnifiedField,
     combined: &Combined,
@@ -536,84 +538,18 @@ fn repick(
     corners: &[DVec3],
 ) -> usize {
     let spec = field.spec;
-    let h = spec.spacing;
     let mut changed = 0;
     for &c in cells {
-        let idx = spec.unlinear(c);
-        if (0..3).any(|a| idx[a] < 3 || idx[a] + 5 > spec.dims[a]) {
-            continue;
-        }
         let probes = result_features(&spec, combined, c, old_features.get(&c), corners);
         let old_count = old_features.get(&c).map_or(0, |f| f.probes().len());
         if probes.len() <= old_count {
             continue; // no new edge or corner here
         }
-        let points = field.feature_points();
-        let now = points.get(&c).copied();
-        if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(c)) {
-            continue;
-        }
-        let lo = node_position(&spec, c) - DVec3::splat(0.5 * h);
-        let hi = lo + DVec3::splat(2.0 * h);
-        let error = |field: &UnifiedField| {
-            let triangles: Vec<[DVec3; 3]> =
-                crate::unified::local_surface(field, idx.map(|i| i - 3), 8)
-                    .into_iter()
-                    .filter(|&[a, b, c]| {
-                        let m = (a + b + c) / 3.0;
-                        m.cmpge(lo).all() && m.cmple(hi).all()
-                    })
-                    .collect();
-            farthest_from(&triangles, &probes).max(farthest_off(combined, &triangles))
+        let error = |triangles: &[[DVec3; 3]]| {
+            farthest_from(triangles, &probes).max(farthest_off(combined, triangles))
         };
-        let stored = field.extras.iter().find_map(|(&m, e)| match *e {
-            Extra::FeaturePoint(q) if now == Some(q) => Some(m),
-            _ => None,
-        });
-        let before = error(field);
-        if let Some(m) = stored {
-            field.extras.remove(&m);
-        }
         let step = (probes.len() / 12).max(1);
-        let options = std::iter::once(None).chain(
-            probes
-                .iter()
-                .step_by(step)
-                .map(|&p| Some(nudge_into(&spec, c, p))),
-        );
-        let mut best = (before - SIDE_GAIN * h, now);
-        for option in options {
-            let node = match option {
-                Some(p) => match storage_for(field, c, p) {
-                    Some(m) if fan_fits(&*field, c, p) => {
-                        field.extras.insert(m, Extra::FeaturePoint(p));
-                        Some(m)
-                    }
-                    _ => continue,
-                },
-                None => None,
-            };
-            let e = error(field);
-            if e < best.0 {
-                best = (e, option);
-            }
-            if let Some(m) = node {
-                field.extras.remove(&m);
-            }
-        }
-        if best.1 != now {
-            changed += 1;
-        }
-        if let Some(p) = best.1 {
-            let m = if best.1 == now {
-                stored
-            } else {
-                storage_for(field, c, p)
-            };
-            if let Some(m) = m {
-                field.extras.insert(m, Extra::FeaturePoint(p));
-            }
-        }
+        changed += repick_cell(field, c, probes.iter().copied().step_by(step), error) as usize;
     }
     changed
 }

@@ -287,110 +287,123 @@ pub(crate) fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<D
 }
 
 /// Cells crossed by separate feature lines, where one point keeps one
-/// line: of their point, none, and their candidates, the one that brings
-/// the surface within half a cell of the cell nearest the mesh both ways
-/// (the cell's feature probes to the surface, the surface to the mesh).
-/// That surface is extracted from a crop of the field, so fans, merges
-/// and the flips that join feature points count, which the choice above
-/// (by the cell's own fan) cannot see. Returns the number of cells
-/// changed.
+/// line: each re-picks its point by [`repick_cell`], scored by the cell's
+/// feature probes' distance to the surface and the surface's distance to
+/// the mesh. The choice above (by the cell's own fan) cannot see the
+/// flips that join its point to its neighbours'. Returns the number of
+/// cells changed.
 fn repick_multi_line(
     field: &mut UnifiedField,
     query: &MeshQuery,
     cells: &BTreeMap<usize, CellFeatures>,
 ) -> usize {
-    let spec = field.spec;
-    let h = spec.spacing;
     let mut changed = 0;
-    for (&c, f) in cells {
-        let idx = spec.unlinear(c);
-        if f.lines() < 2 || (0..3).any(|a| idx[a] < 3 || idx[a] + 5 > spec.dims[a]) {
-            continue;
-        }
-        let points = field.feature_points();
-        let now = points.get(&c).copied();
-        if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(c)) {
-            continue;
-        }
+    for (&c, f) in cells.iter().filter(|(_, f)| f.lines() > 1) {
         let Some(centroid) = crossing_centroid(field, query, c) else {
             continue;
         };
         let probes = f.probes();
-        let lo = node_position(&spec, c) - DVec3::splat(0.5 * h);
-        let hi = lo + DVec3::splat(2.0 * h);
-        let error = |field: &UnifiedField| {
-            let triangles: Vec<[DVec3; 3]> = local_surface(field, idx.map(|i| i - 3), 8)
-                .into_iter()
-                .filter(|&[a, b, c]| {
-                    let m = (a + b + c) / 3.0;
-                    m.cmpge(lo).all() && m.cmple(hi).all()
-                })
-                .collect();
-            let off = triangles
-                .iter()
-                .flat_map(|&[a, b, c]| {
-                    [
-                        (a + b + c) / 3.0,
-                        (a + b) * 0.5,
-                        (b + c) * 0.5,
-                        (c + a) * 0.5,
-                    ]
-                })
+        let error = |triangles: &[[DVec3; 3]]| {
+            let off = sample_points(triangles)
                 .map(|p| query.signed_distance(p).abs())
                 .fold(0.0, f64::max);
-            farthest_from(&triangles, &probes).max(off)
+            farthest_from(triangles, &probes).max(off)
         };
-        let stored = field.extras.iter().find_map(|(&m, e)| match *e {
-            Extra::FeaturePoint(q) if now == Some(q) => Some(m),
-            _ => None,
-        });
-        let before = error(field);
-        if let Some(m) = stored {
-            field.extras.remove(&m);
-        }
         let candidates = f.candidates(centroid);
         let step = (candidates.len() / 16).max(1);
-        let options = std::iter::once(None).chain(
-            candidates
-                .into_iter()
-                .step_by(step)
-                .map(|p| Some(nudge_into(&spec, c, p))),
-        );
-        let mut best = (before - 0.01 * h, now);
-        for option in options {
-            let node = match option {
-                Some(p) => match storage_for(field, c, p) {
-                    Some(m) if fan_fits(&*field, c, p) => {
-                        field.extras.insert(m, Extra::FeaturePoint(p));
-                        Some(m)
-                    }
-                    _ => continue,
-                },
-                None => None,
-            };
-            let e = error(field);
-            if e < best.0 {
-                best = (e, option);
-            }
-            if let Some(m) = node {
-                field.extras.remove(&m);
-            }
-        }
-        if best.1 != now {
-            changed += 1;
-        }
-        if let Some(p) = best.1 {
-            let m = if best.1 == now {
-                stored
-            } else {
-                storage_for(field, c, p)
-            };
-            if let Some(m) = m {
-                field.extras.insert(m, Extra::FeaturePoint(p));
-            }
-        }
+        changed += repick_cell(field, c, candidates.into_iter().step_by(step), error) as usize;
     }
     changed
+}
+
+/// Points at which [`repick_cell`]'s callers measure triangles against
+/// the exact surface: centroids and edge midpoints.
+pub(crate) fn sample_points(triangles: &[[DVec3; 3]]) -> impl Iterator<Item = DVec3> + '_ {
+    triangles.iter().flat_map(|&[a, b, c]| {
+        [
+            (a + b + c) / 3.0,
+            (a + b) * 0.5,
+            (b + c) * 0.5,
+            (c + a) * 0.5,
+        ]
+    })
+}
+
+/// A cell may need a point other than the one its own fan suggests: of
+/// its current feature point, none (its table triangles) and the
+/// `candidates` whose fan fits, keep the one for which `error` of the
+/// surface within half a cell of the cell is smallest (by at least 0.01
+/// spacings against the current one). That surface is extracted from a
+/// crop of 8³ samples around the cell, so fans, merges into a neighbour's
+/// fan and the flips that join feature points all count. Returns whether
+/// the cell's point changed.
+pub(crate) fn repick_cell(
+    field: &mut UnifiedField,
+    cell: usize,
+    candidates: impl Iterator<Item = DVec3>,
+    error: impl Fn(&[[DVec3; 3]]) -> f64,
+) -> bool {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let idx = spec.unlinear(cell);
+    if (0..3).any(|a| idx[a] < 3 || idx[a] + 5 > spec.dims[a]) {
+        return false;
+    }
+    let now = field.feature_points().get(&cell).copied();
+    if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(cell)) {
+        return false; // a point beside the cell: its merged fan stays
+    }
+    let lo = node_position(&spec, cell) - DVec3::splat(0.5 * h);
+    let hi = lo + DVec3::splat(2.0 * h);
+    let score = |field: &UnifiedField| {
+        let near: Vec<[DVec3; 3]> = local_surface(field, idx.map(|i| i - 3), 8)
+            .into_iter()
+            .filter(|&[a, b, c]| {
+                let m = (a + b + c) / 3.0;
+                m.cmpge(lo).all() && m.cmple(hi).all()
+            })
+            .collect();
+        error(&near)
+    };
+    let stored = field.extras.iter().find_map(|(&m, e)| match *e {
+        Extra::FeaturePoint(q) if now == Some(q) => Some(m),
+        _ => None,
+    });
+    let mut best = (score(field) - 0.01 * h, now);
+    if let Some(m) = stored {
+        field.extras.remove(&m);
+    }
+    let options = std::iter::once(None).chain(candidates.map(|p| Some(nudge_into(&spec, cell, p))));
+    for option in options {
+        let node = match option {
+            Some(p) => match storage_for(field, cell, p) {
+                Some(m) if fan_fits(&*field, cell, p) => {
+                    field.extras.insert(m, Extra::FeaturePoint(p));
+                    Some(m)
+                }
+                _ => continue,
+            },
+            None => None,
+        };
+        let e = score(field);
+        if e < best.0 {
+            best = (e, option);
+        }
+        if let Some(m) = node {
+            field.extras.remove(&m);
+        }
+    }
+    if let Some(p) = best.1 {
+        let node = if best.1 == now {
+            stored
+        } else {
+            storage_for(field, cell, p)
+        };
+        if let Some(m) = node {
+            field.extras.insert(m, Extra::FeaturePoint(p));
+        }
+    }
+    best.1 != now
 }
 
 /// The surface of the block of `side`³ samples of `field` from sample
