@@ -97,8 +97,8 @@ fn main() {
         let t = Instant::now();
         let (out, extract) = udf.extract();
         let stored = format!(
-            "{} directed, {} feature points ({} beside an edge; {} fanned, {} merged into a neighbour's fan, {} flips), {} moved samples; {} boundary / {} feature cells",
-            report.directed, report.feature_points, report.sharp_cells, extract.fans, extract.merged, extract.flips, report.positions, report.boundary_cells, report.feature_cells
+            "{} directed, {} feature points ({} beside an edge; {} fanned, {} merged into a neighbour's fan, {} flips), {} moved samples, {} cells re-picked; {} boundary / {} feature cells",
+            report.directed, report.feature_points, report.sharp_cells, extract.fans, extract.merged, extract.flips, report.positions, report.repicked, report.boundary_cells, report.feature_cells
         );
         let name = format!("UDF {threshold}");
         row(

@@ -283,6 +283,21 @@ pub(crate) fn fan_fits(field: &impl SampledField, cell: usize, point: DVec3) -> 
     fan_triangles(field, cell, point).is_some()
 }
 
+/// The triangles extraction gives `cell` alone: the fan around `point`
+/// where it fits, else the table triangles.
+pub(crate) fn cell_triangles(
+    field: &impl SampledField,
+    cell: usize,
+    point: Option<DVec3>,
+) -> Vec<[DVec3; 3]> {
+    if let Some(fan) = point.and_then(|p| fan_triangles(field, cell, p)) {
+        return fan;
+    }
+    cell_patch(field, cell)
+        .map(|(patch, _, vertices)| patch.positions(&vertices))
+        .unwrap_or_default()
+}
+
 /// The triangles of `cell`'s fan around `point`, if extraction would fan
 /// it (alone).
 pub(crate) fn fan_triangles(
@@ -290,6 +305,14 @@ pub(crate) fn fan_triangles(
     cell: usize,
     point: DVec3,
 ) -> Option<Vec<[DVec3; 3]>> {
+    let (patch, keys, vertices) = cell_patch(field, cell)?;
+    let fan = patch.fan(point, &vertices, &keys, field);
+    (fan.fanned == Some(true)).then(|| fan.positions(&vertices))
+}
+
+/// The table patch of `cell` alone, if the surface crosses it, with its
+/// edges' keys and crossings.
+fn cell_patch(field: &impl SampledField, cell: usize) -> Option<(Patch, Vec<u64>, Vec<DVec3>)> {
     let spec = field.spec();
     let values = corner_nodes(spec, cell).map(|n| field.value(n));
     let (config, bits) = cell_case(&values, 0.0);
@@ -300,18 +323,7 @@ pub(crate) fn fan_triangles(
     keys.sort_unstable();
     let vertices: Vec<DVec3> = keys.iter().map(|&k| edge_point(field, k)).collect();
     let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
-    let fan = patch.fan(point, &vertices, &keys, field);
-    (fan.fanned == Some(true)).then(|| {
-        fan.triangles
-            .iter()
-            .map(|t| {
-                t.map(|v| match v {
-                    Vertex::Edge(i) => vertices[i as usize],
-                    Vertex::Extra(i) => fan.extra[i as usize],
-                })
-            })
-            .collect()
-    })
+    Some((patch, keys, vertices))
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Hash, Debug)]
@@ -381,6 +393,19 @@ fn table_patch(
 }
 
 impl Patch {
+    /// The triangles' corner positions (`vertices`: the crossings).
+    fn positions(&self, vertices: &[DVec3]) -> Vec<[DVec3; 3]> {
+        self.triangles
+            .iter()
+            .map(|t| {
+                t.map(|v| match v {
+                    Vertex::Edge(i) => vertices[i as usize],
+                    Vertex::Extra(i) => self.extra[i as usize],
+                })
+            })
+            .collect()
+    }
+
     /// The directed edges of the patch that no other of its triangles
     /// shares (its crossing loops).
     fn boundary(&self) -> Vec<(Vertex, Vertex)> {

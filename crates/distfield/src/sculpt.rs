@@ -11,18 +11,22 @@
 //! edge (where the two surfaces meet) in each cell it crosses; an offset
 //! field gets a sample moved onto that edge instead.
 
-use crate::extract::{corner_nodes, crosses, fan_fits, SampledField};
-use crate::features::{nudge_into, Features, DEFAULT_FEATURE_ANGLE_DEG};
+use crate::extract::{cell_triangles, corner_nodes, crosses, fan_fits, SampledField};
+use crate::features::{
+    cells_with_features, nudge_into, CellFeatures, Features, DEFAULT_FEATURE_ANGLE_DEG,
+};
 use crate::offset::{
     cells_around, may_take, node_position, on_outer_layer, stays_convex, OffsetField,
 };
 use crate::query::MeshQuery;
 use crate::sharp::clamp_near;
 use crate::sharp::Tangent;
-use crate::unified::{sharp_point, storage_for, Extra, UnifiedField};
+use crate::unified::{
+    farthest_from, repick_cell, sharp_point, snap_corners, storage_for, Extra, UnifiedField,
+};
 use crate::DistFieldError;
 use rayon::prelude::*;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::marching::tables::EDGE_CORNERS;
@@ -152,6 +156,14 @@ pub struct SculptReport {
     pub directed: usize,
     /// Old extra data dropped because the tool changed its cell.
     pub dropped: usize,
+    /// New corners that a sample was moved onto (UDF).
+    pub snapped: usize,
+    /// Changed cells given another feature point (or none) whose
+    /// surrounding surface lies nearer the result.
+    pub repicked: usize,
+    /// Of those, samples given the side other than against most of their
+    /// neighbours, where that puts the cells' surface nearer the result.
+    pub turned: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -306,10 +318,12 @@ pub fn sculpt_udf(
 ) -> Result<SculptReport, DistFieldError> {
     let surface = field.extract().0;
     let combined = Combined::new(&surface, tool, operation)?;
-    let corners = new_corners(&surface, tool);
+    let features = Features::detect(&surface, DEFAULT_FEATURE_ANGLE_DEG);
+    let mut corners = new_corners(&surface, &features, tool);
     let spec = field.spec;
     let h = spec.spacing;
-    let (changed, cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
+    let old_features = cells_with_features(&surface, &features, &spec, |_| true);
+    let (changed, mut cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
     // Old directed distances and feature points of changed samples no
     // longer describe the surface.
     for &n in &changed {
@@ -332,6 +346,22 @@ pub fn sculpt_udf(
     for i in stale {
         field.extras.remove(&i);
     }
+    // New corners a sample can sit on take it, as in construction: one
+    // feature point per cell cannot keep both an old edge and the new one
+    // where they meet.
+    let snapped = snap_corners(field, &corners);
+    corners.retain(|p| !snapped.contains(p));
+    for p in &snapped {
+        let node = field
+            .extras
+            .iter()
+            .find_map(|(&n, e)| (*e == Extra::Position(*p)).then_some(n as usize));
+        cells.extend(node.into_iter().flat_map(|n| cells_around(&spec, n)));
+    }
+    cells.sort_unstable();
+    cells.dedup();
+    cells.retain(|&c| crosses(&spec, &field.values, c));
+    report.snapped = snapped.len();
     // Exact crossings on the edges of the cells the tool changed.
     let mut edges: BTreeSet<(usize, usize)> = BTreeSet::new();
     for &c in &cells {
@@ -432,13 +462,160 @@ pub fn sculpt_udf(
             report.kept += 1;
         }
     }
+    report.turned = choose_sides(field, &combined, &snapped, &old_features, &corners);
+    report.repicked = repick(field, &combined, &cells, &old_features, &corners);
     Ok(report)
+}
+
+/// A sample moved onto a new corner sits on the surface and may count as
+/// either side; which one decides how the crossing loops of its cells
+/// join. Keep the side whose cells' triangles lie nearer the result, both
+/// ways (the largest of the result's features' distances to them and of
+/// their distances to the result), where topology allows both. Returns
+/// the number of samples turned to the other side.
+fn choose_sides(
+    field: &mut UnifiedField,
+    combined: &Combined,
+    snapped: &[DVec3],
+    old_features: &BTreeMap<usize, CellFeatures>,
+    corners: &[DVec3],
+) -> usize {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let cube = Neighbourhood::new(&spec.strides());
+    let mut turned = 0;
+    for p in snapped {
+        let Some(n) = field
+            .extras
+            .iter()
+            .find_map(|(&n, e)| (*e == Extra::Position(*p)).then_some(n as usize))
+        else {
+            continue;
+        };
+        let other = if field.values[n] < 0.0 {
+            0.0
+        } else {
+            -1e-9 * h
+        };
+        if !may_take(&cube, n, other, |m| field.values[m]) {
+            continue;
+        }
+        let error = |field: &UnifiedField| {
+            let points = field.feature_points();
+            cells_around(&spec, n)
+                .filter(|&c| crosses(&spec, &field.values, c))
+                .map(|c| {
+                    let triangles = cell_triangles(field, c, points.get(&c).copied());
+                    let probes = result_features(&spec, combined, c, old_features.get(&c), corners);
+                    farthest_from(&triangles, &probes).max(farthest_off(combined, &triangles))
+                })
+                .fold(0.0, f64::max)
+        };
+        let before = error(field);
+        let old = std::mem::replace(&mut field.values[n], other);
+        if error(field) < before - SIDE_GAIN * h {
+            turned += 1;
+        } else {
+            field.values[n] = old;
+        }
+    }
+    turned
+}
+
+/// The other side must bring the cells' triangles nearer the result by
+/// this many spacings.
+const SIDE_GAIN: f64 = 0.01;
+
+/// Changed cells with a new edge or corner re-pick their feature point
+/// by [`repick_cell`] from the result's feature points in the cell,
+/// scored both ways against the exact result. Returns the number of
+/// cells changed.
+fn repick(
+    field: &mut UnifiedField,
+    combined: &Combined,
+    cells: &[usize],
+    old_features: &BTreeMap<usize, CellFeatures>,
+    corners: &[DVec3],
+) -> usize {
+    let spec = field.spec;
+    let mut changed = 0;
+    for &c in cells {
+        let probes = result_features(&spec, combined, c, old_features.get(&c), corners);
+        let old_count = old_features.get(&c).map_or(0, |f| f.probes().len());
+        if probes.len() <= old_count {
+            continue; // no new edge or corner here
+        }
+        let error = |triangles: &[[DVec3; 3]]| {
+            farthest_from(triangles, &probes).max(farthest_off(combined, triangles))
+        };
+        let step = (probes.len() / 12).max(1);
+        changed += repick_cell(field, c, probes.iter().copied().step_by(step), error) as usize;
+    }
+    changed
+}
+
+/// Points on the sharp features of the result in `cell`: the object's
+/// old features that the tool left, the new corners, and points on the
+/// new edge (where object and tool meet).
+fn result_features(
+    spec: &GridSpec<3>,
+    combined: &Combined,
+    cell: usize,
+    old: Option<&CellFeatures>,
+    corners: &[DVec3],
+) -> Vec<DVec3> {
+    let h = spec.spacing;
+    let lo = node_position(spec, cell);
+    let inside = |p: DVec3| (p - lo).min_element() >= 0.0 && (p - lo).max_element() <= h;
+    let mut probes: Vec<DVec3> = old
+        .map(|f| f.probes())
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|&p| combined.signed_distance(p).abs() < 1e-6 * h)
+        .collect();
+    probes.extend(corners.iter().copied().filter(|&p| inside(p)));
+    // A new edge lies on both surfaces: both pass within half a diagonal
+    // of the cell's centre (a cheap test before searching for it).
+    let centre = lo + DVec3::splat(0.5 * h);
+    let reach = 0.5 * 3f64.sqrt() * h;
+    if combined.tool.signed_distance(centre).abs() <= reach
+        && combined.object.signed_distance(centre).abs() <= reach
+    {
+        let starts = (0..27).map(|k| {
+            lo + DVec3::new((k % 3) as f64, ((k / 3) % 3) as f64, (k / 9) as f64) * (0.5 * h)
+        });
+        probes.extend(
+            starts
+                .filter_map(|s| combined.edge_point(s, 1e-6 * h))
+                .filter(|&p| inside(p) && combined.tool.signed_distance(p).abs() < 1e-6 * h),
+        );
+    }
+    probes
+}
+
+/// The largest distance of triangles (sampled at their corners, edge
+/// midpoints and centroids) from the combined surface.
+fn farthest_off(combined: &Combined, triangles: &[[DVec3; 3]]) -> f64 {
+    triangles
+        .iter()
+        .flat_map(|&[a, b, c]| {
+            [
+                a,
+                b,
+                c,
+                (a + b) * 0.5,
+                (b + c) * 0.5,
+                (c + a) * 0.5,
+                (a + b + c) / 3.0,
+            ]
+        })
+        .map(|p| combined.signed_distance(p).abs())
+        .fold(0.0, f64::max)
 }
 
 /// Where the sharp edges of `surface` (the object as its field represents
 /// it) pierce the tool: the corners a new edge makes with an old one.
-fn new_corners(surface: &TriMesh, tool: &Tool) -> Vec<DVec3> {
-    let features = Features::detect(surface, DEFAULT_FEATURE_ANGLE_DEG);
+fn new_corners(surface: &TriMesh, features: &Features, tool: &Tool) -> Vec<DVec3> {
     features
         .edges
         .iter()

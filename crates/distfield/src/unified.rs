@@ -98,6 +98,9 @@ pub struct UdfReport {
     /// Of the feature points, those of cells without a mesh feature inside
     /// whose crossings' normals disagree (a sharp edge runs beside them).
     pub sharp_cells: usize,
+    /// Cells crossed by separate feature lines whose point was changed
+    /// for one whose surrounding surface lies nearer the mesh.
+    pub repicked: usize,
     /// Directed distances given up because all corners of a feature cell
     /// already carried extra data.
     pub directed_dropped: usize,
@@ -218,6 +221,7 @@ pub fn build_udf(
             report.sharp_cells += 1;
         }
     }
+    report.repicked = repick_multi_line(&mut field, &query, &cells);
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
@@ -232,7 +236,7 @@ pub fn build_udf(
 /// but on the side of at least one of them, so it never becomes an island.
 /// Corners whose sample has all neighbours on one side are left to fans.
 /// Returns the corners taken.
-fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
+pub(crate) fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
     let spec = field.spec;
     let cube = Neighbourhood::new(&spec.strides());
     let mut snapped = Vec::new();
@@ -282,6 +286,157 @@ fn snap_corners(field: &mut UnifiedField, corners: &[DVec3]) -> Vec<DVec3> {
     snapped
 }
 
+/// Cells crossed by separate feature lines, where one point keeps one
+/// line: each re-picks its point by [`repick_cell`], scored by the cell's
+/// feature probes' distance to the surface and the surface's distance to
+/// the mesh. The choice above (by the cell's own fan) cannot see the
+/// flips that join its point to its neighbours'. Returns the number of
+/// cells changed.
+fn repick_multi_line(
+    field: &mut UnifiedField,
+    query: &MeshQuery,
+    cells: &BTreeMap<usize, CellFeatures>,
+) -> usize {
+    let mut changed = 0;
+    for (&c, f) in cells.iter().filter(|(_, f)| f.lines() > 1) {
+        let Some(centroid) = crossing_centroid(field, query, c) else {
+            continue;
+        };
+        let probes = f.probes();
+        let error = |triangles: &[[DVec3; 3]]| {
+            let off = sample_points(triangles)
+                .map(|p| query.signed_distance(p).abs())
+                .fold(0.0, f64::max);
+            farthest_from(triangles, &probes).max(off)
+        };
+        let candidates = f.candidates(centroid);
+        let step = (candidates.len() / 16).max(1);
+        changed += repick_cell(field, c, candidates.into_iter().step_by(step), error) as usize;
+    }
+    changed
+}
+
+/// Points at which [`repick_cell`]'s callers measure triangles against
+/// the exact surface: centroids and edge midpoints.
+pub(crate) fn sample_points(triangles: &[[DVec3; 3]]) -> impl Iterator<Item = DVec3> + '_ {
+    triangles.iter().flat_map(|&[a, b, c]| {
+        [
+            (a + b + c) / 3.0,
+            (a + b) * 0.5,
+            (b + c) * 0.5,
+            (c + a) * 0.5,
+        ]
+    })
+}
+
+/// A cell may need a point other than the one its own fan suggests: of
+/// its current feature point, none (its table triangles) and the
+/// `candidates` whose fan fits, keep the one for which `error` of the
+/// surface within half a cell of the cell is smallest (by at least 0.01
+/// spacings against the current one). That surface is extracted from a
+/// crop of 8³ samples around the cell, so fans, merges into a neighbour's
+/// fan and the flips that join feature points all count. Returns whether
+/// the cell's point changed.
+pub(crate) fn repick_cell(
+    field: &mut UnifiedField,
+    cell: usize,
+    candidates: impl Iterator<Item = DVec3>,
+    error: impl Fn(&[[DVec3; 3]]) -> f64,
+) -> bool {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let idx = spec.unlinear(cell);
+    if (0..3).any(|a| idx[a] < 3 || idx[a] + 5 > spec.dims[a]) {
+        return false;
+    }
+    let now = field.feature_points().get(&cell).copied();
+    if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(cell)) {
+        return false; // a point beside the cell: its merged fan stays
+    }
+    let lo = node_position(&spec, cell) - DVec3::splat(0.5 * h);
+    let hi = lo + DVec3::splat(2.0 * h);
+    let score = |field: &UnifiedField| {
+        let near: Vec<[DVec3; 3]> = local_surface(field, idx.map(|i| i - 3), 8)
+            .into_iter()
+            .filter(|&[a, b, c]| {
+                let m = (a + b + c) / 3.0;
+                m.cmpge(lo).all() && m.cmple(hi).all()
+            })
+            .collect();
+        error(&near)
+    };
+    let stored = field.extras.iter().find_map(|(&m, e)| match *e {
+        Extra::FeaturePoint(q) if now == Some(q) => Some(m),
+        _ => None,
+    });
+    let mut best = (score(field) - 0.01 * h, now);
+    if let Some(m) = stored {
+        field.extras.remove(&m);
+    }
+    let options = std::iter::once(None).chain(candidates.map(|p| Some(nudge_into(&spec, cell, p))));
+    for option in options {
+        let node = match option {
+            Some(p) => match storage_for(field, cell, p) {
+                Some(m) if fan_fits(&*field, cell, p) => {
+                    field.extras.insert(m, Extra::FeaturePoint(p));
+                    Some(m)
+                }
+                _ => continue,
+            },
+            None => None,
+        };
+        let e = score(field);
+        if e < best.0 {
+            best = (e, option);
+        }
+        if let Some(m) = node {
+            field.extras.remove(&m);
+        }
+    }
+    if let Some(p) = best.1 {
+        let node = if best.1 == now {
+            stored
+        } else {
+            storage_for(field, cell, p)
+        };
+        if let Some(m) = node {
+            field.extras.insert(m, Extra::FeaturePoint(p));
+        }
+    }
+    best.1 != now
+}
+
+/// The surface of the block of `side`³ samples of `field` from sample
+/// `lo` on (the triangles near the block's border may differ from the
+/// whole field's).
+pub(crate) fn local_surface(field: &UnifiedField, lo: [usize; 3], side: usize) -> Vec<[DVec3; 3]> {
+    let spec = field.spec;
+    let mut values = Vec::with_capacity(side * side * side);
+    let mut extras = BTreeMap::new();
+    for k in 0..side {
+        for j in 0..side {
+            for i in 0..side {
+                let n = spec.linear([lo[0] + i, lo[1] + j, lo[2] + k]);
+                if let Some(e) = field.extras.get(&(n as u32)) {
+                    extras.insert(values.len() as u32, *e);
+                }
+                values.push(field.values[n]);
+            }
+        }
+    }
+    let crop = UnifiedField {
+        spec: GridSpec {
+            origin: spec.position(lo),
+            spacing: spec.spacing,
+            dims: [side; 3],
+        },
+        values,
+        extras,
+    };
+    let (mesh, _) = crop.extract();
+    (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect()
+}
+
 /// Samples with an edge crossing that interpolation misplaces by more than
 /// `threshold` spacings, with their exact distances along the three axes.
 fn directed_distances(
@@ -315,7 +470,7 @@ fn directed_distances(
 }
 
 /// The largest distance from `points` to the triangles.
-fn farthest_from(triangles: &[[DVec3; 3]], points: &[DVec3]) -> f64 {
+pub(crate) fn farthest_from(triangles: &[[DVec3; 3]], points: &[DVec3]) -> f64 {
     points
         .iter()
         .map(|&p| {

@@ -68,6 +68,7 @@ pub fn run(args: &Args, size: GridSize, ctx: &Context) -> anyhow::Result<()> {
             "directed_distances": r.directed,
             "feature_points": r.feature_points,
             "sharp_cells": r.sharp_cells,
+            "cells_repicked": r.repicked,
             "sample_positions": r.positions,
             "directed_dropped": r.directed_dropped,
         });

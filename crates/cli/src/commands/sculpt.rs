@@ -52,6 +52,9 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "edge_points_kept": r.kept,
             "directed_distances": r.directed,
             "dropped": r.dropped,
+            "samples_moved_onto_corners": r.snapped,
+            "samples_turned": r.turned,
+            "feature_points_repicked": r.repicked,
         }));
     }
     field.write(&args.output)?;
