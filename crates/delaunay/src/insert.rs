@@ -498,14 +498,23 @@ impl Triangulation {
                 self.hint = t;
             }
         }
+        // Each new facet through the apex sets its own side; the partner
+        // sets the other when its turn comes, except seeds, linked here.
+        for &(facet, outside) in seeds {
+            let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
+            let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
+            if let Some(here) = edges.find(w, u) {
+                self.link(here, outside);
+            }
+        }
         for (&([a, b, c], _), &t) in boundary.iter().zip(&created) {
             let x = infinite_slot_shift([a, b, c]);
+            let cell = &mut self.cells[t as usize];
             for (slot, u, w) in [(x, c, b), (1 ^ x, a, c), (2 ^ x, b, a)] {
-                let here = t * 4 + slot as u32;
                 let there = edges.find(u, w);
                 debug_assert!(there.is_some(), "cone: no partner for edge {u}-{w}");
                 if let Some(there) = there {
-                    self.link(here, there);
+                    cell.n[slot] = there;
                 }
             }
         }
