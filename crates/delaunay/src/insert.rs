@@ -477,8 +477,16 @@ impl Triangulation {
         }
         for &([a, b, c], outside) in &boundary {
             let x = infinite_slot_shift([a, b, c]);
-            let old = [a, b, c, apex];
-            let verts = [old[x], old[1 ^ x], old[2 ^ x], old[3 ^ x]];
+            // Slot `s` holds corner `s ^ x` of (a, b, c, apex); spelled out
+            // with constant indices so the cell is built in registers (a
+            // permutation by a variable index goes through the stack, and
+            // reading it back whole stalls on store forwarding).
+            let verts = match x {
+                0 => [a, b, c, apex],
+                1 => [b, a, apex, c],
+                2 => [c, apex, a, b],
+                _ => [apex, c, b, a],
+            };
             let t = self.alloc_tet(verts);
             created.push(t);
             self.link(t * 4 + (3 ^ x) as u32, outside);
@@ -530,6 +538,7 @@ impl Triangulation {
         self.cells[(b >> 2) as usize].n[(b & 3) as usize] = a;
     }
 
+    #[inline]
     pub(crate) fn alloc_tet(&mut self, verts: [u32; 4]) -> u32 {
         if verts[3] == INF {
             self.ghost_tets += 1;
