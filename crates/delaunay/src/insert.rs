@@ -460,6 +460,8 @@ impl Triangulation {
                 std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(cell.cast())
             };
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = t;
     }
 
     /// Fill the hole described by `scratch.boundary` with the cone from
