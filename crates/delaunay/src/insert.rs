@@ -24,12 +24,18 @@ pub(crate) struct Scratch {
     /// positive side, and the encoded neighbour outside the hole.
     pub(crate) boundary: Vec<([u32; 3], u32)>,
     edges: EdgeTable,
+    /// The tetrahedra `cone` made, one per boundary facet.
+    created: Vec<u32>,
 }
 
 /// Open-addressing table pairing the new tetrahedra's facets through the
-/// apex: a facet `(apex, u, w)` meets the facet `(apex, w, u)` of its
-/// neighbour, so both look up the unordered edge {u, w}: the first stores
-/// itself, the second finds its partner. Cleared in O(1) by a stamp.
+/// apex. Facet `(a, b, c)` of the hole's boundary, traversed in that cyclic
+/// order, gives its new tetrahedron the facets through the apex and the
+/// directed edges (b, c), (c, a), (a, b); the neighbouring boundary facet
+/// traverses the shared edge the other way. So the cone stores every facet
+/// under its directed edge, then finds each facet's partner under the
+/// reversed edge: two passes, but no branch that depends on which of the
+/// two facets came first. Cleared in O(1) by a stamp.
 #[derive(Clone, Debug, Default)]
 struct EdgeTable {
     entries: Vec<EdgeEntry>,
@@ -56,20 +62,36 @@ impl EdgeTable {
         self.stamp += 1;
     }
 
-    /// The value stored for edge {u, w} if any; otherwise store `value`.
     #[inline]
-    fn pair(&mut self, u: u32, w: u32, value: u32) -> Option<u32> {
-        let key = ((u.min(w) as u64) << 32) | u.max(w) as u64;
+    fn slot(&self, key: u64) -> usize {
+        (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize
+    }
+
+    /// Store `value` under the directed edge (u, w).
+    #[inline]
+    fn insert(&mut self, u: u32, w: u32, value: u32) {
+        let key = ((u as u64) << 32) | w as u64;
         let mask = self.entries.len() - 1;
-        let mut i = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize;
+        let mut i = self.slot(key);
+        while self.entries[i & mask].stamp == self.stamp {
+            i += 1;
+        }
+        self.entries[i & mask] = EdgeEntry {
+            key,
+            value,
+            stamp: self.stamp,
+        };
+    }
+
+    /// The value stored under the directed edge (u, w), if any.
+    #[inline]
+    fn find(&self, u: u32, w: u32) -> Option<u32> {
+        let key = ((u as u64) << 32) | w as u64;
+        let mask = self.entries.len() - 1;
+        let mut i = self.slot(key);
         loop {
-            let entry = &mut self.entries[i & mask];
+            let entry = &self.entries[i & mask];
             if entry.stamp != self.stamp {
-                *entry = EdgeEntry {
-                    key,
-                    value,
-                    stamp: self.stamp,
-                };
                 return None;
             }
             if entry.key == key {
@@ -94,6 +116,22 @@ const FLAGS: u32 = 1 << 31;
 pub(crate) struct Walk {
     pub tet: u32,
     pub outside: bool,
+}
+
+/// For a boundary facet `(a, b, c)` with the hole on its positive side,
+/// `(a, b, c, apex)` is positive; the even permutation `slot ^ x` of it
+/// moves the infinite vertex, if any, to slot 3.
+#[inline]
+fn infinite_slot_shift([a, b, c]: [u32; 3]) -> usize {
+    if a == INF {
+        3
+    } else if b == INF {
+        2
+    } else if c == INF {
+        1
+    } else {
+        0
+    }
 }
 
 /// Cheap xorshift step for the walk's random facet order.
@@ -358,7 +396,13 @@ impl Triangulation {
     ///
     /// Search state lives in the cells themselves (flag bits on vertex ids,
     /// see [`IN_CAVITY`]): the cell is loaded anyway, a side array would
-    /// cost one more cache miss per test.
+    /// cost one more cache miss per test. Before a neighbour's in-sphere
+    /// test, its own neighbours are prefetched: the test takes long enough
+    /// to hide much of their load if it joins the cavity (about half do).
+    /// The search stays depth first: the new tetrahedra are numbered in the
+    /// order of the boundary it lists, and callers' results can depend on
+    /// that numbering (a breadth-first search, as fast, changed the
+    /// convection's result on the thin-fin test).
     fn find_cavity(&mut self, start: u32, v: u32) {
         let mut s = std::mem::take(&mut self.scratch);
         s.stack.clear();
@@ -368,6 +412,7 @@ impl Triangulation {
         self.cells[start as usize].v[0] |= IN_CAVITY;
         s.stack.push(start);
         s.cavity.push(start);
+        self.prefetch_neighbours(start);
         while let Some(t) = s.stack.pop() {
             let cell = self.cells[t as usize];
             // Only slots 0 and 1 carry flags (slot 3 may be the infinite
@@ -380,6 +425,9 @@ impl Triangulation {
                     continue;
                 }
                 if other.v[1] & REJECTED == 0 {
+                    // Whether `n` joins the cavity is known only after its
+                    // test; start loading its neighbours now, in case.
+                    self.prefetch_neighbours(n);
                     if self.in_conflict(n, v) {
                         self.cells[n as usize].v[0] |= IN_CAVITY;
                         s.stack.push(n);
@@ -399,6 +447,23 @@ impl Triangulation {
         self.scratch = s;
     }
 
+    /// Start loading the neighbours of `t` (no effect on results): their
+    /// first touch is a cache miss far more often than not.
+    #[inline(always)]
+    fn prefetch_neighbours(&self, t: u32) {
+        #[cfg(target_arch = "x86_64")]
+        for &a in &self.cells[t as usize].n {
+            let cell: *const Cell = &self.cells[(a >> 2) as usize];
+            // SAFETY: prefetching has no effect on memory and cannot fault;
+            // the address is in bounds anyway.
+            unsafe {
+                std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(cell.cast())
+            };
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = t;
+    }
+
     /// Fill the hole described by `scratch.boundary` with the cone from
     /// `apex`: one tetrahedron per boundary facet, glued to the outside
     /// neighbour and, through the edge table, to each other. `seeds` are
@@ -407,36 +472,37 @@ impl Triangulation {
     pub(crate) fn cone(&mut self, apex: u32, seeds: &[([u32; 3], u32)]) {
         let boundary = std::mem::take(&mut self.scratch.boundary);
         let mut edges = std::mem::take(&mut self.scratch.edges);
+        let mut created = std::mem::take(&mut self.scratch.created);
+        created.clear();
         edges.reset(3 * boundary.len() + seeds.len());
         for &(facet, outside) in seeds {
+            // The seed (apex, u, w) has the hole on its positive side: the
+            // new tetrahedron behind it traverses the edge as (w, u) and
+            // looks its partner up under (u, w).
             let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
             let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
-            edges.pair(u, w, outside);
+            edges.insert(u, w, outside);
         }
         for &([a, b, c], outside) in &boundary {
-            // (a, b, c, apex) is positive; an even permutation `slot ^ x`
-            // moves the infinite vertex, if any, to slot 3.
-            let x = if a == INF {
-                3
-            } else if b == INF {
-                2
-            } else if c == INF {
-                1
-            } else {
-                0
+            let x = infinite_slot_shift([a, b, c]);
+            // Slot `s` holds corner `s ^ x` of (a, b, c, apex); spelled out
+            // with constant indices so the cell is built in registers (a
+            // permutation by a variable index goes through the stack, and
+            // reading it back whole stalls on store forwarding).
+            let verts = match x {
+                0 => [a, b, c, apex],
+                1 => [b, a, apex, c],
+                2 => [c, apex, a, b],
+                _ => [apex, c, b, a],
             };
-            let old = [a, b, c, apex];
-            let verts = [old[x], old[1 ^ x], old[2 ^ x], old[3 ^ x]];
             let t = self.alloc_tet(verts);
+            created.push(t);
             self.link(t * 4 + (3 ^ x) as u32, outside);
-            // The facet through the apex opposite a holds the edge {b, c}.
-            // Likewise for b and c.
-            for (slot, u, w) in [(x, b, c), (1 ^ x, a, c), (2 ^ x, a, b)] {
-                let here = t * 4 + slot as u32;
-                if let Some(there) = edges.pair(u, w, here) {
-                    self.link(here, there);
-                }
-            }
+            // The facet through the apex opposite a holds the edge (b, c);
+            // likewise for b and c.
+            edges.insert(b, c, t * 4 + x as u32);
+            edges.insert(c, a, t * 4 + (1 ^ x) as u32);
+            edges.insert(a, b, t * 4 + (2 ^ x) as u32);
             if self.track_vertex_tets {
                 for &y in &verts {
                     if y != INF {
@@ -448,8 +514,29 @@ impl Triangulation {
                 self.hint = t;
             }
         }
+        // Each new facet through the apex sets its own side; the partner
+        // sets the other when its turn comes, except seeds, linked here.
+        for &(facet, outside) in seeds {
+            let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
+            let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
+            if let Some(here) = edges.find(w, u) {
+                self.link(here, outside);
+            }
+        }
+        for (&([a, b, c], _), &t) in boundary.iter().zip(&created) {
+            let x = infinite_slot_shift([a, b, c]);
+            let cell = &mut self.cells[t as usize];
+            for (slot, u, w) in [(x, c, b), (1 ^ x, a, c), (2 ^ x, b, a)] {
+                let there = edges.find(u, w);
+                debug_assert!(there.is_some(), "cone: no partner for edge {u}-{w}");
+                if let Some(there) = there {
+                    cell.n[slot] = there;
+                }
+            }
+        }
         self.scratch.boundary = boundary;
         self.scratch.edges = edges;
+        self.scratch.created = created;
     }
 
     /// Make two encoded facets neighbours of each other.
@@ -459,6 +546,7 @@ impl Triangulation {
         self.cells[(b >> 2) as usize].n[(b & 3) as usize] = a;
     }
 
+    #[inline]
     pub(crate) fn alloc_tet(&mut self, verts: [u32; 4]) -> u32 {
         if verts[3] == INF {
             self.ghost_tets += 1;

@@ -32,6 +32,7 @@ pub fn brio_order(points: &[DVec3]) -> Vec<u32> {
         .iter()
         .map(|&i| (keys[i as usize] << 32) | i as u64)
         .collect();
+    let mut buffer = vec![0u64; packed.len()];
     let mut end = packed.len();
     while end > 0 {
         let start = if end / 2 < FIRST_ROUND_MIN {
@@ -39,10 +40,54 @@ pub fn brio_order(points: &[DVec3]) -> Vec<u32> {
         } else {
             end / 2
         };
-        packed[start..end].sort_unstable();
+        radix_sort_keys(&mut packed[start..end], &mut buffer[start..end]);
         end = start;
     }
     packed.iter().map(|&k| k as u32).collect()
+}
+
+/// Sort `values` (a key below 2^30 in bits 32.., distinct values) into
+/// the order `sort_unstable` gives, several times faster on a million: an
+/// LSD radix sort on the key (three passes of 10 bits), then the rare runs
+/// of equal keys by the whole value. `buffer` is scratch of the same length.
+fn radix_sort_keys(values: &mut [u64], buffer: &mut [u64]) {
+    const BITS: u32 = 10;
+    const BUCKETS: usize = 1 << BITS;
+    let digit = |v: u64, pass: u32| ((v >> (32 + pass * BITS)) as usize) & (BUCKETS - 1);
+    let (mut from, mut to) = (values, buffer);
+    for pass in 0..3 {
+        let mut start = [0usize; BUCKETS];
+        for &v in from.iter() {
+            start[digit(v, pass)] += 1;
+        }
+        let mut sum = 0;
+        for s in &mut start {
+            let count = *s;
+            *s = sum;
+            sum += count;
+        }
+        for &v in from.iter() {
+            let d = digit(v, pass);
+            to[start[d]] = v;
+            start[d] += 1;
+        }
+        std::mem::swap(&mut from, &mut to);
+    }
+    // Three passes: the sorted values are in the buffer.
+    to.copy_from_slice(from);
+    // Equal keys (duplicate points, or points in one grid cell) in index
+    // order, as a sort of the whole values would put them: that fixes
+    // which duplicate is kept and the perturbation order.
+    for run in values_with_equal_keys(to) {
+        run.sort_unstable();
+    }
+}
+
+/// The runs of two or more consecutive values with the same key.
+fn values_with_equal_keys(values: &mut [u64]) -> impl Iterator<Item = &mut [u64]> {
+    values
+        .chunk_by_mut(|a, b| a >> 32 == b >> 32)
+        .filter(|run| run.len() > 1)
 }
 
 /// Hilbert key of every point, on a 2^10 grid over the bounding box.
@@ -59,55 +104,94 @@ fn hilbert_keys(points: &[DVec3]) -> Vec<u64> {
     } else {
         0.0
     };
-    points
-        .iter()
-        .map(|&p| {
-            let q = ((p - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(cells - 1.0));
-            hilbert_index([q.x as u32, q.y as u32, q.z as u32], HILBERT_BITS)
-        })
-        .collect()
+    let cell = |p: DVec3| {
+        let q = ((p - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(cells - 1.0));
+        [q.x as u32, q.y as u32, q.z as u32]
+    };
+    let mut keys = Vec::with_capacity(points.len());
+    let mut chunks = points.chunks_exact(LANES);
+    for chunk in &mut chunks {
+        let mut x = [[0u32; LANES]; 3];
+        for (lane, &p) in chunk.iter().enumerate() {
+            let c = cell(p);
+            for axis in 0..3 {
+                x[axis][lane] = c[axis];
+            }
+        }
+        keys.extend(hilbert_index_lanes(x, HILBERT_BITS));
+    }
+    keys.extend(
+        chunks
+            .remainder()
+            .iter()
+            .map(|&p| hilbert_index(cell(p), HILBERT_BITS)),
+    );
+    keys
 }
+
+/// Points whose Hilbert keys are computed together: the computation is a
+/// long dependent chain per point, so independent lanes keep the
+/// processor busy (and vectorize).
+const LANES: usize = 8;
 
 /// Position of the cell `x` (each coordinate below 2^bits) along the 3D
 /// Hilbert curve, following Skilling's transpose formulation ("Programming
 /// the Hilbert curve", 2004): undo the curve's rotations and reflections
 /// level by level, Gray-decode, then interleave the bits.
-pub fn hilbert_index(mut x: [u32; 3], bits: u32) -> u64 {
+pub fn hilbert_index(x: [u32; 3], bits: u32) -> u64 {
+    hilbert_index_lanes(x.map(|c| [c]), bits)[0]
+}
+
+/// [`hilbert_index`] of `L` cells at once: `x[axis][lane]`.
+// Each lane index reads and writes two rows (x[0] and x[i]), which
+// iterators over one row cannot express.
+#[allow(clippy::needless_range_loop)]
+fn hilbert_index_lanes<const L: usize>(mut x: [[u32; L]; 3], bits: u32) -> [u64; L] {
+    // Branch-free: the bit tested at each level is as good as random, so
+    // both arms are computed and a mask selects one.
     let top = 1u32 << (bits - 1);
     let mut q = top;
     while q > 1 {
         let low = q - 1;
         for i in 0..3 {
-            if x[i] & q != 0 {
-                x[0] ^= low;
-            } else {
-                let t = (x[0] ^ x[i]) & low;
-                x[0] ^= t;
-                x[i] ^= t;
+            for l in 0..L {
+                let set = 0u32.wrapping_sub(u32::from(x[i][l] & q != 0));
+                // Bit set: invert the low bits of x[0]; clear: exchange
+                // the low bits of x[0] and x[i].
+                x[0][l] ^= low & set;
+                let t = (x[0][l] ^ x[i][l]) & low & !set;
+                x[0][l] ^= t;
+                x[i][l] ^= t;
             }
         }
         q >>= 1;
     }
-    x[1] ^= x[0];
-    x[2] ^= x[1];
-    let mut t = 0;
-    let mut q = top;
-    while q > 1 {
-        if x[2] & q != 0 {
-            t ^= q - 1;
+    let mut keys = [0u64; L];
+    for l in 0..L {
+        x[1][l] ^= x[0][l];
+        x[2][l] ^= x[1][l];
+        let mut t = 0;
+        let mut q = top;
+        while q > 1 {
+            t ^= (q - 1) & 0u32.wrapping_sub(u32::from(x[2][l] & q != 0));
+            q >>= 1;
         }
-        q >>= 1;
+        let [a, b, c] = [x[0][l] ^ t, x[1][l] ^ t, x[2][l] ^ t];
+        // Interleave, most significant level first, x[0] highest in each.
+        keys[l] = (spread_bits(a) << 2) | (spread_bits(b) << 1) | spread_bits(c);
     }
-    for xi in &mut x {
-        *xi ^= t;
-    }
-    let mut key = 0u64;
-    for b in (0..bits).rev() {
-        for xi in x {
-            key = (key << 1) | ((xi >> b) & 1) as u64;
-        }
-    }
-    key
+    keys
+}
+
+/// Bit `b` of `x` (below 2^21) moved to bit `3 b`.
+fn spread_bits(x: u32) -> u64 {
+    let mut v = u64::from(x) & 0x1f_ffff;
+    v = (v | (v << 32)) & 0x1f_0000_0000_ffff;
+    v = (v | (v << 16)) & 0x1f_0000_ff00_00ff;
+    v = (v | (v << 8)) & 0x100f_00f0_0f00_f00f;
+    v = (v | (v << 4)) & 0x10c3_0c30_c30c_30c3;
+    v = (v | (v << 2)) & 0x1249_2492_4924_9249;
+    v
 }
 
 #[cfg(test)]
@@ -137,6 +221,52 @@ mod tests {
             let step: u32 = (0..3).map(|k| a[k].abs_diff(b[k])).sum();
             assert_eq!(step, 1, "{a:?} -> {b:?}");
         }
+    }
+
+    /// Lanes give the same keys as one cell at a time.
+    #[test]
+    fn hilbert_lanes_agree() {
+        let cells: Vec<[u32; 3]> = (0..LANES as u32)
+            .map(|i| [i * 97 % 1024, i * 389 % 1024, i * 733 % 1024])
+            .collect();
+        let mut x = [[0u32; LANES]; 3];
+        for (l, c) in cells.iter().enumerate() {
+            for axis in 0..3 {
+                x[axis][l] = c[axis];
+            }
+        }
+        let keys = hilbert_index_lanes(x, 10);
+        for (l, &c) in cells.iter().enumerate() {
+            assert_eq!(keys[l], hilbert_index(c, 10));
+        }
+    }
+
+    #[test]
+    fn spread_bits_matches_a_loop() {
+        for x in [0u32, 1, 2, 3, 0x155, 0x3ff, 0x1f_ffff, 0x12_3456] {
+            let mut expected = 0u64;
+            for b in 0..21 {
+                expected |= u64::from((x >> b) & 1) << (3 * b);
+            }
+            assert_eq!(spread_bits(x), expected, "{x:#x}");
+        }
+    }
+
+    #[test]
+    fn radix_sort_equals_a_full_sort() {
+        let mut state = 7u64;
+        let mut values: Vec<u64> = (0..10_000u64)
+            .map(|i| {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
+                ((state >> 40) % 5000) << 32 | i
+            })
+            .collect();
+        values.reverse();
+        let mut expected = values.clone();
+        expected.sort_unstable();
+        let mut buffer = vec![0; values.len()];
+        radix_sort_keys(&mut values, &mut buffer);
+        assert_eq!(values, expected);
     }
 
     #[test]
