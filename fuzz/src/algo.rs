@@ -181,6 +181,7 @@ fn svm_options(u: &mut Unstructured) -> Result<surfrecon::SvmOptions> {
         model_out: None,
         model_in: None,
         normal_k: u.int_in_range(0..=16)?,
+        cleaning: u.arbitrary()?,
     })
 }
 

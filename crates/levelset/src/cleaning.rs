@@ -94,6 +94,26 @@ pub struct CleaningStats {
     pub rms_shift: f64,
 }
 
+/// [`clean_points`], each cleaned point keeping the normal of the input
+/// point it came from (the nearest: cleaning drops points and moves the
+/// rest slightly). `normals` is empty or one per point; so is the result.
+pub fn clean_points_with_normals(
+    points: &[DVec3],
+    normals: &[DVec3],
+    dim: usize,
+) -> (Vec<DVec3>, Vec<DVec3>, CleaningStats) {
+    let (cleaned, stats) = clean_points(points, dim);
+    if normals.is_empty() {
+        return (cleaned, Vec::new(), stats);
+    }
+    let tree = KdTree::new(points);
+    let kept_normals = cleaned
+        .par_iter()
+        .map(|&p| tree.nearest(p).map_or(DVec3::ZERO, |n| normals[n.index]))
+        .collect();
+    (cleaned, kept_normals, stats)
+}
+
 /// Outlier removal then, for noisy data, quadric projection of `points` in `dim` = 2 or 3
 /// dimensions (in 2D only x and y are used and z is kept). Returns the
 /// cleaned points, in input order, and what was done.

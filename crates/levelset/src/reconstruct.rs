@@ -5,7 +5,7 @@
 
 use crate::anchors::{with_corners, DataCells, PointPlanes, TangentSides};
 use crate::band::{BandDistance, NarrowBand};
-use crate::cleaning::{clean_points, CleaningStats};
+use crate::cleaning::{clean_points_with_normals, CleaningStats};
 use crate::error::{LevelsetError, Result};
 use crate::flow::{evolve, Anchors, EvolveParams, EvolveStats, Motion};
 use crate::holes::seal_with_normals;
@@ -419,22 +419,10 @@ fn cleaned<'a>(
     if !params.clean {
         return std::borrow::Cow::Borrowed(input);
     }
-    let (points, stats) = report.time("cleaning", || clean_points(&input.points, dim));
+    let (points, normals, stats) = report.time("cleaning", || {
+        clean_points_with_normals(&input.points, &input.normals, dim)
+    });
     report.cleaning = stats;
-    // Cleaned points keep the normal of the input point they came from
-    // (the nearest: cleaning drops points and moves the rest slightly).
-    let normals = if input.normals.is_empty() {
-        Vec::new()
-    } else {
-        let tree = KdTree::new(&input.points);
-        points
-            .iter()
-            .map(|&p| {
-                tree.nearest(p)
-                    .map_or(DVec3::ZERO, |n| input.normals[n.index])
-            })
-            .collect()
-    };
     std::borrow::Cow::Owned(Input {
         points,
         normals,

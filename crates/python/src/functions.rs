@@ -282,6 +282,7 @@ pub fn reconstruct<'py>(
             model_out,
             model_in,
             normal_k: svm_normal_k.unwrap_or(sv.normal_k),
+            cleaning: !no_cleaning,
         },
         convection: ConvectionOptions {
             rho: rho.unwrap_or(cv.rho),

@@ -169,6 +169,8 @@ pub struct SvmOptions {
     pub model_in: Option<PathBuf>,
     /// Neighbours used to estimate normals when the input has none.
     pub normal_k: usize,
+    /// Remove outliers and smooth noise first, as the level set does.
+    pub cleaning: bool,
 }
 
 impl Default for SvmOptions {
@@ -182,6 +184,7 @@ impl Default for SvmOptions {
             model_out: None,
             model_in: None,
             normal_k: 12,
+            cleaning: true,
         }
     }
 }

@@ -214,6 +214,9 @@ pub struct SvmFitReport {
     pub accuracy_used: f64,
     pub min_width: f64,
     pub levels: Vec<LevelReport>,
+    /// What cleaning did to the points before the fit (`None`: used as
+    /// given: cleaning off, or the points are not noisy).
+    pub cleaning: Option<CleaningReport>,
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]

@@ -16,6 +16,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 use surfrecon_geom::linalg::HeightField;
+use surfrecon_geom::normals::plane_normal;
 use surfrecon_geom::spatial::KdTree;
 
 /// Neighbours of the wide quadric fit: enough that the six coefficients
@@ -36,13 +37,24 @@ const MAX_PROBES: usize = 4000;
 /// rough unit `normals`; 0 when no neighbourhood could be fitted (e.g. all
 /// samples lie on curves, where the quadric is not determined).
 pub fn estimate_noise(points: &[DVec3], normals: &[DVec3], tree: &KdTree) -> f64 {
-    residual_medians(points, normals, tree)
+    residual_medians(points, Some(normals), tree)
+        .map_or(0.0, |(wide, narrow)| noise_without_detail(wide, narrow))
+}
+
+/// [`estimate_noise`] of points without normals: each probed
+/// neighbourhood's plane fit gives its own.
+pub fn estimate_noise_unoriented(points: &[DVec3], tree: &KdTree) -> f64 {
+    residual_medians(points, None, tree)
         .map_or(0.0, |(wide, narrow)| noise_without_detail(wide, narrow))
 }
 
 /// Median RMS residuals of the wide and the narrow quadric fits over a
 /// spread-out subset of the samples; None when no neighbourhood fits.
-fn residual_medians(points: &[DVec3], normals: &[DVec3], tree: &KdTree) -> Option<(f64, f64)> {
+fn residual_medians(
+    points: &[DVec3],
+    normals: Option<&[DVec3]>,
+    tree: &KdTree,
+) -> Option<(f64, f64)> {
     let k = NEIGHBOURS.min(points.len());
     let stride = (points.len() / MAX_PROBES).max(1);
     let (mut wide, mut narrow): (Vec<f64>, Vec<f64>) = (0..points.len())
@@ -55,9 +67,10 @@ fn residual_medians(points: &[DVec3], normals: &[DVec3], tree: &KdTree) -> Optio
                 .map(|n| points[n.index])
                 .collect();
             let narrow = &neighbours[..NARROW_NEIGHBOURS.min(neighbours.len())];
+            let normal = normals.map_or_else(|| plane_normal(&neighbours), |n| n[i]);
             Some((
-                quadric_residual_rms(points[i], normals[i], &neighbours)?,
-                quadric_residual_rms(points[i], normals[i], narrow)?,
+                quadric_residual_rms(points[i], normal, &neighbours)?,
+                quadric_residual_rms(points[i], normal, narrow)?,
             ))
         })
         .unzip();
@@ -152,6 +165,18 @@ mod tests {
     }
 
     #[test]
+    fn without_normals_the_planes_of_the_neighbourhoods_do() {
+        for sigma in [0.005, 0.02] {
+            let (p, _) = noisy_sphere(sigma);
+            let estimate = estimate_noise_unoriented(&p, &KdTree::new(&p));
+            assert!(
+                (estimate / sigma - 1.0).abs() < 0.35,
+                "sigma {sigma}: estimate {estimate}"
+            );
+        }
+    }
+
+    #[test]
     fn clean_curved_samples_have_almost_no_noise() {
         let (p, n) = noisy_sphere(0.0);
         let estimate = estimate_noise(&p, &n, &KdTree::new(&p));
@@ -171,7 +196,7 @@ mod tests {
             .collect();
         let tree = KdTree::new(&bumpy);
         let estimate = estimate_noise(&bumpy, &n, &tree);
-        let (wide, _) = residual_medians(&bumpy, &n, &tree).unwrap();
+        let (wide, _) = residual_medians(&bumpy, Some(&n), &tree).unwrap();
         assert!(wide > 5e-4, "the bumps must show in the wide fit: {wide}");
         assert!(
             estimate < 0.3 * wide,

@@ -62,7 +62,8 @@ pub struct Args {
     /// initial outer contour is kept].
     #[arg(long)]
     pub free_topology: bool,
-    /// Use the points as given: no outlier removal, no noise smoothing.
+    /// Use the points as given: no outlier removal, no noise smoothing
+    /// (level set and svm).
     #[arg(long)]
     pub no_cleaning: bool,
     /// Keep the surface as the level set left it: no snapping onto the
@@ -190,7 +191,10 @@ fn options(args: &Args, data_fit: bool) -> surfrecon::Options {
                 (None, None) => surfrecon::FieldOutput::None,
             },
         }),
-        Method::Svm => surfrecon::Method::Svm(args.svm.options()),
+        Method::Svm => surfrecon::Method::Svm(surfrecon::SvmOptions {
+            cleaning: !args.no_cleaning,
+            ..args.svm.options()
+        }),
         Method::Convection => surfrecon::Method::Convection(args.convection.options()),
     };
     surfrecon::Options {

@@ -85,6 +85,7 @@ impl SvmArgs {
             model_out: self.model_out.clone(),
             model_in: self.model_in.clone(),
             normal_k: self.svm_normal_k,
+            ..Default::default()
         }
     }
 }
