@@ -100,6 +100,13 @@ impl<const D: usize> BlockGrid<D> {
         &self.spec
     }
 
+    /// Move the grid by `by` (the same values at translated nodes).
+    pub fn translate(&mut self, by: [f64; D]) {
+        for a in 0..D {
+            self.spec.origin[a] += by[a];
+        }
+    }
+
     /// Value of outside tiles (inside tiles hold its negation).
     pub fn background(&self) -> f64 {
         self.background
