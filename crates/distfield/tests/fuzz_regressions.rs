@@ -74,7 +74,7 @@ fn udf_grids_finer_than_the_coordinates_precision_are_refused() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("too fine for coordinates as large as 4e19"),
+        e.contains("too fine for coordinates as large as 4.000e19"),
         "{e}"
     );
     for padding in 1..=3 {

@@ -261,8 +261,8 @@ fn check_precision<const D: usize>(spec: &GridSpec<D>) -> Result<(), GridError> 
     }
     let ulp = 2f64.powi(largest.log2().floor() as i32 - 52);
     Err(GridError::Invalid(format!(
-        "spacing {:e} is too fine for coordinates as large as {largest:e}, where f64 places \
-         points only {ulp:e} apart; move the data near the origin or use a coarser grid",
+        "spacing {:.3e} is too fine for coordinates as large as {largest:.3e}, where f64 \
+         places points only {ulp:.3e} apart; move the data near the origin or use a coarser grid",
         spec.spacing
     )))
 }
