@@ -297,8 +297,7 @@ pub fn reconstruct_3d_with(
     hook: Hook,
 ) -> Result<Reconstruction3> {
     validate::<3>(input, params)?;
-    let (lo, hi) = bounds::<3>(input);
-    let by = centre::offset(lo, hi);
+    let by = centring::<3>(input);
     let r = reconstruct_3d_centred(&centre::moved(input, by), params, hook)?;
     Ok(r.moved_by(by))
 }
@@ -373,8 +372,7 @@ pub fn reconstruct_2d_with(
     hook: Hook,
 ) -> Result<Reconstruction2> {
     validate::<2>(input, params)?;
-    let (lo, hi) = bounds::<2>(input);
-    let by = centre::offset(lo, hi);
+    let by = centring::<2>(input);
     let (phi, field, mut report) = field_centred::<2>(&centre::moved(input, by), params, hook)?;
     check(hook, "extract")?;
     // 2D grids are small: extract from the dense φ.
@@ -407,8 +405,7 @@ pub fn reconstruct_field_with<const D: usize>(
     hook: Hook,
 ) -> Result<(BlockGrid<D>, Option<Field<D>>, Report)> {
     validate::<D>(input, params)?;
-    let (lo, hi) = bounds::<D>(input);
-    let by = centre::offset(lo, hi);
+    let by = centring::<D>(input);
     let (mut phi, mut field, report) = field_centred::<D>(&centre::moved(input, by), params, hook)?;
     centre::move_fields(&mut phi, field.as_mut(), by);
     Ok((phi, field, report))
@@ -766,6 +763,12 @@ fn sampling_spacing(input: &Input) -> f64 {
     }
     gaps.sort_by(|a, b| a.total_cmp(b));
     gaps[(gaps.len() - 1) * 95 / 100]
+}
+
+/// The offset that moves `input` near the origin (see [`centre::offset`]).
+fn centring<const D: usize>(input: &Input) -> DVec3 {
+    let (lo, hi) = bounds::<D>(input);
+    centre::offset(lo, hi)
 }
 
 /// Data bounds in the first `D` coordinates.

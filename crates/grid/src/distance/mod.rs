@@ -26,7 +26,9 @@
 //! Values: near the data (and at every node of a point), the exact distance
 //! to the node's closest datum; farther from segments and triangles, the
 //! distance to the foot passed on to the node, a point of that datum, so
-//! never below the true distance.
+//! never below the true distance. The closest datum is chosen by `f32`
+//! squared distances: data whose distances agree to a relative 6e-8 tie,
+//! so a value may exceed the true distance by that share of it.
 //!
 //! Both stages run in parallel over disjoint parts of the grid with fixed
 //! tie-breaking (the smaller datum index), so the result is the same for
