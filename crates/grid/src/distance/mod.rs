@@ -381,12 +381,14 @@ pub fn unsigned_distance_with<const D: usize>(
         propagate::propagate_closest(&sorted.data, spec, final_below, &mut closest);
     }
     let data = &sorted.data;
-    // Beyond the settled region, segments and triangles take the distance
-    // to the foot passed on to them (closest-point propagation): the feet
-    // sample the data as densely as the band's nodes, and an exact
-    // distance to each node's datum would cost as much as all the passes.
+    // Beyond the settled region and the exact band, segments and
+    // triangles take the distance to the foot passed on to them
+    // (closest-point propagation): the feet sample the data as densely as
+    // the band's nodes, and an exact distance to each node's datum would
+    // cost as much as all the passes. Within the band it is exact (a
+    // 10-cell band used to end at 6 cells, with f32 feet beyond).
     let exact_within = match options.propagate {
-        true => ((NEAR_CELLS + 1.0) as f32).powi(2),
+        true => ((NEAR_CELLS + 1.0).max(radius / spec.spacing) as f32).powi(2),
         false => f32::INFINITY,
     };
     let values = (0..spec.node_count())
