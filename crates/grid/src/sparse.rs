@@ -102,8 +102,8 @@ impl<const D: usize> BlockGrid<D> {
 
     /// Move the grid by `by` (the same values at translated nodes).
     pub fn translate(&mut self, by: [f64; D]) {
-        for a in 0..D {
-            self.spec.origin[a] += by[a];
+        for (o, b) in self.spec.origin.iter_mut().zip(by) {
+            *o += b;
         }
     }
 
