@@ -382,7 +382,8 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(
-            e.contains("too fine for coordinates as large as 4e19") && e.contains("8.192e3 apart"),
+            e.contains("too fine for coordinates as large as 4.000e19")
+                && e.contains("8.192e3 apart"),
             "{e}"
         );
         // At 1e6, a cell of 1e-6 spans 8590 ulps: kept; 1e-7 is refused.
