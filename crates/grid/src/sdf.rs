@@ -6,7 +6,9 @@
 //!
 //! Sign: regions, then winding numbers. Two neighbouring nodes `a`, `b`
 //! with `d(a) + d(b) > h` cannot have the surface between them (a crossing
-//! point would be within `d(a)` of `a` and `d(b)` of `b`). The nodes split
+//! point would be within `d(a)` of `a` and `d(b)` of `b`); the test keeps
+//! a margin for rounding, since a face square to the edge gives
+//! `d(a) + d(b) = h` exactly, up to rounding either way. The nodes split
 //! into connected regions over such "free" edges; in a closed mesh each
 //! region lies on one side. Each region is signed by the generalized
 //! winding number (inside where it exceeds 1/2), evaluated with a
@@ -278,7 +280,23 @@ impl Lattice {
     }
 }
 
-/// Connected regions of nodes over free edges (`d(a) + d(b) > h`).
+/// The sum of two neighbours' distances above which no surface lies
+/// between them: the spacing h, plus a margin for the rounding of node
+/// positions and distances (relative to the coordinates' magnitude and
+/// to h). Without it, the nodes on either side of a face square to their
+/// edge, with distances summing to h exactly, were joined when rounding
+/// put the sum a few ulps above h (an inside node of a box was signed
+/// outside). Too small a sum only cuts an edge, which is always safe.
+fn free_above(spec: &GridSpec<3>) -> f64 {
+    let magnitude = spec
+        .origin
+        .iter()
+        .chain(&spec.max_corner())
+        .fold(spec.spacing, |m, c| m.max(c.abs()));
+    spec.spacing * (1.0 + 1e-9) + 64.0 * f64::EPSILON * magnitude
+}
+
+/// Connected regions of nodes over free edges (`d(a) + d(b) >` [`free_above`]).
 ///
 /// Built from runs: maximal segments of a grid row (along x) whose
 /// consecutive nodes share free edges. The runs partition the nodes in index
@@ -323,7 +341,7 @@ impl Regions {
     /// one z layer per parallel task.
     fn runs(field: &Field3) -> (Vec<u32>, Vec<u32>) {
         let [nx, ny, nz] = field.spec.dims;
-        let h = field.spec.spacing;
+        let h = free_above(&field.spec);
         let layers: Vec<(Vec<u32>, Vec<u32>)> = field
             .values
             .par_chunks(nx * ny)
@@ -356,7 +374,8 @@ impl Regions {
         (run_start, row_run)
     }
 
-    /// Call `cut(x)` for each x (ascending) whose edge to x - 1 is not free.
+    /// Call `cut(x)` for each x (ascending) whose edge to x - 1 is not
+    /// free (distances summing to at most `h`, see [`free_above`]).
     fn cuts(row: &[f64], h: f64, mut cut: impl FnMut(usize)) {
         // Most rows are mostly free: test blocks of edges without branches
         // (so the test vectorizes) and look closer only at blocks with a cut.
@@ -425,7 +444,7 @@ impl Regions {
     /// overlapping pair, so the scan of an overlap stops at the first.
     fn join_rows(&self, field: &Field3, a: usize, b: usize, parent: &mut [u32], base: u32) {
         let nx = field.spec.dims[0];
-        let h = field.spec.spacing;
+        let h = free_above(&field.spec);
         let (row_a, row_b) = (&field.values[a * nx..][..nx], &field.values[b * nx..][..nx]);
         // End (in the row) of run `r` of row `row`: the next run's start,
         // which for the row's last run is the next row's first node (or the
@@ -1094,7 +1113,7 @@ mod tests {
                     let lower = (idx[a] > 0).then(|| l - strides[a]);
                     let upper = (idx[a] + 1 < spec.dims[a]).then(|| l + strides[a]);
                     for m in lower.into_iter().chain(upper) {
-                        let free = field.values[l] + field.values[m] > spec.spacing;
+                        let free = field.values[l] + field.values[m] > free_above(&spec);
                         if free && component[m] == u32::MAX {
                             component[m] = count;
                             stack.push(m);

@@ -100,6 +100,13 @@ impl<const D: usize> BlockGrid<D> {
         &self.spec
     }
 
+    /// Move the grid by `by` (the same values at translated nodes).
+    pub fn translate(&mut self, by: [f64; D]) {
+        for (o, b) in self.spec.origin.iter_mut().zip(by) {
+            *o += b;
+        }
+    }
+
     /// Value of outside tiles (inside tiles hold its negation).
     pub fn background(&self) -> f64 {
         self.background

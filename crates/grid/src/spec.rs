@@ -129,7 +129,9 @@ impl<const D: usize> GridSpec<D> {
     /// side, sized by `size`. The data box is centred in the grid (the
     /// rounding slack is split evenly). Refuses NaN or infinite bounds,
     /// `max < min`, non-positive sizes, a zero-extent box sized by
-    /// resolution, and absurd node counts (overflow, more than 2^40 nodes).
+    /// resolution, absurd node counts (overflow, more than 2^40 nodes), and
+    /// a spacing too fine for the coordinates' precision (below 2^-40 of
+    /// the largest coordinate: see `check_precision`).
     pub fn from_bounds(
         min: [f64; D],
         max: [f64; D],
@@ -153,11 +155,13 @@ impl<const D: usize> GridSpec<D> {
             let slack = (dims[a] - 1) as f64 * spacing - extent[a];
             min[a] - 0.5 * slack
         });
-        Ok(GridSpec {
+        let spec = GridSpec {
             origin,
             spacing,
             dims,
-        })
+        };
+        check_precision(&spec)?;
+        Ok(spec)
     }
 
     /// Bytes a grid with `bytes_per_node` bytes per node would take.
@@ -239,6 +243,32 @@ fn spacing_for<const D: usize>(extent: &[f64; D], size: GridSize) -> Result<f64,
         }
     }
 }
+
+/// Refuse a grid whose spacing is below 2^-40 of its largest coordinate:
+/// f64 places a node `origin + spacing * i` only to an ulp of its
+/// coordinates, so such a cell spans fewer than 2^12 ulps, and far below
+/// it nodes merge (a mesh near 4e19 on a grid of spacing 106 had all its
+/// nodes in x and y at one position, an ulp there being 8192, and the
+/// surface extracted from it came out open).
+fn check_precision<const D: usize>(spec: &GridSpec<D>) -> Result<(), GridError> {
+    let largest = spec
+        .origin
+        .iter()
+        .chain(&spec.max_corner())
+        .fold(0.0f64, |m, c| m.max(c.abs()));
+    if spec.spacing >= largest * MIN_RELATIVE_SPACING {
+        return Ok(());
+    }
+    let ulp = 2f64.powi(largest.log2().floor() as i32 - 52);
+    Err(GridError::Invalid(format!(
+        "spacing {:.3e} is too fine for coordinates as large as {largest:.3e}, where f64 \
+         places points only {ulp:.3e} apart; move the data near the origin or use a coarser grid",
+        spec.spacing
+    )))
+}
+
+/// See [`check_precision`].
+const MIN_RELATIVE_SPACING: f64 = 1.0 / (1u64 << 40) as f64;
 
 fn checked_node_count(dims: &[usize]) -> Result<usize, GridError> {
     dims.iter()
@@ -338,6 +368,31 @@ mod tests {
         assert_eq!(g.strides(), [1, 4, 20]);
         assert_eq!(g.position([1, 2, 3]), [0.5, 1.0, 1.5]);
         assert_eq!(g.max_corner(), [1.5, 2.0, 2.5]);
+    }
+
+    #[test]
+    fn from_bounds_refuses_spacings_below_the_coordinates_precision() {
+        // The fuzzer's udf grid: spacing 106 at 4e19 (an ulp is 8192).
+        let e = GridSpec::<3>::from_bounds(
+            [-4e19, -4e19, -212.66],
+            [-4e19, -4e19, 212.66],
+            GridSize::Resolution(4),
+            1,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("too fine for coordinates as large as 4.000e19")
+                && e.contains("8.192e3 apart"),
+            "{e}"
+        );
+        // At 1e6, a cell of 1e-6 spans 8590 ulps: kept; 1e-7 is refused.
+        let (lo, hi) = ([1e6, 0.0], [1e6 + 1e-5, 1e-5]);
+        assert!(GridSpec::<2>::from_bounds(lo, hi, GridSize::Resolution(10), 1).is_ok());
+        assert!(GridSpec::<2>::from_bounds(lo, hi, GridSize::Resolution(100), 1).is_err());
+        // Near the origin any spacing is fine.
+        let tiny = GridSpec::<2>::from_bounds([0.0; 2], [1e-200; 2], GridSize::Resolution(8), 1);
+        assert!(tiny.is_ok());
     }
 
     #[test]

@@ -17,6 +17,7 @@
 
 pub mod anchors;
 pub mod band;
+mod centre;
 pub mod cleaning;
 pub mod convection;
 pub mod error;

@@ -5,6 +5,7 @@
 
 use crate::anchors::{with_corners, DataCells, PointPlanes, TangentSides};
 use crate::band::{BandDistance, NarrowBand};
+use crate::centre;
 use crate::cleaning::{clean_points_with_normals, CleaningStats};
 use crate::error::{LevelsetError, Result};
 use crate::flow::{evolve, Anchors, EvolveParams, EvolveStats, Motion};
@@ -296,6 +297,17 @@ pub fn reconstruct_3d_with(
     hook: Hook,
 ) -> Result<Reconstruction3> {
     validate::<3>(input, params)?;
+    let by = centring::<3>(input);
+    let r = reconstruct_3d_centred(&centre::moved(input, by), params, hook)?;
+    Ok(r.moved_by(by))
+}
+
+/// [`reconstruct_3d_with`] on validated data near the origin.
+fn reconstruct_3d_centred(
+    input: &Input,
+    params: &ReconstructParams,
+    hook: Hook,
+) -> Result<Reconstruction3> {
     if params.slices {
         if let Some(stack) = detect_slices(input) {
             check(hook, "slices")?;
@@ -359,18 +371,21 @@ pub fn reconstruct_2d_with(
     params: &ReconstructParams,
     hook: Hook,
 ) -> Result<Reconstruction2> {
-    let (phi, field, mut report) = reconstruct_field_with::<2>(input, params, hook)?;
+    validate::<2>(input, params)?;
+    let by = centring::<2>(input);
+    let (phi, field, mut report) = field_centred::<2>(&centre::moved(input, by), params, hook)?;
     check(hook, "extract")?;
     // 2D grids are small: extract from the dense φ.
     let curves = report.time("extract", || {
         surfrecon_grid::marching::marching_squares(&phi.to_dense(), 0.0)
     });
-    Ok(Reconstruction2 {
+    let r = Reconstruction2 {
         curves,
         phi,
         field,
         report,
-    })
+    };
+    Ok(r.moved_by(by))
 }
 
 /// The level set function φ (negative inside) of the reconstruction in
@@ -390,6 +405,18 @@ pub fn reconstruct_field_with<const D: usize>(
     hook: Hook,
 ) -> Result<(BlockGrid<D>, Option<Field<D>>, Report)> {
     validate::<D>(input, params)?;
+    let by = centring::<D>(input);
+    let (mut phi, mut field, report) = field_centred::<D>(&centre::moved(input, by), params, hook)?;
+    centre::move_fields(&mut phi, field.as_mut(), by);
+    Ok((phi, field, report))
+}
+
+/// [`reconstruct_field_with`] on validated data near the origin.
+fn field_centred<const D: usize>(
+    input: &Input,
+    params: &ReconstructParams,
+    hook: Hook,
+) -> Result<(BlockGrid<D>, Option<Field<D>>, Report)> {
     let mut report = Report::default();
     check(hook, "cleaning")?;
     let input = cleaned(input, params, D, &mut report);
@@ -724,6 +751,12 @@ fn sampling_spacing(input: &Input) -> f64 {
     }
     gaps.sort_by(|a, b| a.total_cmp(b));
     gaps[(gaps.len() - 1) * 95 / 100]
+}
+
+/// The offset that moves `input` near the origin (see [`centre::offset`]).
+fn centring<const D: usize>(input: &Input) -> DVec3 {
+    let (lo, hi) = bounds::<D>(input);
+    centre::offset(lo, hi)
 }
 
 /// Data bounds in the first `D` coordinates.

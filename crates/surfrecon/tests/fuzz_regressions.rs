@@ -2,7 +2,10 @@
 //! replayed through the facade.
 
 use surfrecon::geom::shapes::icosphere;
-use surfrecon::{DVec3, ErrorKind, Geometry, Loss, Method, Options, SvmC, SvmOptions};
+use surfrecon::{
+    DVec3, ErrorKind, FieldOutput, Geometry, LevelSetOptions, Loss, Method, Options, PointCloud,
+    SvmC, SvmOptions,
+};
 
 /// The error of a run that must fail (without printing a whole mesh
 /// when it does not).
@@ -95,4 +98,125 @@ fn coordinates_near_the_f64_limit_are_refused() {
         .for_each(|p| *p = *p * 1e-200 + DVec3::X);
     let e = error_of(&tiny, &Options::default());
     assert!(e.to_string().contains("the data span only"), "{e}");
+}
+
+/// The fuzzer's input: one point near 1e30 (with six degenerate
+/// triangles on it), ε = 0.1, resolution 4. Planar, so the 2D level set
+/// ran on a grid of spacing 0.25 whose nodes all had the same position
+/// (an ulp there is 1.4e14): every distance was 0 and the curve came out
+/// open. The level set now runs relative to the data's centre.
+#[test]
+fn a_single_point_near_1e30_gives_a_closed_curve_around_it() {
+    let p = DVec3::new(-7.500000000000001e29, -3.75e30, -3.0000000000000003e30);
+    let input = Geometry {
+        points: PointCloud::new(vec![p]),
+        triangles: vec![[0, 0, 0]; 6],
+        lines: vec![],
+    };
+    let options = Options {
+        method: Method::LevelSet(LevelSetOptions {
+            epsilon: Some(0.1),
+            p: 1.0,
+            steps: 24,
+            band: 2.0,
+            levels: None,
+            bounding_box: false,
+            free_topology: false,
+            cleaning: true,
+            refine: false,
+            slices: false,
+            two_d: false,
+            field: FieldOutput::None,
+        }),
+        resolution: Some(4),
+        curve_network: false,
+        data_fit: false,
+    };
+    let out = surfrecon::reconstruct(&input, &options).unwrap();
+    let curves = out.curves.expect("planar data: curves");
+    assert!(!curves.lines.is_empty());
+    for line in &curves.lines {
+        assert!(
+            line.len() > 3 && line.first() == line.last(),
+            "open curve {line:?}"
+        );
+    }
+    // Around the point: within ε plus a few cells, and the rounding of
+    // coordinates near 1e30.
+    let reach = 0.1 + 3.0 * 0.25 + 4.0 * f64::EPSILON * 3.75e30;
+    for v in &curves.vertices {
+        let d = (v.truncate() - p.truncate()).length();
+        assert!(d <= reach, "vertex {v} is {d:e} from the point");
+    }
+}
+
+/// A reconstruction far from the origin is the one at the origin, moved:
+/// with the grid spacing below an ulp of the coordinates (2D at 2^49 +
+/// 2^48, 3D at 2^52), the nodes used to collapse.
+#[test]
+fn reconstructions_far_from_the_origin_are_moved_copies() {
+    // 2D: a circle of radius 8, coordinates multiples of 1/8 (exact at
+    // the shift, where an ulp is 1/8); spacing 1/16.
+    let circle: Vec<DVec3> = (0..64)
+        .map(|k| {
+            let t = k as f64 / 64.0 * std::f64::consts::TAU;
+            (DVec3::new(t.cos(), t.sin(), 0.0) * 64.0).round() / 8.0
+        })
+        .collect();
+    let shift = DVec3::new(2f64.powi(49) + 2f64.powi(48), -(2f64.powi(49)), 0.0);
+    compare_moved(&circle, shift, 256);
+    // 3D: a sphere of radius 16, integer coordinates (an ulp at 2^52 is
+    // 1); spacing 0.8.
+    let sphere: Vec<DVec3> = icosphere(DVec3::ZERO, 16.0, 2)
+        .vertices
+        .iter()
+        .map(|v| v.round())
+        .collect();
+    compare_moved(
+        &sphere,
+        DVec3::new(2f64.powi(52), 0.0, -(2f64.powi(52))),
+        40,
+    );
+}
+
+/// Reconstruct `points` and `points + shift` with the level set at
+/// `resolution`: same curves or triangles, vertices within the rounding
+/// of the shifted coordinates.
+fn compare_moved(points: &[DVec3], shift: DVec3, resolution: usize) {
+    let options = Options {
+        method: Method::LevelSet(LevelSetOptions {
+            refine: false,
+            ..LevelSetOptions::default()
+        }),
+        resolution: Some(resolution),
+        curve_network: false,
+        data_fit: false,
+    };
+    let run = |by: DVec3| {
+        let moved = points.iter().map(|&p| p + by).collect();
+        surfrecon::reconstruct(&Geometry::from_points(PointCloud::new(moved)), &options).unwrap()
+    };
+    let (home, far) = (run(DVec3::ZERO), run(shift));
+    for p in points {
+        assert_eq!(*p + shift - shift, *p, "the test's points move exactly");
+    }
+    let ulp = shift.abs().max_element() * f64::EPSILON;
+    let (a, b) = match (home.curves, far.curves) {
+        (Some(a), Some(b)) => {
+            assert_eq!(a.lines, b.lines, "the same curves");
+            (a.vertices, b.vertices)
+        }
+        _ => {
+            assert_eq!(
+                home.mesh.triangles, far.mesh.triangles,
+                "the same triangles"
+            );
+            (home.mesh.vertices, far.mesh.vertices)
+        }
+    };
+    assert!(!a.is_empty() && a.len() == b.len());
+    for (u, v) in a.iter().zip(&b) {
+        let d = (*v - shift - *u).abs().max_element();
+        assert!(d <= ulp, "{v} against {u} moved: {d}");
+    }
 }
