@@ -388,19 +388,7 @@ fn unsigned_case<const D: usize>(
     let below = tol + 1e-5 * h;
     let s = unit_power_of_two(magnitude);
     let times = |p: &[f64; D]| p.map(|c| c * s);
-    let unit = surfrecon_grid::distance::DataSet::<D> {
-        points: data.points.iter().map(times).collect(),
-        segments: data
-            .segments
-            .iter()
-            .map(|g| g.each_ref().map(times))
-            .collect(),
-        triangles: data
-            .triangles
-            .iter()
-            .map(|t| t.each_ref().map(times))
-            .collect(),
-    };
+    let unit = data.scaled(s);
     for (node, &value) in field.values.iter().enumerate() {
         let p = times(&spec.position(spec.unlinear(node)));
         let exact = (0..unit.len())

@@ -33,8 +33,8 @@ pub(crate) fn unit_scale<const D: usize>(data: &DataSet<D>, spec: &GridSpec<D>) 
 }
 
 impl<const D: usize> DataSet<D> {
-    /// Every coordinate times `s`.
-    pub(crate) fn scaled(&self, s: f64) -> Self {
+    /// Every coordinate times `s` (exact for a power of two).
+    pub fn scaled(&self, s: f64) -> Self {
         let scale = |p: &[f64; D]| p.map(|c| c * s);
         DataSet {
             points: self.points.iter().map(scale).collect(),
