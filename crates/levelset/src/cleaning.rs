@@ -95,23 +95,29 @@ pub struct CleaningStats {
 }
 
 /// [`clean_points`], each cleaned point keeping the normal of the input
-/// point it came from (the nearest: cleaning drops points and moves the
-/// rest slightly). `normals` is empty or one per point; so is the result.
+/// point it came from. `normals` is empty or one per point; so is the result.
 pub fn clean_points_with_normals(
     points: &[DVec3],
     normals: &[DVec3],
     dim: usize,
 ) -> (Vec<DVec3>, Vec<DVec3>, CleaningStats) {
     let (cleaned, stats) = clean_points(points, dim);
+    let kept_normals = normals_of_nearest(points, normals, &cleaned);
+    (cleaned, kept_normals, stats)
+}
+
+/// The normal of the point of `points` nearest to each of `cleaned`
+/// (cleaning drops points and moves the rest slightly); empty when
+/// `normals` is.
+pub fn normals_of_nearest(points: &[DVec3], normals: &[DVec3], cleaned: &[DVec3]) -> Vec<DVec3> {
     if normals.is_empty() {
-        return (cleaned, Vec::new(), stats);
+        return Vec::new();
     }
     let tree = KdTree::new(points);
-    let kept_normals = cleaned
+    cleaned
         .par_iter()
         .map(|&p| tree.nearest(p).map_or(DVec3::ZERO, |n| normals[n.index]))
-        .collect();
-    (cleaned, kept_normals, stats)
+        .collect()
 }
 
 /// Outlier removal then, for noisy data, quadric projection of `points` in `dim` = 2 or 3

@@ -101,11 +101,7 @@ fn report(
             nodes: r.dims.iter().product(),
             levels: r.levels,
         },
-        cleaning: CleaningReport {
-            outliers_removed: r.cleaning.outliers,
-            projected: r.cleaning.projected,
-            rms_shift: r.cleaning.rms_shift,
-        },
+        cleaning: CleaningReport::from(&r.cleaning),
         epsilon: r.epsilon,
         surfels: r.surfels,
         densified: r.densified,

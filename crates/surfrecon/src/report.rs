@@ -114,6 +114,16 @@ pub struct CleaningReport {
     pub rms_shift: f64,
 }
 
+impl From<&surfrecon_levelset::cleaning::CleaningStats> for CleaningReport {
+    fn from(stats: &surfrecon_levelset::cleaning::CleaningStats) -> Self {
+        CleaningReport {
+            outliers_removed: stats.outliers,
+            projected: stats.projected,
+            rms_shift: stats.rms_shift,
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct TaggingReport {
     pub heap_pops: usize,

@@ -10,6 +10,7 @@ use surfrecon_geom::normals::{estimate_normals, orient_normals};
 use surfrecon_geom::progress::Hook;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, PointCloud};
+use surfrecon_levelset::cleaning::{clean_points, normals_of_nearest};
 use surfrecon_svm::mesh::{mesh_model, MeshOptions};
 use surfrecon_svm::noise::estimate_noise_unoriented;
 use surfrecon_svm::selection::{select_parameters, SelectionOptions};
@@ -31,8 +32,8 @@ pub(crate) fn run(
     // clean data cut thin tips off (spikes: a cone's tip as a second
     // piece), and the fit keeps strays out by itself.
     let cleaning = (o.cleaning && o.model_in.is_none())
-        .then(|| cleaned(input_points))
-        .filter(|(_, report)| report.projected > 0);
+        .then(|| cleaned_if_noisy(input_points))
+        .flatten();
     let points = cleaning
         .as_ref()
         .map_or(input_points, |(cleaned, _)| cleaned);
@@ -188,26 +189,27 @@ fn fit_model(
     Ok((model, fit))
 }
 
-/// The points with outliers removed and noise smoothed as the level set
-/// cleans them (normals kept by nearest input point). The fit's own noise
-/// estimate sees one scan's smoothness, not the misregistration between
-/// overlapping scans, which it then follows within ε (the ten merged raw
-/// bunny scans: CD-L1 8.6e-5 as given, 6.5e-5 cleaned).
-fn cleaned(points: &PointCloud) -> (PointCloud, CleaningReport) {
-    let normals = points.normals.as_deref().unwrap_or(&[]);
-    let (positions, normals, stats) =
-        surfrecon_levelset::cleaning::clean_points_with_normals(&points.positions, normals, 3);
+/// Noisy points with outliers removed and noise smoothed as the level set
+/// cleans them (normals kept by nearest input point); `None` for points
+/// the cleaning finds not noisy. The fit's own noise estimate sees one
+/// scan's smoothness, not the misregistration between overlapping scans,
+/// which it then follows within ε (the ten merged raw bunny scans: CD-L1
+/// 8.6e-5 as given, 6.5e-5 cleaned).
+fn cleaned_if_noisy(points: &PointCloud) -> Option<(PointCloud, CleaningReport)> {
+    let (positions, stats) = clean_points(&points.positions, 3);
+    if stats.projected == 0 {
+        return None;
+    }
+    let normals = points
+        .normals
+        .as_ref()
+        .map(|n| normals_of_nearest(&points.positions, n, &positions));
     let cleaned = PointCloud {
         positions,
-        normals: points.normals.is_some().then_some(normals),
+        normals,
         scalars: None,
     };
-    let report = CleaningReport {
-        outliers_removed: stats.outliers,
-        projected: stats.projected,
-        rms_shift: stats.rms_shift,
-    };
-    (cleaned, report)
+    Some((cleaned, CleaningReport::from(&stats)))
 }
 
 /// The input's normals, or normals estimated from `k` neighbours and
