@@ -23,7 +23,9 @@
 //!    coupled facets keeps the sheets of parts thinner than the sampling
 //!    and eats membranes across the outside; the kept sheets are thickened
 //!    with the small swept tetrahedra around them (pinches closed, stray
-//!    points attached, pieces bridged), kept when that leaves fewer pieces.
+//!    points attached, pieces bridged, holes through thin plates closed by
+//!    a topology-controlled growth, see `tunnels`), kept when that leaves
+//!    fewer pieces.
 //!
 //! With `Params::rho > 0` the input is first decimated by the paper's
 //! geometric and topological-disk criteria ([`decimate`]), before the
@@ -57,6 +59,7 @@ mod reconstruct;
 pub mod refine;
 pub mod surface;
 pub mod thin;
+mod tunnels;
 
 pub use dynamic::{DynamicSurface, UpdateStats};
 pub use error::{ConvectionError, Result};

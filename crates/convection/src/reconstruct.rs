@@ -31,7 +31,8 @@ pub struct Params {
     /// edge is at most this many local spacings are put back inside around
     /// the sheets the 2D convection keeps, so thin parts stay solid and
     /// attached (0: off). Pinches are closed up to 1.2×, stray points
-    /// attached and pieces bridged up to 1.6× this size.
+    /// attached, pieces bridged and holes through thin plates closed up to
+    /// 1.6× this size.
     pub thin_size: f64,
     /// Decimation ball radius as a fraction of the bounding-box diagonal
     /// (0: keep every point). See [`crate::decimate`].
@@ -119,6 +120,11 @@ pub struct Report {
     pub thin_parts: usize,
     /// Sheet triangles the 2D convection keeps (thin parts, not membranes).
     pub thin_sheet_kept: usize,
+    /// Tunnels through thin parts closed by the restored tetrahedra (holes
+    /// through a plate swept bare; see `tunnels`), and the tetrahedra
+    /// left across them.
+    pub thin_tunnels_closed: usize,
+    pub thin_tunnel_tets: usize,
     /// Swept tetrahedra put back inside at thin parts (0 when that did not
     /// leave fewer pieces).
     pub thin_tets_restored: usize,
@@ -407,6 +413,8 @@ fn finish(
         true => {
             let thick = thicken(&surface, tri, &spacing, params.thin_size);
             report.thin_sheet_kept = thick.sheet_kept;
+            report.thin_tunnels_closed = thick.tunnels.closed;
+            report.thin_tunnel_tets = thick.tunnels.kept;
             thick.restored
         }
         false => Vec::new(),

@@ -24,8 +24,13 @@
 //!    time (a manifold step, the apex being new), and pieces left apart
 //!    (a needle swept through over a short stretch) are bridged by the
 //!    shortest chain of small tetrahedra.
+//! 3. Holes through a thin plate (each a handle of the mesh), where the
+//!    plate was swept through and no sheet was kept, are closed by a
+//!    topology-controlled growth and erosion over small swept tetrahedra
+//!    ([`crate::tunnels`]).
 
 use crate::surface::{OrientedFacet, PseudoSurface};
+use crate::tunnels::{close_tunnels, TunnelClosing};
 use std::collections::{HashMap, VecDeque};
 use surfrecon_delaunay::{TetId, Triangulation, VertexId};
 use surfrecon_geom::DVec3;
@@ -36,6 +41,8 @@ pub(crate) struct Thickening {
     pub restored: Vec<bool>,
     /// Sheet triangles the 2D convection keeps.
     pub sheet_kept: usize,
+    /// Tunnels through thin parts closed ([`crate::tunnels`]).
+    pub tunnels: TunnelClosing,
 }
 
 /// Put back the swept tetrahedra of thin parts (see the module doc).
@@ -71,6 +78,7 @@ pub(crate) fn thicken(
         }
     }
     let restored = keep_attached(surface, tri, seeds, small);
+    let mut tunnels = TunnelClosing::default();
     let mut solid: Vec<bool> = (0..restored.len())
         .map(|i| restored[i] || !surface.is_external(TetId(i as u32)))
         .collect();
@@ -85,8 +93,17 @@ pub(crate) fn thicken(
         close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
         bridge_pieces(tri, &mut solid, joining, 6);
         close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
+        // Holes through a plate swept bare where no sheet was kept: closed
+        // with tetrahedra up to the joining size (4 spacings by default;
+        // at 2.5 a hole in the sparse part of the harness nonuniform fin,
+        // spanned by longer tetrahedra, stayed open). A closing
+        // tetrahedron pinches the boundary at one edge; the pinch is closed
+        // like the others.
+        tunnels = close_tunnels(tri, &mut solid, joining, |t| longest_edge(tri, t), 20_000);
+        close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
     }
     Thickening {
+        tunnels,
         restored: (0..solid.len())
             .map(|i| solid[i] && surface.is_external(TetId(i as u32)))
             .collect(),
