@@ -411,7 +411,12 @@ fn finish(
     let clock = Instant::now();
     let solid = match thin_parts {
         true => {
-            let thick = thicken(&surface, tri, &spacing, params.thin_size);
+            // Ties broken by input index: the same mesh however the
+            // triangulation numbers its vertices and tetrahedra.
+            let rank: Vec<u32> = (0..tri.points().len())
+                .map(|v| (site.of_vertex)(VertexId(v as u32)).map_or(u32::MAX, |i| i as u32))
+                .collect();
+            let thick = thicken(&surface, tri, &rank, &spacing, params.thin_size);
             report.thin_sheet_kept = thick.sheet_kept;
             report.thin_tunnels_closed = thick.tunnels.closed;
             report.thin_tunnel_tets = thick.tunnels.kept;
@@ -663,6 +668,11 @@ fn closed_boundary(
             }
         }
     }
+    // The clean-up breaks ties (which fan of a pinched vertex stays, which
+    // face goes at a pinched edge) in face order; in an order of their own
+    // the faces give the same mesh however the triangulation numbers its
+    // tetrahedra.
+    triangles.sort_unstable_by_key(|&t| rotated_to_smallest(t));
     let removed = make_manifold(&mut triangles);
     let filled = fill_small_holes(&mut triangles, points, params.max_hole_edges);
     Boundary {
@@ -672,6 +682,15 @@ fn closed_boundary(
         triangles,
         removed,
         filled,
+    }
+}
+
+/// The same oriented triangle starting at its smallest vertex.
+fn rotated_to_smallest([a, b, c]: [u32; 3]) -> [u32; 3] {
+    match a.min(b).min(c) {
+        m if m == a => [a, b, c],
+        m if m == b => [b, c, a],
+        _ => [c, a, b],
     }
 }
 

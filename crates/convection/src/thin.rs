@@ -30,7 +30,7 @@
 //!    ([`crate::tunnels`]).
 
 use crate::surface::{OrientedFacet, PseudoSurface};
-use crate::tunnels::{close_tunnels, TunnelClosing};
+use crate::tunnels::{close_tunnels, sorted_corners, TunnelClosing};
 use std::collections::{HashMap, VecDeque};
 use surfrecon_delaunay::{TetId, Triangulation, VertexId};
 use surfrecon_geom::DVec3;
@@ -51,6 +51,7 @@ pub(crate) struct Thickening {
 pub(crate) fn thicken(
     surface: &PseudoSurface,
     tri: &Triangulation,
+    rank: &[u32],
     spacing: &[f64],
     size: f64,
 ) -> Thickening {
@@ -89,9 +90,9 @@ pub(crate) fn thicken(
         let by_radius = |t: TetId| circumradius(tri.tet_points(t));
         const ROUNDS: usize = 4;
         close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
-        attach_stray_points(tri, &mut solid, joining, 64);
+        attach_stray_points(tri, rank, &mut solid, joining, 64);
         close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
-        bridge_pieces(tri, &mut solid, joining, 6);
+        bridge_pieces(tri, rank, &mut solid, joining, 6);
         close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
         // Holes through a plate swept bare where no sheet was kept: closed
         // with tetrahedra up to the joining size (4 spacings by default;
@@ -99,7 +100,14 @@ pub(crate) fn thicken(
         // spanned by longer tetrahedra, stayed open). A closing
         // tetrahedron pinches the boundary at one edge; the pinch is closed
         // like the others.
-        tunnels = close_tunnels(tri, &mut solid, joining, |t| longest_edge(tri, t), 20_000);
+        tunnels = close_tunnels(
+            tri,
+            rank,
+            &mut solid,
+            joining,
+            |t| longest_edge(tri, t),
+            20_000,
+        );
         close_pinched_edges(tri, &mut solid, swept, closing, by_radius, ROUNDS);
     }
     Thickening {
@@ -351,6 +359,7 @@ fn gaps_to_fill(
 /// Returns the tetrahedra added.
 pub(crate) fn attach_stray_points(
     tri: &Triangulation,
+    rank: &[u32],
     solid: &mut [bool],
     small: impl Fn(TetId) -> bool,
     rounds: usize,
@@ -362,6 +371,8 @@ pub(crate) fn attach_stray_points(
         }
     }
     let mut stray: Vec<VertexId> = tri.vertices().filter(|v| !on_solid[v.index()]).collect();
+    // Attached in input order: each attachment changes what the next sees.
+    stray.sort_by_key(|v| rank.get(v.index()).copied().unwrap_or(u32::MAX));
     let mut added = 0;
     for _ in 0..rounds {
         let before = added;
@@ -379,7 +390,12 @@ pub(crate) fn attach_stray_points(
                 .into_iter()
                 .filter(joins)
                 .filter(|&t| small(t))
-                .min_by(|&s, &t| longest_edge(tri, s).total_cmp(&longest_edge(tri, t)));
+                // Ties (around one longest edge) by corners, not by slot.
+                .min_by(|&s, &t| {
+                    longest_edge(tri, s)
+                        .total_cmp(&longest_edge(tri, t))
+                        .then(sorted_corners(tri, rank, s).cmp(&sorted_corners(tri, rank, t)))
+                });
             let Some(t) = best else {
                 return true;
             };
@@ -413,6 +429,7 @@ pub(crate) fn longest_edge(tri: &Triangulation, t: TetId) -> f64 {
 /// Returns the tetrahedra added.
 pub(crate) fn bridge_pieces(
     tri: &Triangulation,
+    rank: &[u32],
     solid: &mut [bool],
     small: impl Fn(TetId) -> bool,
     steps: usize,
@@ -444,18 +461,24 @@ pub(crate) fn bridge_pieces(
     };
     let mut added = 0;
     // Smallest pieces first: each search is over its own neighbourhood.
-    let mut order: Vec<usize> = (0..sizes.len()).filter(|&i| i != main).collect();
-    order.sort_by_key(|&i| sizes[i]);
     let mut members: Vec<Vec<TetId>> = vec![Vec::new(); sizes.len()];
     for t in tri.finite_tets().filter(|&t| piece[t.index()] != NONE) {
         members[piece[t.index()] as usize].push(t);
     }
+    // Members, and pieces of one size, by corners rather than by slot: the
+    // first shortest chain found does not depend on the numbering.
+    for m in &mut members {
+        m.sort_by_cached_key(|&t| sorted_corners(tri, rank, t));
+    }
+    let mut order: Vec<usize> = (0..sizes.len()).filter(|&i| i != main).collect();
+    order.sort_by_key(|&i| (sizes[i], sorted_corners(tri, rank, members[i][0])));
     for id in order {
         let start = std::mem::take(&mut members[id]);
         if start.is_empty() {
             continue;
         }
-        let Some((chain, target)) = shortest_bridge(tri, solid, &piece, &start, &small, steps)
+        let Some((chain, target)) =
+            shortest_bridge(tri, rank, solid, &piece, &start, &small, steps)
         else {
             members[id] = start;
             continue;
@@ -473,10 +496,18 @@ pub(crate) fn bridge_pieces(
     added
 }
 
+/// The neighbours of `t` by their sorted corners (not by slot).
+fn neighbours_by_corners(tri: &Triangulation, rank: &[u32], t: TetId) -> [TetId; 4] {
+    let mut n = tri.neighbors(t);
+    n.sort_by_cached_key(|&u| sorted_corners(tri, rank, u));
+    n
+}
+
 /// Breadth-first search from `start` (one piece) over non-solid small
 /// tetrahedra to one touching another piece: the chain and that piece.
 fn shortest_bridge(
     tri: &Triangulation,
+    rank: &[u32],
     solid: &[bool],
     piece: &[u32],
     start: &[TetId],
@@ -487,7 +518,7 @@ fn shortest_bridge(
     let mut parent: HashMap<TetId, Option<TetId>> = HashMap::new();
     let mut layer: Vec<TetId> = Vec::new();
     for &t in start {
-        for u in tri.neighbors(t) {
+        for u in neighbours_by_corners(tri, rank, t) {
             if !solid[u.index()] && !tri.is_ghost(u) && small(u) && !parent.contains_key(&u) {
                 parent.insert(u, None);
                 layer.push(u);
@@ -497,7 +528,7 @@ fn shortest_bridge(
     for _ in 0..steps {
         let mut next = Vec::new();
         for &t in &layer {
-            for u in tri.neighbors(t) {
+            for u in neighbours_by_corners(tri, rank, t) {
                 let other = piece[u.index()];
                 if solid[u.index()] && !tri.is_ghost(u) && other != own && other != u32::MAX {
                     let mut chain = vec![t];

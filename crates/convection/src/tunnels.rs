@@ -51,9 +51,28 @@ enum Contact {
     Other,
 }
 
-/// A key for the heaps (sizes are finite, non-negative).
+/// A key for the heaps: the size, then (tetrahedra around one longest edge
+/// tie) the sorted corners, so the order does not depend on how the
+/// triangulation numbers its tetrahedra.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Size(f64, TetId);
+struct Size(f64, [u32; 4], TetId);
+
+impl Size {
+    fn of(tri: &Triangulation, rank: &[u32], size: &impl Fn(TetId) -> f64, t: TetId) -> Self {
+        Size(size(t), sorted_corners(tri, rank, t), t)
+    }
+}
+
+/// The corners of `t` by their `rank` per vertex (the input index, which
+/// does not depend on how the triangulation numbers its vertices and
+/// tetrahedra), sorted; the infinite vertex ranks last.
+pub(crate) fn sorted_corners(tri: &Triangulation, rank: &[u32], t: TetId) -> [u32; 4] {
+    let mut corners = tri
+        .tet_vertices(t)
+        .map(|v| rank.get(v.index()).copied().unwrap_or(u32::MAX));
+    corners.sort_unstable();
+    corners
+}
 
 impl Eq for Size {}
 
@@ -65,7 +84,10 @@ impl PartialOrd for Size {
 
 impl Ord for Size {
     fn cmp(&self, other: &Self) -> Ordering {
-        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
+        self.0
+            .total_cmp(&other.0)
+            .then(self.1.cmp(&other.1))
+            .then(self.2.cmp(&other.2))
     }
 }
 
@@ -274,9 +296,11 @@ fn find(parent: &mut [usize; 4], mut i: usize) -> usize {
 /// Close tunnels of `solid` (per tetrahedron slot) through thin parts by
 /// the growth over `candidate` tetrahedra (smallest `size` first) and the
 /// erosion of what was added (largest first) described in the module doc.
-/// `budget` bounds each connectivity search of the outside.
+/// `budget` bounds each connectivity search of the outside; `rank` (per
+/// vertex) breaks ties of `size`.
 pub(crate) fn close_tunnels(
     tri: &Triangulation,
+    rank: &[u32],
     solid: &mut [bool],
     candidate: impl Fn(TetId) -> bool,
     size: impl Fn(TetId) -> f64,
@@ -290,11 +314,11 @@ pub(crate) fn close_tunnels(
     for t in tri.finite_tets().filter(|&t| s.is_solid(t)) {
         for u in tri.neighbors(t) {
             if open_candidate(&s, u) {
-                heap.push(std::cmp::Reverse(Size(size(u), u)));
+                heap.push(std::cmp::Reverse(Size::of(tri, rank, &size, u)));
             }
         }
     }
-    while let Some(std::cmp::Reverse(Size(_, t))) = heap.pop() {
+    while let Some(std::cmp::Reverse(Size(_, _, t))) = heap.pop() {
         if s.is_solid(t) || !s.buries_no_vertex(t) {
             continue;
         }
@@ -307,24 +331,24 @@ pub(crate) fn close_tunnels(
         added[t.index()] = true;
         for u in tri.neighbors(t) {
             if open_candidate(&s, u) {
-                heap.push(std::cmp::Reverse(Size(size(u), u)));
+                heap.push(std::cmp::Reverse(Size::of(tri, rank, &size, u)));
             }
         }
     }
-    erode(&mut s, &mut added, &size);
+    erode(&mut s, rank, &mut added, &size);
     stats.kept = added.iter().filter(|&&a| a).count();
     stats
 }
 
 /// Remove the `added` tetrahedra whose removal keeps the topology, largest
 /// first, until none is left to remove.
-fn erode(s: &mut Solid, added: &mut [bool], size: &impl Fn(TetId) -> f64) {
+fn erode(s: &mut Solid, rank: &[u32], added: &mut [bool], size: &impl Fn(TetId) -> f64) {
     let tri = s.tri;
     let mut heap: BinaryHeap<Size> = (0..added.len())
         .filter(|&i| added[i])
-        .map(|i| Size(size(TetId(i as u32)), TetId(i as u32)))
+        .map(|i| Size::of(tri, rank, size, TetId(i as u32)))
         .collect();
-    while let Some(Size(_, t)) = heap.pop() {
+    while let Some(Size(_, _, t)) = heap.pop() {
         if !added[t.index()] || !s.is_simple(t) {
             continue;
         }
@@ -332,7 +356,7 @@ fn erode(s: &mut Solid, added: &mut [bool], size: &impl Fn(TetId) -> f64) {
         added[t.index()] = false;
         for u in tri.neighbors(t) {
             if added[u.index()] {
-                heap.push(Size(size(u), u));
+                heap.push(Size::of(tri, rank, size, u));
             }
         }
     }
@@ -365,6 +389,10 @@ mod tests {
         Triangulation::bulk_load(&points).unwrap()
     }
 
+    fn identity(tri: &Triangulation) -> Vec<u32> {
+        (0..tri.points().len() as u32).collect()
+    }
+
     /// Distance in the plate's plane from the centroid of `t` to the centre.
     fn off_centre(tri: &Triangulation, t: TetId) -> f64 {
         let p = tri.tet_points(t);
@@ -388,7 +416,7 @@ mod tests {
         let before = solid.iter().filter(|&&s| s).count();
         let all = |_| true;
         let size = |t| crate::thin::longest_edge(&tri, t);
-        let closing = close_tunnels(&tri, &mut solid, all, size, 20_000);
+        let closing = close_tunnels(&tri, &identity(&tri), &mut solid, all, size, 20_000);
         assert_eq!(closing.closed, 1);
         let added = solid.iter().filter(|&&s| s).count() - before;
         assert_eq!(added, closing.kept);
@@ -408,7 +436,7 @@ mod tests {
         // Only a ring around the hole may be added: it cannot close it.
         let ring = |t| off_centre(&tri, t) > 0.15;
         let size = |t| crate::thin::longest_edge(&tri, t);
-        let closing = close_tunnels(&tri, &mut solid, ring, size, 20_000);
+        let closing = close_tunnels(&tri, &identity(&tri), &mut solid, ring, size, 20_000);
         assert_eq!(closing.closed, 0);
         assert_eq!(closing.kept, 0);
         assert_eq!(solid, original);

@@ -2,7 +2,7 @@
 //! points, is a closed 2-manifold of the right genus where the sampling is
 //! dense, and lies close to the true surface.
 
-use surfrecon_convection::{reconstruct, Params, Reconstruction};
+use surfrecon_convection::{reconstruct, DynamicSurface, Params, Reconstruction};
 use surfrecon_geom::metrics::{evaluate, topology, EvalOptions, Surface};
 use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
 use surfrecon_geom::{io, DVec3, TriMesh};
@@ -143,14 +143,9 @@ fn bunny_scan_vertices_give_a_closed_surface() {
     );
 }
 
-/// A sphere with a thin fin through its equator, thinner than the sample
-/// spacing on the fin: the plain convection sweeps the inside of the fin and
-/// cuts it into hundreds of pieces; the sheets the 2D convection keeps,
-/// thickened, give one closed piece, and the holes through the plate where
-/// it was swept bare (7 handles before they were closed) are closed: a
-/// sphere, through nearly all the fin's points.
-#[test]
-fn thin_fin_is_one_closed_sphere() {
+/// Points on a unit sphere with a plate 0.04 thick through its equator,
+/// reaching 1.8 out (thinner than the spacing of its samples).
+fn sphere_with_fin() -> Vec<DVec3> {
     use surfrecon_geom::shapes::cuboid;
     let sphere = icosphere(DVec3::ZERO, 1.0, 4);
     let fin = cuboid(DVec3::new(-1.8, -1.8, -0.02), DVec3::new(1.8, 1.8, 0.02));
@@ -165,6 +160,18 @@ fn thin_fin_is_one_closed_sphere() {
             .into_iter()
             .filter(|p| p.length() > 1.0),
     );
+    points
+}
+
+/// A sphere with a thin fin through its equator, thinner than the sample
+/// spacing on the fin: the plain convection sweeps the inside of the fin and
+/// cuts it into hundreds of pieces; the sheets the 2D convection keeps,
+/// thickened, give one closed piece, and the holes through the plate where
+/// it was swept bare (7 handles before they were closed) are closed: a
+/// sphere, through nearly all the fin's points.
+#[test]
+fn thin_fin_is_one_closed_sphere() {
+    let points = sphere_with_fin();
     let plain = run_without_thin_parts(&points);
     let thin = run(&points);
     let (before, after) = (topology(&plain.mesh), topology(&thin.mesh));
@@ -179,6 +186,69 @@ fn thin_fin_is_one_closed_sphere() {
     assert!(thin.report.thin_sheet_kept > 0 && thin.report.thin_tets_restored > 0);
     assert!(thin.report.thin_tunnels_closed > 0);
     assert!(thin.report.kept_points * 100 >= points.len() * 95);
+}
+
+/// Points on a unit sphere with a thin elliptic fin (semi-axes 1.8 and
+/// 0.03 through its equator, as the harness `spikes` fin), on the smooth
+/// surfaces (no four points coplanar, as on the facets of a mesh).
+fn sphere_with_elliptic_fin() -> Vec<DVec3> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(31);
+    let mut direction = move || loop {
+        let v = DVec3::new(
+            rng.random::<f64>() * 2.0 - 1.0,
+            rng.random::<f64>() * 2.0 - 1.0,
+            rng.random::<f64>() * 2.0 - 1.0,
+        );
+        if (0.01..=1.0).contains(&v.length_squared()) {
+            return v.normalize();
+        }
+    };
+    let mut points: Vec<DVec3> = (0..4000)
+        .map(|_| direction())
+        .filter(|p| p.z.abs() > 0.03)
+        .collect();
+    // Uniform in the fin's plane, on both faces.
+    let fin = (0..12000).map(|_| direction() * DVec3::new(1.8, 1.8, 0.03));
+    points.extend(fin.filter(|p| p.length() > 1.0));
+    points
+}
+
+/// The thin parts' mesh does not depend on how the triangulation numbers
+/// its vertices and tetrahedra (a breadth-first cavity search in the
+/// Delaunay insertion once turned the thin-fin sphere into 397 pieces):
+/// half the points inserted one by one into a dynamic surface, whose
+/// numbering differs from a bulk load's, give the same faces as a run
+/// from scratch.
+#[test]
+fn thin_fin_mesh_does_not_depend_on_the_numbering() {
+    let points = sphere_with_elliptic_fin();
+    let (start, extra) = points.split_at(points.len() / 2);
+    let mut surface = DynamicSurface::new(start).unwrap();
+    for &p in extra {
+        surface.insert(p).unwrap();
+    }
+    let params = Params::default();
+    let dynamic = surface.reconstruction(&params).unwrap();
+    let tri = surface.triangulation();
+    let sites: Vec<DVec3> = tri.vertices().map(|v| tri.point(v)).collect();
+    let scratch = reconstruct(&sites, None, &params).unwrap();
+    eprintln!("{:?}\n{:?}", scratch.report, topology(&scratch.mesh));
+    assert!(scratch.report.thin_tets_restored > 0 && scratch.report.thin_tunnels_closed > 0);
+    let (a, b) = (face_set(&dynamic.mesh), face_set(&scratch.mesh));
+    assert_eq!(a.symmetric_difference(&b).count(), 0, "faces differ");
+}
+
+/// Faces as rotated index triples, in a set.
+fn face_set(mesh: &TriMesh) -> std::collections::BTreeSet<[u32; 3]> {
+    mesh.triangles
+        .iter()
+        .map(|&[a, b, c]| match a.min(b).min(c) {
+            m if m == a => [a, b, c],
+            m if m == b => [b, c, a],
+            _ => [c, a, b],
+        })
+        .collect()
 }
 
 /// Decimation: a larger ρ keeps strictly fewer points; the mesh uses only
