@@ -402,7 +402,8 @@ impl Triangulation {
     /// The search stays depth first: the new tetrahedra are numbered in the
     /// order of the boundary it lists, and callers' results can depend on
     /// that numbering (a breadth-first search, as fast, changed the
-    /// convection's result on the thin-fin test).
+    /// convection's result on the thin-fin test; the convection's mesh no
+    /// longer depends on it, other callers' may).
     fn find_cavity(&mut self, start: u32, v: u32) {
         let mut s = std::mem::take(&mut self.scratch);
         s.stack.clear();
