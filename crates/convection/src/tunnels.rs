@@ -9,14 +9,15 @@
 //! So the holes are closed by a growth with topology control over small
 //! swept tetrahedra, followed by an erosion ([`close_tunnels`]):
 //! 1. growth, smallest first: a candidate tetrahedron is added when it
-//!    meets the solid in a disk of its facets (the topology stays the
-//!    same), or when it closes a tunnel: it meets the solid in a connected
-//!    set with one loop, and the outside regions on its free facets stay
-//!    connected (no cavity is sealed off);
-//! 2. erosion, largest first: every added tetrahedron whose removal keeps
-//!    the topology (it meets the rest in a disk of its facets) is removed
-//!    again, so creases filled on the way are emptied and only a membrane
-//!    across each closed tunnel is left.
+//!    meets both the solid and the open (non-solid) tetrahedra in a disk
+//!    of its facets (the topology stays the same and the boundary a
+//!    manifold), or when it closes a tunnel: it meets the solid in a
+//!    connected set with one loop, and the open regions across its free
+//!    facets stay connected without it (no cavity is sealed off);
+//! 2. erosion, largest first: every added tetrahedron that meets both the
+//!    rest of the solid and the open tetrahedra in a disk is removed again
+//!    (the topology stays the same), so creases filled on the way are
+//!    emptied and only a membrane across each closed tunnel is left.
 //!
 //! No vertex may end inside the solid (every input point stays on the
 //! mesh): an addition that would leave a vertex no open tetrahedron is
@@ -36,8 +37,8 @@ pub(crate) struct TunnelClosing {
     pub kept: usize,
 }
 
-/// How a tetrahedron meets the rest of the solid (the part of its boundary
-/// that solid tetrahedra other than itself cover).
+/// How a tetrahedron meets the solid, or the open, tetrahedra other than
+/// itself (the part of its boundary they cover).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Contact {
     /// A disk made of 1 to 3 of its facets (with nothing else): adding or
@@ -63,17 +64,6 @@ impl Size {
     }
 }
 
-/// The corners of `t` by their `rank` per vertex (the input index, which
-/// does not depend on how the triangulation numbers its vertices and
-/// tetrahedra), sorted; the infinite vertex ranks last.
-pub(crate) fn sorted_corners(tri: &Triangulation, rank: &[u32], t: TetId) -> [u32; 4] {
-    let mut corners = tri
-        .tet_vertices(t)
-        .map(|v| rank.get(v.index()).copied().unwrap_or(u32::MAX));
-    corners.sort_unstable();
-    corners
-}
-
 impl Eq for Size {}
 
 impl PartialOrd for Size {
@@ -89,6 +79,17 @@ impl Ord for Size {
             .then(self.1.cmp(&other.1))
             .then(self.2.cmp(&other.2))
     }
+}
+
+/// The corners of `t` by their `rank` per vertex (the input index, which
+/// does not depend on how the triangulation numbers its vertices and
+/// tetrahedra), sorted; the infinite vertex ranks last.
+pub(crate) fn sorted_corners(tri: &Triangulation, rank: &[u32], t: TetId) -> [u32; 4] {
+    let mut corners = tri
+        .tet_vertices(t)
+        .map(|v| rank.get(v.index()).copied().unwrap_or(u32::MAX));
+    corners.sort_unstable();
+    corners
 }
 
 /// The solid (per tetrahedron slot) with, per vertex, the solid and the
