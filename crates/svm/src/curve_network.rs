@@ -1,9 +1,12 @@
 //! A closed surface spanning a network of curves: the curves' implied
 //! normals (from [`surfrecon_geom::curves`]) become Hermite samples, a
-//! [`HermiteFit`] interpolates them, and its zero set is meshed.
+//! [`HermiteFit`] interpolates them, and its zero set is meshed; pieces
+//! the curves do not keep apart are joined by a second fit that also asks
+//! for a neck between them ([`crate::joining`]).
 
 use crate::error::{Result, SvmError};
 use crate::hermite::{Gradient, HermiteFit, HermiteSample, MAX_SAMPLES};
+use crate::joining::{self, JoinReport};
 use crate::mesh::{mesh_model, MeshOptions};
 use glam::DVec3;
 use surfrecon_geom::curves::{CurveNetwork, CurveSample, MAX_TURN};
@@ -17,6 +20,9 @@ pub struct CurveFitOptions {
     /// Give the normals this much slack (normalized units; see
     /// [`HermiteFit::fit`]).
     pub smoothing: f64,
+    /// Join pieces of the surface that the curves do not keep apart
+    /// (sections of one object; see [`crate::joining`]).
+    pub join_pieces: bool,
 }
 
 impl Default for CurveFitOptions {
@@ -24,6 +30,7 @@ impl Default for CurveFitOptions {
         CurveFitOptions {
             resolution: None,
             smoothing: 1e-4,
+            join_pieces: true,
         }
     }
 }
@@ -44,6 +51,10 @@ pub struct CurveFitReport {
     /// Arc length between samples.
     pub sample_step: f64,
     pub resolution: usize,
+    /// Pieces of the first fit and how they were joined (absent when
+    /// joining is off or the first fit gave one piece).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joining: Option<JoinReport>,
 }
 
 /// Finest resolution picked automatically: the mesh need not be finer
@@ -66,7 +77,33 @@ pub fn reconstruct_from_curves(
         resolution,
         margin: 0.1,
     };
-    let (mesh, _) = mesh_model(&fit, &positions, bounds, &mesh_options)?;
+    let (mut mesh, mesh_report) = mesh_model(&fit, &positions, bounds, &mesh_options)?;
+    let pieces = mesh.piece_count();
+    let joining = (options.join_pieces && pieces > 1).then(|| {
+        let f = |x: DVec3| fit.value(x);
+        let plan = joining::plan(network, &mesh, &f, mesh_report.spacing, &positions);
+        let mut report = JoinReport {
+            pieces_before: pieces,
+            pieces_left_apart: pieces - 1,
+            ..Default::default()
+        };
+        if !plan.samples.is_empty() {
+            let joined = refit_with_necks(&samples, &plan.samples, options.smoothing)
+                .and_then(|fit| mesh_model(&fit, &positions, bounds, &mesh_options));
+            // Kept only if it has fewer pieces: a neck that pinched off
+            // leaves the first fit as it was.
+            if let Ok((joined, _)) = joined {
+                let after = joined.piece_count();
+                if after < pieces {
+                    report.pieces_joined = pieces - after;
+                    report.pieces_left_apart = after - 1;
+                    mesh = joined;
+                }
+            }
+        }
+        report.gaps = plan.gaps;
+        report
+    });
     let report = CurveFitReport {
         curves: network.curves.len(),
         crossings: network.crossings.len(),
@@ -76,8 +113,19 @@ pub fn reconstruct_from_curves(
         samples_with_in_plane_normals: count(&samples, |g| matches!(g, Gradient::Component { .. })),
         sample_step: step,
         resolution,
+        joining,
     };
     Ok((mesh, report))
+}
+
+/// The fit of the curve samples plus the necks' interior samples.
+fn refit_with_necks(
+    samples: &[HermiteSample],
+    necks: &[HermiteSample],
+    smoothing: f64,
+) -> Result<HermiteFit> {
+    let all: Vec<HermiteSample> = samples.iter().chain(necks).copied().collect();
+    HermiteFit::fit(&all, smoothing)
 }
 
 /// Samples every curve spacing along the curves, or farther apart when
@@ -117,10 +165,7 @@ fn hermite_sample(s: CurveSample) -> HermiteSample {
         },
         (None, None) => Gradient::Free,
     };
-    HermiteSample {
-        position: s.position,
-        gradient,
-    }
+    HermiteSample::on_surface(s.position, gradient)
 }
 
 fn count(samples: &[HermiteSample], what: impl Fn(&Gradient) -> bool) -> usize {

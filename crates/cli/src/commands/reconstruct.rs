@@ -78,6 +78,11 @@ pub struct Args {
     /// spanning them with a Hermite fit of the normals the crossings imply.
     #[arg(long)]
     pub no_curve_network: bool,
+    /// On crossing curves, leave pieces of the surface apart even where
+    /// the curves show nothing between them (by default such pieces are
+    /// joined by a neck: sections of one object give one solid).
+    #[arg(long)]
+    pub keep_pieces: bool,
     /// Also write the signed distance field (.nrrd or .vtk).
     #[arg(long, value_name = "F.nrrd")]
     pub field: Option<PathBuf>,
@@ -201,6 +206,7 @@ fn options(args: &Args, data_fit: bool) -> surfrecon::Options {
         method,
         resolution: args.resolution,
         curve_network: !args.no_curve_network,
+        join_pieces: !args.keep_pieces,
         // With --json only: it costs a pass over the data.
         data_fit,
     }
