@@ -92,16 +92,22 @@ pub fn reconstruct_from_curves(
                 .and_then(|fit| mesh_model(&fit, &positions, bounds, &mesh_options));
             // Kept only if it has fewer pieces: a neck that pinched off
             // leaves the first fit as it was.
-            if let Ok((joined, _)) = joined {
-                let after = joined.piece_count();
-                if after < pieces {
+            match joined.map(|(m, _)| (m.piece_count(), m)) {
+                Ok((after, joined)) if after < pieces => {
                     report.pieces_joined = pieces - after;
                     report.pieces_left_apart = after - 1;
                     mesh = joined;
                 }
+                Ok((after, _)) => {
+                    report.not_kept = Some(format!(
+                        "the necks pinched off: {after} pieces with them, {pieces} without"
+                    ))
+                }
+                Err(e) => report.not_kept = Some(format!("the fit with the necks failed: {e}")),
             }
         }
         report.gaps = plan.gaps;
+        report.network_cell = plan.network_cell;
         report
     });
     let report = CurveFitReport {

@@ -48,6 +48,7 @@ pub struct GapReport {
     pub depths: [f64; 2],
     /// Why the gap was bridged or left.
     pub reason: &'static str,
+    /// Whether a neck was asked for (see [`JoinReport::not_kept`]).
     pub bridged: bool,
 }
 
@@ -60,7 +61,14 @@ pub struct JoinReport {
     pub pieces_joined: usize,
     /// Pieces left apart in the final surface (beyond the first).
     pub pieces_left_apart: usize,
+    /// The network's typical cell (median arc between neighbouring
+    /// crossings): gaps up to this wide may be bridged.
+    pub network_cell: f64,
     pub gaps: Vec<GapReport>,
+    /// Why the necks asked for were not kept, if they were not (the
+    /// surface is then the first fit's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_kept: Option<String>,
 }
 
 /// The necks to ask of the fit.
@@ -68,6 +76,7 @@ pub struct JoinReport {
 pub(crate) struct Plan {
     pub samples: Vec<HermiteSample>,
     pub gaps: Vec<GapReport>,
+    pub network_cell: f64,
 }
 
 /// Plans the necks between the pieces of `mesh` (the zero set of `f`)
@@ -80,16 +89,19 @@ pub(crate) fn plan(
     cell: f64,
     curve_samples: &[DVec3],
 ) -> Plan {
+    let cell_size = network.cell_size();
+    let mut plan = Plan {
+        network_cell: cell_size,
+        ..Default::default()
+    };
     let pieces = Pieces::of(mesh);
     if pieces.vertices.len() < 2 || pieces.vertices.len() > MAX_PIECES {
-        return Plan::default();
+        return plan;
     }
     let components = pieces.components(network, mesh, 2.0 * cell);
     let planes = network.section_planes();
-    let cell_size = network.cell_size();
     let sample_tree = KdTree::new(curve_samples);
     let mut groups: Vec<usize> = (0..pieces.vertices.len()).collect();
-    let mut plan = Plan::default();
     for (gap, i, j, a, b) in pieces.closest_pairs() {
         let (gi, gj) = (groups[i], groups[j]);
         if gi == gj {
@@ -165,7 +177,7 @@ impl Pieces {
         }
         Pieces {
             labels: labels.iter().map(|&l| renumber[l]).collect(),
-            bounds: kept.iter().map(|v| Aabb::from_points(v)).collect(),
+            bounds: kept.iter().map(|v| Aabb::from_points(v.as_slice())).collect(),
             vertices: kept,
         }
     }
