@@ -78,37 +78,16 @@ pub fn reconstruct_from_curves(
         margin: 0.1,
     };
     let (mut mesh, mesh_report) = mesh_model(&fit, &positions, bounds, &mesh_options)?;
-    let pieces = mesh.piece_count();
-    let joining = (options.join_pieces && pieces > 1).then(|| {
-        let f = |x: DVec3| fit.value(x);
-        let plan = joining::plan(network, &mesh, &f, mesh_report.spacing, &positions);
-        let mut report = JoinReport {
-            pieces_before: pieces,
-            pieces_left_apart: pieces - 1,
-            ..Default::default()
+    let mesh_fit =
+        |fit: &HermiteFit| mesh_model(fit, &positions, bounds, &mesh_options).map(|(mesh, _)| mesh);
+    let joining = (options.join_pieces && mesh.piece_count() > 1).then(|| {
+        let first = Fit {
+            fit: &fit,
+            samples: &samples,
+            smoothing: options.smoothing,
+            cell: mesh_report.spacing,
         };
-        if !plan.samples.is_empty() {
-            let joined = refit_with_necks(&samples, &plan.samples, options.smoothing)
-                .and_then(|fit| mesh_model(&fit, &positions, bounds, &mesh_options));
-            // Kept only if it has fewer pieces: a neck that pinched off
-            // leaves the first fit as it was.
-            match joined.map(|(m, _)| (m.piece_count(), m)) {
-                Ok((after, joined)) if after < pieces => {
-                    report.pieces_joined = pieces - after;
-                    report.pieces_left_apart = after - 1;
-                    mesh = joined;
-                }
-                Ok((after, _)) => {
-                    report.not_kept = Some(format!(
-                        "the necks pinched off: {after} pieces with them, {pieces} without"
-                    ))
-                }
-                Err(e) => report.not_kept = Some(format!("the fit with the necks failed: {e}")),
-            }
-        }
-        report.gaps = plan.gaps;
-        report.network_cell = plan.network_cell;
-        report
+        join_pieces(network, &first, &mut mesh, mesh_fit)
     });
     let report = CurveFitReport {
         curves: network.curves.len(),
@@ -124,14 +103,54 @@ pub fn reconstruct_from_curves(
     Ok((mesh, report))
 }
 
-/// The fit of the curve samples plus the necks' interior samples.
-fn refit_with_necks(
-    samples: &[HermiteSample],
-    necks: &[HermiteSample],
+/// A fit of the curve samples and what it was meshed with.
+struct Fit<'a> {
+    fit: &'a HermiteFit,
+    samples: &'a [HermiteSample],
     smoothing: f64,
-) -> Result<HermiteFit> {
-    let all: Vec<HermiteSample> = samples.iter().chain(necks).copied().collect();
-    HermiteFit::fit(&all, smoothing)
+    /// The mesh's cell size.
+    cell: f64,
+}
+
+/// Joins the pieces of `mesh` (the zero set of `first`) that the network
+/// does not keep apart, by a second fit with necks between them (meshed
+/// by `mesh_fit`), kept only if it has fewer pieces: a neck that pinched
+/// off leaves the first fit as it was.
+fn join_pieces(
+    network: &CurveNetwork,
+    first: &Fit,
+    mesh: &mut TriMesh,
+    mesh_fit: impl Fn(&HermiteFit) -> Result<TriMesh>,
+) -> JoinReport {
+    let pieces = mesh.piece_count();
+    let positions: Vec<DVec3> = first.samples.iter().map(|s| s.position).collect();
+    let f = |x: DVec3| first.fit.value(x);
+    let plan = joining::plan(network, mesh, &f, first.cell, &positions);
+    let mut report = JoinReport {
+        pieces_before: pieces,
+        pieces_left_apart: pieces - 1,
+        network_cell: plan.network_cell,
+        ..Default::default()
+    };
+    if !plan.samples.is_empty() {
+        let all: Vec<HermiteSample> = first.samples.iter().chain(&plan.samples).copied().collect();
+        let joined = HermiteFit::fit(&all, first.smoothing).and_then(|fit| mesh_fit(&fit));
+        match joined.map(|m| (m.piece_count(), m)) {
+            Ok((after, joined)) if after < pieces => {
+                report.pieces_joined = pieces - after;
+                report.pieces_left_apart = after - 1;
+                *mesh = joined;
+            }
+            Ok((after, _)) => {
+                report.not_kept = Some(format!(
+                    "the necks pinched off: {after} pieces with them, {pieces} without"
+                ))
+            }
+            Err(e) => report.not_kept = Some(format!("the fit with the necks failed: {e}")),
+        }
+    }
+    report.gaps = plan.gaps;
+    report
 }
 
 /// Samples every curve spacing along the curves, or farther apart when

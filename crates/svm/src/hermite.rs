@@ -448,8 +448,13 @@ mod tests {
         for s in &samples[..40] {
             assert!(fit.value(s.position).abs() < 1e-8);
         }
+        // Halfway in, f lies between the surface's and the centre's (the
+        // smoothest interpolant, not exactly the distance).
         let halfway = fit.value(centre + 0.75 * DVec3::X);
-        assert!((halfway + 0.75).abs() < 0.05, "f = {halfway} at depth 0.75");
+        assert!(
+            (-1.0..-0.6).contains(&halfway),
+            "f = {halfway} at depth 0.75"
+        );
     }
 
     #[test]

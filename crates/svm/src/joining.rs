@@ -177,7 +177,10 @@ impl Pieces {
         }
         Pieces {
             labels: labels.iter().map(|&l| renumber[l]).collect(),
-            bounds: kept.iter().map(|v| Aabb::from_points(v.as_slice())).collect(),
+            bounds: kept
+                .iter()
+                .map(|v| Aabb::from_points(v.as_slice()))
+                .collect(),
             vertices: kept,
         }
     }
