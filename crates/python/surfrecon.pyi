@@ -45,6 +45,7 @@ def reconstruct(
     no_refine: bool = False,
     no_slices: bool = False,
     no_curve_network: bool = False,
+    keep_pieces: bool = False,
     two_d: bool = False,
     svm_c: Union[float, str, None] = None,
     svm_epsilon: Optional[float] = None,

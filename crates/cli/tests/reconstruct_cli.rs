@@ -238,3 +238,54 @@ fn crossing_contours_within_slices_stay_a_slice_stack() {
     assert_eq!(summary["method"], "levelset");
     assert_eq!(summary["slices"]["count"], 6, "{}", summary["slices"]);
 }
+
+/// Sections of one object whose ear tip (two crossing loops above a
+/// sphere of three great circles) crosses nothing else: joined to the body
+/// by default and reported in `--json`; `--keep-pieces` leaves it apart.
+#[test]
+fn an_ear_tip_apart_is_joined_unless_pieces_are_kept() {
+    use surfrecon_geom::curves::Curve;
+    use surfrecon_geom::DVec3;
+    let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
+    let tip = DVec3::new(0.55, 0.55, 1.2);
+    let curves = [
+        Curve::circle(DVec3::ZERO, x, y, 1.0, 180),
+        Curve::circle(DVec3::ZERO, y, z, 1.0, 180),
+        Curve::circle(DVec3::ZERO, z, x, 1.0, 180),
+        Curve::circle(tip, y, z, 0.25, 60),
+        Curve::circle(tip, x, z, 0.25, 60),
+    ];
+    let mut obj = String::new();
+    let mut first = 1;
+    for c in &curves {
+        for p in &c.points {
+            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+        let ids: Vec<String> = (first..first + c.points.len())
+            .map(|i| i.to_string())
+            .collect();
+        obj += &format!("l {} {first}\n", ids.join(" "));
+        first += c.points.len();
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("ear.obj");
+    std::fs::write(&input, obj).unwrap();
+    let output = dir.path().join("ear.ply");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["reconstruct", "--json", "--resolution", "64"];
+        args.extend_from_slice(extra);
+        args.extend([path_str(&input), "-o", path_str(&output)]);
+        let summary = json_of(&surfrecon(&args));
+        let mesh = surfrecon_geom::io::read(&output).unwrap().to_mesh();
+        (summary, topology(&mesh))
+    };
+    let (summary, topo) = run(&[]);
+    assert_eq!((topo.components, topo.euler), (1, 2), "{topo:?}");
+    let joining = &summary["curve_network"]["joining"];
+    assert_eq!(joining["pieces_before"], 2, "{joining}");
+    assert_eq!(joining["pieces_joined"], 1, "{joining}");
+    assert_eq!(joining["gaps"][0]["bridged"], true, "{joining}");
+    let (kept, topo) = run(&["--keep-pieces"]);
+    assert_eq!(topo.components, 2, "{topo:?}");
+    assert!(kept["curve_network"].get("joining").is_none(), "{kept}");
+}

@@ -203,6 +203,54 @@ impl CurveNetwork {
             .count()
     }
 
+    /// The network's connected components: per curve, the index of its
+    /// group of curves linked through crossings (0..). Curves of one
+    /// component lie on one connected surface; nothing in the curves ties
+    /// two components together.
+    pub fn components(&self) -> Vec<usize> {
+        curve_groups(self.curves.len(), &self.crossings)
+    }
+
+    /// The distinct planes of the planar curves (sections): a plane that
+    /// cuts a solid shows all of it in its section.
+    pub fn section_planes(&self) -> Vec<Plane> {
+        let mut planes: Vec<Plane> = Vec::new();
+        for c in &self.curves {
+            if let Some(p) = Plane::of(c, self.spacing) {
+                if !planes
+                    .iter()
+                    .any(|q| Plane::same(Some(*q), Some(p), self.spacing))
+                {
+                    planes.push(p);
+                }
+            }
+        }
+        planes
+    }
+
+    /// The median arc length between neighbouring crossings along a curve:
+    /// the size of a typical cell of the network, the scale below which
+    /// the curves cannot show what the surface does. 0 without crossings.
+    pub fn cell_size(&self) -> f64 {
+        let mut arcs = Vec::new();
+        for (c, list) in self
+            .curves
+            .iter()
+            .zip(crossings_by_curve(&self.curves, &self.crossings))
+        {
+            arcs.extend(list.windows(2).map(|w| w[1].0 - w[0].0));
+            if c.closed && list.len() >= 2 {
+                arcs.push(list[0].0 + c.length() - list[list.len() - 1].0);
+            }
+        }
+        arcs.retain(|a| *a > 0.0);
+        if arcs.is_empty() {
+            return 0.0;
+        }
+        arcs.sort_by(f64::total_cmp);
+        arcs[arcs.len() / 2]
+    }
+
     /// Samples every `step` of arc length (and at every crossing, which
     /// come first, in the order of [`CurveNetwork::crossings`]), with the
     /// normal where the curve has one and has turned at most `max_turn`
@@ -740,14 +788,20 @@ fn segment_closest(a0: DVec3, a1: DVec3, b0: DVec3, b1: DVec3) -> (f64, f64) {
 /// Places where two curves (or two far-apart parts of one) pass within
 /// [`CROSSING_TOLERANCE`] spacings at a clear angle; one crossing per pair
 /// of curves and place, the closest approach.
-/// The plane a curve lies in (unit normal n, offset n·p).
-#[derive(Clone, Copy, Debug)]
-struct Plane {
-    normal: DVec3,
-    offset: f64,
+/// The plane a curve lies in: the points p with normal·p = offset.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plane {
+    /// Unit normal.
+    pub normal: DVec3,
+    pub offset: f64,
 }
 
 impl Plane {
+    /// Signed distance of `p` from the plane.
+    pub fn distance(&self, p: DVec3) -> f64 {
+        self.normal.dot(p) - self.offset
+    }
+
     /// The curve's plane, if every vertex is within a quarter spacing of it.
     fn of(c: &Curve, spacing: f64) -> Option<Self> {
         if c.points.len() < 3 {

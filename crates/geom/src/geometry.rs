@@ -93,16 +93,48 @@ impl TriMesh {
         self.retain_pieces(|bounds, _| bounds.diagonal() >= min_extent)
     }
 
-    /// The mesh with only the connected pieces (through shared vertices)
-    /// for which `keep(bounding box, vertex positions)` holds; with how many
-    /// were removed. Vertices are renumbered in their old order.
-    pub fn retain_pieces(&self, keep: impl Fn(&Aabb, &[DVec3]) -> bool) -> (TriMesh, usize) {
+    /// The connected piece (through shared vertices) of every vertex,
+    /// numbered 0.. in the order of their first vertex, with the number of
+    /// pieces; vertices in no triangle are pieces of their own.
+    pub fn piece_labels(&self) -> (Vec<usize>, usize) {
         let mut sets = crate::metrics::DisjointSets::new(self.vertices.len());
         for &[a, b, c] in &self.triangles {
             sets.union(a as usize, b as usize);
             sets.union(b as usize, c as usize);
         }
-        let root: Vec<usize> = (0..self.vertices.len()).map(|v| sets.find(v)).collect();
+        let mut label_of_root = vec![usize::MAX; self.vertices.len()];
+        let mut count = 0;
+        let labels = (0..self.vertices.len())
+            .map(|v| {
+                let root = sets.find(v);
+                if label_of_root[root] == usize::MAX {
+                    label_of_root[root] = count;
+                    count += 1;
+                }
+                label_of_root[root]
+            })
+            .collect();
+        (labels, count)
+    }
+
+    /// The number of connected pieces made of triangles.
+    pub fn piece_count(&self) -> usize {
+        let (labels, _) = self.piece_labels();
+        let mut used: Vec<usize> = self
+            .triangles
+            .iter()
+            .map(|t| labels[t[0] as usize])
+            .collect();
+        used.sort_unstable();
+        used.dedup();
+        used.len()
+    }
+
+    /// The mesh with only the connected pieces (through shared vertices)
+    /// for which `keep(bounding box, vertex positions)` holds; with how many
+    /// were removed. Vertices are renumbered in their old order.
+    pub fn retain_pieces(&self, keep: impl Fn(&Aabb, &[DVec3]) -> bool) -> (TriMesh, usize) {
+        let (root, _) = self.piece_labels();
         let mut pieces: std::collections::HashMap<usize, (Aabb, Vec<DVec3>)> = Default::default();
         let mut seen = vec![false; self.vertices.len()];
         for &v in self.triangles.iter().flatten() {

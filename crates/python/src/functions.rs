@@ -172,7 +172,9 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
 /// Common options:
 ///   method      "levelset" (default), "svm" or "convection". Crossing
 ///               curve networks are spanned by a Hermite fit whatever the
-///               method (no_curve_network=True to prevent it).
+///               method (no_curve_network=True to prevent it); pieces the
+///               curves do not keep apart are joined (keep_pieces=True
+///               to prevent it).
 ///   resolution  grid cells along the longest axis [level set: from the
 ///               sampling density; svm: 200].
 ///   cancel      an object with is_set() (threading.Event): the run stops
@@ -208,7 +210,7 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
     method="levelset", resolution=None, report=false, cancel=None, progress=None,
     epsilon=None, p=None, steps=None, band=None, levels=None, bounding_box=false,
     free_topology=false, no_cleaning=false, no_refine=false, no_slices=false,
-    no_curve_network=false, two_d=false,
+    no_curve_network=false, keep_pieces=false, two_d=false,
     svm_c=None, svm_epsilon=None, svm_accuracy=None, loss="epsilon", drop_levels=0,
     model_out=None, model_in=None, svm_normal_k=None,
     rho=None, rho_geom=None, rho_topo=None, fill_holes=None, no_pockets=false,
@@ -237,6 +239,7 @@ pub fn reconstruct<'py>(
     no_refine: bool,
     no_slices: bool,
     no_curve_network: bool,
+    keep_pieces: bool,
     two_d: bool,
     svm_c: Option<&Bound<'py, PyAny>>,
     svm_epsilon: Option<f64>,
@@ -303,6 +306,7 @@ pub fn reconstruct<'py>(
         method: method_options(method, args)?,
         resolution,
         curve_network: !no_curve_network,
+        join_pieces: !keep_pieces,
         data_fit: report,
     };
     let output = watched(py, cancel, progress, |hook| {

@@ -47,12 +47,13 @@ pub fn detect(geometry: &Geometry) -> Option<CurveNetwork> {
 pub(crate) fn run(
     input: &Geometry,
     network: &CurveNetwork,
-    resolution: Option<usize>,
+    options: &crate::Options,
     data_fit: bool,
 ) -> Result<Output> {
     let start = Instant::now();
     let options = CurveFitOptions {
-        resolution,
+        resolution: options.resolution,
+        join_pieces: options.join_pieces,
         ..Default::default()
     };
     let (mesh, r) = reconstruct_from_curves(network, &options)

@@ -106,7 +106,7 @@ pub fn reconstruct_with(input: &Input, options: &Options, hook: Hook) -> Result<
         .flatten();
     let (resolution, fit) = (options.resolution, options.data_fit);
     let output = match (&network, &options.method) {
-        (Some(network), _) => curves::run(input, network, resolution, fit),
+        (Some(network), _) => curves::run(input, network, options, fit),
         (None, Method::LevelSet(o)) => levelset::run(input, o, resolution, fit, hook),
         (None, Method::Svm(o)) => svm::run(input, o, resolution, fit, hook),
         (None, Method::Convection(o)) => convection::run(input, o, fit, hook),

@@ -16,6 +16,10 @@ pub struct Options {
     /// says, when the data are such a network (as `surfrecon reconstruct`
     /// does unless `--no-curve-network`).
     pub curve_network: bool,
+    /// On the curve-network path, join pieces of the surface that the
+    /// curves do not keep apart (sections of one object give one solid;
+    /// `surfrecon reconstruct` does unless `--keep-pieces`).
+    pub join_pieces: bool,
     /// Measure how closely the surface reaches every datum (a pass over the
     /// data) into the report's `data_fit`.
     pub data_fit: bool,
@@ -27,6 +31,7 @@ impl Default for Options {
             method: Method::LevelSet(LevelSetOptions::default()),
             resolution: None,
             curve_network: true,
+            join_pieces: true,
             data_fit: false,
         }
     }

@@ -5,6 +5,7 @@
 use serde::Serialize;
 use surfrecon_geom::data_fit::DataFit;
 pub use surfrecon_svm::curve_network::CurveFitReport;
+pub use surfrecon_svm::joining::{GapReport, JoinReport};
 pub use surfrecon_svm::multiscale::LevelReport;
 
 /// The report of one [`crate::reconstruct`] run.

@@ -44,6 +44,7 @@ fn svm_on_flat_data_is_an_error_not_an_empty_surface() {
         }),
         resolution: Some(15),
         curve_network: false,
+        join_pieces: true,
         data_fit: false,
     };
     let e = error_of(&flat_icosahedron(), &options);
@@ -84,6 +85,7 @@ fn coordinates_near_the_f64_limit_are_refused() {
             method,
             resolution: Some(0),
             curve_network: false,
+            join_pieces: true,
             data_fit: false,
         };
         let e = error_of(&input, &options);
@@ -130,6 +132,7 @@ fn a_single_point_near_1e30_gives_a_closed_curve_around_it() {
         }),
         resolution: Some(4),
         curve_network: false,
+        join_pieces: true,
         data_fit: false,
     };
     let out = surfrecon::reconstruct(&input, &options).unwrap();
@@ -190,6 +193,7 @@ fn compare_moved(points: &[DVec3], shift: DVec3, resolution: usize) {
         }),
         resolution: Some(resolution),
         curve_network: false,
+        join_pieces: true,
         data_fit: false,
     };
     let run = |by: DVec3| {

@@ -1,9 +1,12 @@
 //! A closed surface spanning a network of curves: the curves' implied
 //! normals (from [`surfrecon_geom::curves`]) become Hermite samples, a
-//! [`HermiteFit`] interpolates them, and its zero set is meshed.
+//! [`HermiteFit`] interpolates them, and its zero set is meshed; pieces
+//! the curves do not keep apart are joined by a second fit that also asks
+//! for a neck between them ([`crate::joining`]).
 
 use crate::error::{Result, SvmError};
 use crate::hermite::{Gradient, HermiteFit, HermiteSample, MAX_SAMPLES};
+use crate::joining::{self, JoinReport};
 use crate::mesh::{mesh_model, MeshOptions};
 use glam::DVec3;
 use surfrecon_geom::curves::{CurveNetwork, CurveSample, MAX_TURN};
@@ -17,6 +20,9 @@ pub struct CurveFitOptions {
     /// Give the normals this much slack (normalized units; see
     /// [`HermiteFit::fit`]).
     pub smoothing: f64,
+    /// Join pieces of the surface that the curves do not keep apart
+    /// (sections of one object; see [`crate::joining`]).
+    pub join_pieces: bool,
 }
 
 impl Default for CurveFitOptions {
@@ -24,6 +30,7 @@ impl Default for CurveFitOptions {
         CurveFitOptions {
             resolution: None,
             smoothing: 1e-4,
+            join_pieces: true,
         }
     }
 }
@@ -44,6 +51,10 @@ pub struct CurveFitReport {
     /// Arc length between samples.
     pub sample_step: f64,
     pub resolution: usize,
+    /// Pieces of the first fit and how they were joined (absent when
+    /// joining is off or the first fit gave one piece).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joining: Option<JoinReport>,
 }
 
 /// Finest resolution picked automatically: the mesh need not be finer
@@ -66,7 +77,18 @@ pub fn reconstruct_from_curves(
         resolution,
         margin: 0.1,
     };
-    let (mesh, _) = mesh_model(&fit, &positions, bounds, &mesh_options)?;
+    let (mut mesh, mesh_report) = mesh_model(&fit, &positions, bounds, &mesh_options)?;
+    let mesh_fit =
+        |fit: &HermiteFit| mesh_model(fit, &positions, bounds, &mesh_options).map(|(mesh, _)| mesh);
+    let joining = (options.join_pieces && mesh.piece_count() > 1).then(|| {
+        let first = Fit {
+            fit: &fit,
+            samples: &samples,
+            smoothing: options.smoothing,
+            cell: mesh_report.spacing,
+        };
+        join_pieces(network, &first, &mut mesh, mesh_fit)
+    });
     let report = CurveFitReport {
         curves: network.curves.len(),
         crossings: network.crossings.len(),
@@ -76,8 +98,59 @@ pub fn reconstruct_from_curves(
         samples_with_in_plane_normals: count(&samples, |g| matches!(g, Gradient::Component { .. })),
         sample_step: step,
         resolution,
+        joining,
     };
     Ok((mesh, report))
+}
+
+/// A fit of the curve samples and what it was meshed with.
+struct Fit<'a> {
+    fit: &'a HermiteFit,
+    samples: &'a [HermiteSample],
+    smoothing: f64,
+    /// The mesh's cell size.
+    cell: f64,
+}
+
+/// Joins the pieces of `mesh` (the zero set of `first`) that the network
+/// does not keep apart, by a second fit with necks between them (meshed
+/// by `mesh_fit`), kept only if it has fewer pieces: a neck that pinched
+/// off leaves the first fit as it was.
+fn join_pieces(
+    network: &CurveNetwork,
+    first: &Fit,
+    mesh: &mut TriMesh,
+    mesh_fit: impl Fn(&HermiteFit) -> Result<TriMesh>,
+) -> JoinReport {
+    let pieces = mesh.piece_count();
+    let positions: Vec<DVec3> = first.samples.iter().map(|s| s.position).collect();
+    let f = |x: DVec3| first.fit.value(x);
+    let plan = joining::plan(network, mesh, &f, first.cell, &positions);
+    let mut report = JoinReport {
+        pieces_before: pieces,
+        pieces_left_apart: pieces - 1,
+        network_cell: plan.network_cell,
+        ..Default::default()
+    };
+    if !plan.samples.is_empty() {
+        let all: Vec<HermiteSample> = first.samples.iter().chain(&plan.samples).copied().collect();
+        let joined = HermiteFit::fit(&all, first.smoothing).and_then(|fit| mesh_fit(&fit));
+        match joined.map(|m| (m.piece_count(), m)) {
+            Ok((after, joined)) if after < pieces => {
+                report.pieces_joined = pieces - after;
+                report.pieces_left_apart = after - 1;
+                *mesh = joined;
+            }
+            Ok((after, _)) => {
+                report.not_kept = Some(format!(
+                    "the necks pinched off: {after} pieces with them, {pieces} without"
+                ))
+            }
+            Err(e) => report.not_kept = Some(format!("the fit with the necks failed: {e}")),
+        }
+    }
+    report.gaps = plan.gaps;
+    report
 }
 
 /// Samples every curve spacing along the curves, or farther apart when
@@ -117,10 +190,7 @@ fn hermite_sample(s: CurveSample) -> HermiteSample {
         },
         (None, None) => Gradient::Free,
     };
-    HermiteSample {
-        position: s.position,
-        gradient,
-    }
+    HermiteSample::on_surface(s.position, gradient)
 }
 
 fn count(samples: &[HermiteSample], what: impl Fn(&Gradient) -> bool) -> usize {

@@ -1,6 +1,7 @@
 //! Hermite implicit fit for sparse data such as curve networks: the
 //! smoothest f (triharmonic kernel r³, a linear polynomial) with f = 0 at
-//! every sample and ∇f = n where the sample has a normal.
+//! every surface sample (or the value asked for, inside or outside) and
+//! ∇f = n where the sample has a normal.
 //!
 //! f(x) = Σ_j a_j φ(x − x_j) − Σ_j b_j·∇φ(x − x_j) + c + g·x, φ(v) = |v|³.
 //! The kernel is global, so the zero set spans the gaps between curves
@@ -21,12 +22,26 @@ use rayon::prelude::*;
 /// seconds.
 pub const MAX_SAMPLES: usize = 2000;
 
-/// One interpolation constraint: f(position) = 0, and what is known of
-/// ∇f there.
+/// One interpolation constraint: f(position) = value, and what is known
+/// of ∇f there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HermiteSample {
     pub position: DVec3,
+    /// 0 on the surface; negative inside (≈ minus the depth), positive
+    /// outside.
+    pub value: f64,
     pub gradient: Gradient,
+}
+
+impl HermiteSample {
+    /// A sample on the surface (f = 0).
+    pub fn on_surface(position: DVec3, gradient: Gradient) -> Self {
+        HermiteSample {
+            position,
+            value: 0.0,
+            gradient,
+        }
+    }
 }
 
 /// What a sample says about ∇f.
@@ -95,7 +110,7 @@ impl HermiteFit {
             .iter()
             .map(|s| (s.position - shift) * scale)
             .collect();
-        let layout = Layout::new(samples);
+        let layout = Layout::new(samples, scale);
         let matrix = assemble(&centres, &layout, smoothing);
         let rhs = Mat::from_fn(layout.size, 1, |row, _| layout.right_hand_side(row));
         let solution = matrix.partial_piv_lu().solve(&rhs);
@@ -194,16 +209,16 @@ fn validate(samples: &[HermiteSample], smoothing: f64) -> Result<()> {
     }
     if !samples
         .iter()
-        .any(|s| s.gradient.rows().any(|(_, value)| value != 0.0))
+        .any(|s| s.value != 0.0 || s.gradient.rows().any(|(_, value)| value != 0.0))
     {
         return Err(SvmError::InvalidInput(
-            "a Hermite fit needs a nonzero gradient at one sample at least (otherwise f = 0 fits)"
+            "a Hermite fit needs a nonzero gradient or value at one sample at least (otherwise f = 0 fits)"
                 .into(),
         ));
     }
     if let Some(i) = samples
         .iter()
-        .position(|s| !s.position.is_finite() || !s.gradient.is_finite())
+        .position(|s| !s.position.is_finite() || !s.value.is_finite() || !s.gradient.is_finite())
     {
         return Err(SvmError::InvalidInput(format!("sample {i} is not finite")));
     }
@@ -238,13 +253,17 @@ struct DerivativeRow {
 /// derivative constraint, then the 4 polynomial coefficients.
 struct Layout {
     values: usize,
+    /// f asked for at each sample (normalized units).
+    value_targets: Vec<f64>,
     derivatives: Vec<DerivativeRow>,
     polynomial_row: usize,
     size: usize,
 }
 
 impl Layout {
-    fn new(samples: &[HermiteSample]) -> Self {
+    /// `scale`: the normalization's, which values (not unit gradients)
+    /// scale with.
+    fn new(samples: &[HermiteSample], scale: f64) -> Self {
         let derivatives: Vec<DerivativeRow> = samples
             .iter()
             .enumerate()
@@ -261,16 +280,18 @@ impl Layout {
         let polynomial_row = samples.len() + derivatives.len();
         Layout {
             values: samples.len(),
+            value_targets: samples.iter().map(|s| s.value * scale).collect(),
             derivatives,
             polynomial_row,
             size: polynomial_row + 4,
         }
     }
 
-    /// What row `row` asks of f: 0 for values and side conditions, the
-    /// target for derivative rows.
+    /// What row `row` asks of f: the sample's value for value rows, the
+    /// target for derivative rows, 0 for the side conditions.
     fn right_hand_side(&self, row: usize) -> f64 {
         match row.checked_sub(self.values) {
+            None => self.value_targets[row],
             Some(k) if k < self.derivatives.len() => self.derivatives[k].target,
             _ => 0.0,
         }
@@ -331,10 +352,7 @@ mod tests {
                 let r = (1.0 - z * z).sqrt();
                 let a = golden * i as f64;
                 let d = DVec3::new(r * a.cos(), r * a.sin(), z);
-                HermiteSample {
-                    position: 2.0 * DVec3::ONE + radius * d,
-                    gradient: Gradient::Normal(d),
-                }
+                HermiteSample::on_surface(2.0 * DVec3::ONE + radius * d, Gradient::Normal(d))
             })
             .collect()
     }
@@ -386,13 +404,13 @@ mod tests {
             .map(|s| {
                 let n = normal(s);
                 let m = DVec3::new(n.x, n.y, 0.0).normalize();
-                HermiteSample {
-                    position: s.position,
-                    gradient: Gradient::Component {
+                HermiteSample::on_surface(
+                    s.position,
+                    Gradient::Component {
                         direction: m,
                         value: n.dot(m),
                     },
-                }
+                )
             })
             .collect();
         let fit = HermiteFit::fit(&samples, 0.0).unwrap();
@@ -408,6 +426,35 @@ mod tests {
             let f = fit.value(centre + 1.1 * normal(&d));
             assert!((f - 0.1).abs() < 0.03, "f = {f} at 0.1 outside");
         }
+    }
+
+    #[test]
+    fn interior_values_are_interpolated_in_data_units() {
+        // The sphere of radius 1.5 plus its centre asked to lie 1.5 deep:
+        // f keeps the signed distance there, in the data's units.
+        let mut samples = sphere_samples(40, 1.5);
+        let centre = 2.0 * DVec3::ONE;
+        samples.push(HermiteSample {
+            position: centre,
+            value: -1.5,
+            gradient: Gradient::Free,
+        });
+        let fit = HermiteFit::fit(&samples, 0.0).unwrap();
+        assert!(
+            (fit.value(centre) + 1.5).abs() < 1e-8,
+            "{}",
+            fit.value(centre)
+        );
+        for s in &samples[..40] {
+            assert!(fit.value(s.position).abs() < 1e-8);
+        }
+        // Halfway in, f lies between the surface's and the centre's (the
+        // smoothest interpolant, not exactly the distance).
+        let halfway = fit.value(centre + 0.75 * DVec3::X);
+        assert!(
+            (-1.0..-0.6).contains(&halfway),
+            "f = {halfway} at depth 0.75"
+        );
     }
 
     #[test]

@@ -13,7 +13,8 @@
 //! - [`hermite::HermiteFit`] interpolates sparse samples with normals
 //!   (curve networks) by a global triharmonic Hermite fit;
 //! - [`curve_network::reconstruct_from_curves`] spans a curve network
-//!   with a Hermite fit of the normals the curves imply;
+//!   with a Hermite fit of the normals the curves imply, and joins the
+//!   pieces the curves do not keep apart ([`joining`]);
 //! - [`mesh::mesh_model`] extracts the zero set of either by
 //!   surface-following marching cubes;
 //! - [`warp::fit_warp`] computes a dense deformation field between two
@@ -23,6 +24,7 @@ pub mod cells;
 pub mod curve_network;
 pub mod error;
 pub mod hermite;
+pub mod joining;
 pub mod kernel;
 pub mod mesh;
 pub mod model;

@@ -108,3 +108,89 @@ fn torus_from_eight_cross_section_circles_has_genus_one() {
         );
     }
 }
+
+fn reconstruct_with_report(
+    curves: Vec<Curve>,
+    join_pieces: bool,
+) -> (TriMesh, surfrecon_svm::curve_network::CurveFitReport) {
+    let network = CurveNetwork::new(curves);
+    let options = CurveFitOptions {
+        resolution: Some(80),
+        join_pieces,
+        ..Default::default()
+    };
+    reconstruct_from_curves(&network, &options).expect("fit")
+}
+
+/// A sphere of radius 1 at the origin from its three great circles, as
+/// sections by the planes x = 0, y = 0, z = 0.
+fn three_circle_sphere(centre: DVec3) -> Vec<Curve> {
+    let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
+    vec![
+        Curve::circle(centre, x, y, 1.0, 180),
+        Curve::circle(centre, y, z, 1.0, 180),
+        Curve::circle(centre, z, x, 1.0, 180),
+    ]
+}
+
+/// Sections of one object: a sphere (three great circles) with an ear
+/// whose tip two more sections cut (two crossing loops in the planes
+/// x = 0.55 and y = 0.55 above the sphere), nothing cutting the ear's
+/// stem: the loops are a network of their own, which the fit alone spans
+/// with a piece of its own floating above the sphere.
+#[test]
+fn an_ear_tip_cut_by_its_own_sections_is_joined_to_the_body() {
+    let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
+    let tip = DVec3::new(0.55, 0.55, 1.2);
+    let mut curves = three_circle_sphere(DVec3::ZERO);
+    curves.push(Curve::circle(tip, y, z, 0.25, 60));
+    curves.push(Curve::circle(tip, x, z, 0.25, 60));
+    let (apart, _) = reconstruct_with_report(curves.clone(), false);
+    assert_eq!(
+        topology(&apart).components,
+        2,
+        "the fit alone leaves the tip apart"
+    );
+
+    let (mesh, report) = reconstruct_with_report(curves.clone(), true);
+    let topo = topology(&mesh);
+    assert!(
+        topo.watertight && topo.edge_manifold && topo.vertex_manifold,
+        "{topo:?}"
+    );
+    assert_eq!((topo.components, topo.euler), (1, 2), "{topo:?}");
+    let joining = report.joining.expect("joining report");
+    assert_eq!((joining.pieces_before, joining.pieces_joined), (2, 1));
+    for p in curves.iter().flat_map(|c| c.points.iter().step_by(10)) {
+        assert!(
+            distance_to_mesh(&mesh, *p) < 0.01,
+            "curve point {p} not reached"
+        );
+    }
+    // A neck, not a wire: it is at least a fifth as thick as the tip
+    // (0.5 across) where it leaves the sphere's surface.
+    let axis = (tip - tip.normalize()).normalize();
+    let halfway = tip.normalize() + 0.5 * (tip.length() - 1.25) * axis;
+    let across = axis.cross(z).normalize();
+    let radius = mesh
+        .vertices
+        .iter()
+        .filter(|v| (**v - halfway).dot(axis).abs() < 0.03)
+        .map(|v| (*v - halfway).dot(across).abs())
+        .fold(0.0, f64::max);
+    assert!(radius > 0.05, "neck radius {radius}");
+}
+
+/// Sections of two objects: two spheres side by side, each from its three
+/// great circles. The planes y = 0 and z = 0 of both pass through the gap
+/// and show no neck there, so the pieces stay apart.
+#[test]
+fn spheres_whose_section_planes_cross_the_gap_stay_apart() {
+    let mut curves = three_circle_sphere(DVec3::ZERO);
+    curves.extend(three_circle_sphere(DVec3::new(2.3, 0.0, 0.0)));
+    let (mesh, report) = reconstruct_with_report(curves, true);
+    assert_eq!(topology(&mesh).components, 2);
+    let joining = report.joining.expect("joining report");
+    assert_eq!((joining.pieces_joined, joining.pieces_left_apart), (0, 1));
+    assert!(!joining.gaps[0].bridged, "{:?}", joining.gaps);
+}

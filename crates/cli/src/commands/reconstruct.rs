@@ -78,6 +78,11 @@ pub struct Args {
     /// spanning them with a Hermite fit of the normals the crossings imply.
     #[arg(long)]
     pub no_curve_network: bool,
+    /// On crossing curves, leave pieces of the surface apart even where
+    /// the curves show nothing between them (by default such pieces are
+    /// joined by a neck: sections of one object give one solid).
+    #[arg(long)]
+    pub keep_pieces: bool,
     /// Also write the signed distance field (.nrrd or .vtk).
     #[arg(long, value_name = "F.nrrd")]
     pub field: Option<PathBuf>,
@@ -201,6 +206,7 @@ fn options(args: &Args, data_fit: bool) -> surfrecon::Options {
         method,
         resolution: args.resolution,
         curve_network: !args.no_curve_network,
+        join_pieces: !args.keep_pieces,
         // With --json only: it costs a pass over the data.
         data_fit,
     }
@@ -251,11 +257,12 @@ fn summarize(args: &Args, report: &Report, ctx: &Context) {
             },
         )),
         Report::CurveNetwork(r) => ctx.say(format!(
-            "reconstructed a closed surface spanning {} curves ({} crossings) with {} vertices in {:.2} s -> {output}",
+            "reconstructed a closed surface spanning {} curves ({} crossings) with {} vertices in {:.2} s{} -> {output}",
             r.curve_network.curves,
             r.curve_network.crossings,
             r.output_counts.vertices,
-            r.seconds_total
+            r.seconds_total,
+            pieces_note(r.curve_network.joining.as_ref()),
         )),
     }
     if !ctx.json {
@@ -291,5 +298,27 @@ fn say_levelset(r: &surfrecon::LevelSetReport, args: &Args, ctx: &Context) {
     ));
     for t in &r.timings {
         ctx.detail(format!("  {:<12} {:8.3} s", t.stage, t.seconds));
+    }
+}
+
+/// What joining the pieces of a curve-network surface did, for the summary.
+fn pieces_note(joining: Option<&surfrecon::JoinReport>) -> String {
+    let Some(j) = joining else {
+        return String::new();
+    };
+    let mut parts = Vec::new();
+    if j.pieces_joined > 0 {
+        parts.push(format!(
+            "{} piece(s) joined to the rest by a neck",
+            j.pieces_joined
+        ));
+    }
+    if j.pieces_left_apart > 0 {
+        parts.push(format!("{} piece(s) left apart", j.pieces_left_apart));
+    }
+    if parts.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", parts.join(", "))
     }
 }
