@@ -425,6 +425,7 @@ pub fn project_onto_points(
     if points.len() < neighbours {
         return Projection {
             moved: 0,
+            fitted: vec![false; vertices.len()],
             supported: vec![false; vertices.len()],
         };
     }
@@ -453,6 +454,7 @@ pub fn project_onto_points(
         .collect();
     Projection {
         moved: outcomes.iter().filter(|(_, moved)| *moved).count(),
+        fitted: outcomes.iter().map(|&(_, moved)| moved).collect(),
         supported: outcomes
             .into_iter()
             .map(|(supported, _)| supported)
@@ -465,6 +467,8 @@ pub fn project_onto_points(
 pub struct Projection {
     /// Vertices moved onto a fit.
     pub moved: usize,
+    /// Per vertex: moved onto a fit.
+    pub fitted: Vec<bool>,
     /// Per vertex: a data point lay within `reach` of it (before moving).
     pub supported: Vec<bool>,
 }

@@ -13,7 +13,7 @@ use crate::holes::seal_with_normals;
 use crate::multires::{
     auto_levels, coarsen, grow_to_points, interpolate, restore_near_missed, upsample_band,
 };
-use crate::refine::{refine_surface, RefineStats};
+use crate::refine::{refine_surface, RefineOptions, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
 use crate::slices::{detect_slices, interpolate_slices, SliceStack};
 use crate::tagging::{remove_unsupported, tag, BoundingBox};
@@ -324,10 +324,13 @@ fn reconstruct_3d_centred(
     if params.refine && !input.points.is_empty() {
         // Gaps are measured from the points: curves and patches bound them
         // elsewhere, so with them present no patch is faired.
-        let fair_gaps = input.segments.is_empty() && input.triangles.is_empty();
+        let options = RefineOptions {
+            fair_gaps: input.segments.is_empty() && input.triangles.is_empty(),
+            exact_points: report.cleaning.projected == 0,
+        };
         check(hook, "refine")?;
         report.refine = report.time("refine", || {
-            refine_surface(&mut mesh, &input.points, phi.spec().spacing, fair_gaps)
+            refine_surface(&mut mesh, &input.points, phi.spec().spacing, options)
         });
     }
     Ok(Reconstruction3 {

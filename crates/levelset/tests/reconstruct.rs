@@ -911,3 +911,67 @@ fn a_sparsely_sampled_thin_plate_keeps_flat_faces() {
     let h = r.report.spacing;
     assert!(mean < 0.55 * h, "mean {mean}, h {h}");
 }
+
+/// Signed distance to the axis box of half sizes `half` about the origin.
+fn box_distance(p: DVec3, half: DVec3) -> f64 {
+    let q = p.abs() - half;
+    q.max(DVec3::ZERO).length() + q.max_element().min(0.0)
+}
+
+#[test]
+fn refined_surface_follows_sharp_edges_of_exact_points() {
+    use surfrecon_levelset::refine::{refine_surface, RefineOptions};
+    let half = DVec3::new(0.5, 0.4, 0.3);
+    // Turned off the grid's axes, so no edge lies along grid lines.
+    let turn = glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.3, 0.5, 0.2);
+    let cube = surfrecon_geom::shapes::cuboid(-half, half);
+    let points: Vec<DVec3> = sample_surface(&cube, 8000, 3)
+        .positions
+        .iter()
+        .map(|&p| turn * p)
+        .collect();
+    let unrefined = ReconstructParams {
+        refine: false,
+        ..params(40)
+    };
+    let r = reconstruct_3d(&Input::from_points(points.clone()), &unrefined).unwrap();
+    let h = r.report.spacing;
+    let near_edge_error = |options: RefineOptions| {
+        let mut mesh = r.mesh.clone();
+        let stats = refine_surface(&mut mesh, &points, h, options);
+        let (watertight, euler, _) = topology(&mesh);
+        assert!(
+            watertight && euler == 2,
+            "{options:?}: {watertight} {euler}"
+        );
+        let errors: Vec<f64> = mesh
+            .vertices
+            .iter()
+            .map(|&v| turn.inverse() * v)
+            .filter(|p| {
+                // Within two cells of two faces at once: beside an edge.
+                let gaps = (half - p.abs()).abs().to_array();
+                gaps.iter().filter(|&&g| g < 2.0 * h).count() >= 2
+            })
+            .map(|p| box_distance(p, half).abs() / h)
+            .collect();
+        let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+        eprintln!(
+            "{options:?}: {stats:?}, mean error beside edges {mean} h over {}",
+            errors.len()
+        );
+        mean
+    };
+    let fitted_only = near_edge_error(RefineOptions {
+        fair_gaps: true,
+        exact_points: false,
+    });
+    let with_planes = near_edge_error(RefineOptions {
+        fair_gaps: true,
+        exact_points: true,
+    });
+    assert!(
+        with_planes < 0.6 * fitted_only,
+        "beside edges: {with_planes} h with the planes, {fitted_only} h without"
+    );
+}

@@ -124,6 +124,7 @@ fn report(
         settle: evolutions(&r.settle),
         refine: RefineReport {
             snapped: r.refine.snapped,
+            snapped_to_planes: r.refine.snapped_to_planes,
             faired: r.refine.faired,
             max_fairing_shift: r.refine.max_fairing_shift,
         },

@@ -157,6 +157,7 @@ pub struct EvolveReport {
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct RefineReport {
     pub snapped: usize,
+    pub snapped_to_planes: usize,
     pub faired: usize,
     pub max_fairing_shift: f64,
 }
