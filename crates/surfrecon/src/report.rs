@@ -246,6 +246,10 @@ pub struct SvmMeshReport {
     pub nodes_evaluated: usize,
     /// Closed pieces under three cells dropped from the mesh.
     pub specks_removed: usize,
+    /// Vertices moved onto the points' local fit (points used as measured).
+    pub snapped: usize,
+    /// Of the others, beside sharp edges, onto the nearest point's plane.
+    pub snapped_to_planes: usize,
     pub vertices: usize,
     pub triangles: usize,
 }

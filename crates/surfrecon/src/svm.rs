@@ -11,6 +11,7 @@ use surfrecon_geom::progress::Hook;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, PointCloud};
 use surfrecon_levelset::cleaning::{clean_points, normals_of_nearest};
+use surfrecon_levelset::refine::{refine_surface, RefineOptions};
 use surfrecon_svm::mesh::{mesh_model, MeshOptions};
 use surfrecon_svm::noise::estimate_noise_unoriented;
 use surfrecon_svm::selection::{select_parameters, SelectionOptions};
@@ -77,8 +78,21 @@ pub(crate) fn run(
         resolution: resolution.unwrap_or(DEFAULT_RESOLUTION),
         ..Default::default()
     };
-    let (mesh, m) = mesh_model(&model, &points.positions, points.bounds(), &opts)
+    let (mut mesh, m) = mesh_model(&model, &points.positions, points.bounds(), &opts)
         .map_err(|e| e.within("meshing the SVM implicit surface failed"))?;
+    // Points the cleaning found clean are exact samples: the mesh goes onto
+    // them as the level set's does (between samples, and up to sharp
+    // edges), instead of staying on the smooth kernel sum. Not for smoothed
+    // points (0.25% noise: 4% worse), points not checked (`--no-cleaning`)
+    // nor a loaded model's mesh.
+    let exact = o.cleaning && o.model_in.is_none() && cleaning.is_none();
+    let refined = exact.then(|| {
+        let options = RefineOptions {
+            fair_gaps: false,
+            exact_points: true,
+        };
+        refine_surface(&mut mesh, &points.positions, m.spacing, options)
+    });
     let svm = SvmSummary {
         method: "svm",
         fit,
@@ -92,6 +106,8 @@ pub(crate) fn run(
             cells_visited: m.cells_visited,
             nodes_evaluated: m.nodes_evaluated,
             specks_removed: m.specks_removed,
+            snapped: refined.map_or(0, |r| r.snapped),
+            snapped_to_planes: refined.map_or(0, |r| r.snapped_to_planes),
             vertices: mesh.vertices.len(),
             triangles: mesh.triangles.len(),
         },
