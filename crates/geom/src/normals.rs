@@ -38,33 +38,24 @@ pub fn estimate_normals(points: &[DVec3], k: usize) -> Vec<DVec3> {
     sorted.restore(&normals_from_table(&sorted.points, &table, k))
 }
 
-/// Unit normals (any sign) that stay true to each face up to a sharp edge:
-/// every point takes the plane fit of the flattest `k`-neighbourhood among
-/// its own and those of its neighbours that contain it. A point beside an
-/// edge has a neighbour whose neighbourhood lies on its face only, so its
-/// normal does not blend the two faces as [`estimate_normals`]'s does.
-pub fn estimate_normals_beside_edges(points: &[DVec3], k: usize) -> Vec<DVec3> {
-    let k = k.max(3);
-    let sorted = SpatialOrder::new(points);
-    let table = KnnTable::build(&sorted.points, k);
-    let fits: Vec<(DVec3, f64)> = (0..sorted.points.len())
-        .into_par_iter()
-        .map(|i| fit_plane(table.row(i).iter().map(|&j| sorted.points[j as usize])))
-        .collect();
-    let normals: Vec<DVec3> = (0..sorted.points.len())
-        .into_par_iter()
-        .map(|i| {
-            let contains_i = |&&q: &&u32| table.row(q as usize).contains(&(i as u32));
-            let flattest = table
-                .row(i)
-                .iter()
-                .filter(contains_i)
-                .map(|&q| fits[q as usize])
-                .fold(fits[i], |best, fit| if fit.1 < best.1 { fit } else { best });
-            flattest.0
-        })
-        .collect();
-    sorted.restore(&normals)
+/// Unit normal (any sign) of `points[i]` that stays true to its face up to
+/// a sharp edge: the plane fit of the flattest `k`-neighbourhood among the
+/// point's own and those of its neighbours that contain it (`tree` indexes
+/// `points`). A point beside an edge has a neighbour whose neighbourhood
+/// lies on its face only, so the normal does not blend the two faces as
+/// [`estimate_normals`]'s does. Costs `k` neighbour searches: meant for
+/// the few points beside edges, not a whole cloud.
+pub fn normal_beside_edges(points: &[DVec3], tree: &KdTree, i: usize, k: usize) -> DVec3 {
+    let neighbourhood = |j: usize| tree.knn(points[j], k.max(3));
+    let fit = |near: &[crate::spatial::Neighbour]| fit_plane(near.iter().map(|n| points[n.index]));
+    let own = neighbourhood(i);
+    own.iter()
+        .filter(|n| n.index != i)
+        .map(|n| neighbourhood(n.index))
+        .filter(|theirs| theirs.iter().any(|m| m.index == i))
+        .map(|theirs| fit(&theirs))
+        .fold(fit(&own), |best, f| if f.1 < best.1 { f } else { best })
+        .0
 }
 
 /// [`estimate_normals`] followed by [`orient_normals`] with the same `k`,
@@ -709,8 +700,12 @@ mod tests {
             let worst = angles.iter().filter(|&&a| a > 10.0).count();
             (worst as f64 / angles.len() as f64, angles.len())
         };
+        let tree = KdTree::new(points);
+        let beside_edges: Vec<DVec3> = (0..points.len())
+            .map(|i| normal_beside_edges(points, &tree, i, 10))
+            .collect();
         let (plain, count) = off_face(&estimate_normals(points, 10));
-        let (beside, _) = off_face(&estimate_normals_beside_edges(points, 10));
+        let (beside, _) = off_face(&beside_edges);
         assert!(count > 300, "{count} points near the edges");
         assert!(
             plain > 0.4,

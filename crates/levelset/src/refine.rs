@@ -12,7 +12,7 @@
 use crate::cleaning::{project_onto_points, SurfaceFit};
 use rayon::prelude::*;
 use surfrecon_geom::fairing::{area_weighted_normals, fair, FairingOptions};
-use surfrecon_geom::normals::estimate_normals_beside_edges;
+use surfrecon_geom::normals::normal_beside_edges;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, TriMesh};
 
@@ -112,10 +112,10 @@ pub fn refine_surface(
 }
 
 /// Move each vertex marked in `which` onto the tangent plane of its nearest
-/// data point (fitted by [`estimate_normals_beside_edges`]) where that moves
-/// it at most one cell of `spacing`. Beside a sharp edge the vertex is on
-/// the rounded grid surface; the nearest point's plane is that of the face
-/// it belongs to, so the mesh follows both faces up to the edge.
+/// data point (fitted by [`normal_beside_edges`]) where that moves it at
+/// most one cell of `spacing`. Beside a sharp edge the vertex is on the
+/// rounded grid surface; the nearest point's plane is that of the face it
+/// belongs to, so the mesh follows both faces up to the edge.
 fn project_onto_nearest_planes(
     vertices: &mut [DVec3],
     points: &[DVec3],
@@ -125,7 +125,6 @@ fn project_onto_nearest_planes(
     if points.len() < PLANE_NEIGHBOURS {
         return;
     }
-    let planes = estimate_normals_beside_edges(points, PLANE_NEIGHBOURS);
     let tree = KdTree::new(points);
     vertices
         .par_iter_mut()
@@ -133,7 +132,8 @@ fn project_onto_nearest_planes(
         .filter(|(_, &w)| w)
         .for_each(|(v, _)| {
             if let Some(near) = tree.nearest(*v) {
-                let (p, n) = (points[near.index], planes[near.index]);
+                let p = points[near.index];
+                let n = normal_beside_edges(points, &tree, near.index, PLANE_NEIGHBOURS);
                 let foot = *v - n * n.dot(*v - p);
                 if foot.distance(*v) <= spacing {
                     *v = foot;
