@@ -1,13 +1,16 @@
 //! Final touches on the extracted surface, where the grid's resolution
-//! limits it: vertices near the data move onto the data's local fit, and
-//! the patches spanning gaps in scanned data are faired.
+//! limits it: vertices near the data move onto the data's local fit (and,
+//! for exact points, beside sharp edges onto the nearest point's plane),
+//! and the patches spanning gaps in scanned data are faired.
 //!
 //! The evolved zero set lies on the data only to a fraction of a cell and
 //! spans holes with a minimal surface, which sags into the body. Snapping
 //! ([`project_onto_points`]) places the supported vertices between the
-//! samples; fairing ([`fair`]) replaces each sagging patch with the
-//! smoothest fill that meets the surrounding surface with its slope. Both
-//! only move vertices, so the mesh stays watertight and manifold.
+//! samples; where the fit is not one sheet (a sharp edge) the plane of the
+//! nearest point's face does; fairing ([`fair`]) replaces each sagging
+//! patch with the smoothest fill that meets the surrounding surface with
+//! its slope. All only move vertices, so the mesh stays watertight, and
+//! moves that would fold or flatten a triangle are undone.
 
 use crate::cleaning::{project_onto_points, SurfaceFit};
 use rayon::prelude::*;
