@@ -128,6 +128,7 @@ fn reconstruct_case(
         method,
         resolution: Some(resolution(u, 16)?),
         curve_network: u.arbitrary()?,
+        join_pieces: u.arbitrary()?,
         data_fit: u.arbitrary()?,
     };
     Ok(Some((input, options)))
