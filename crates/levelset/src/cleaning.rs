@@ -415,6 +415,7 @@ pub fn project_onto_points(
     vertices: &mut [DVec3],
     normals: &[DVec3],
     points: &[DVec3],
+    tree: &KdTree,
     fit: &SurfaceFit,
 ) -> Projection {
     let SurfaceFit {
@@ -429,7 +430,6 @@ pub fn project_onto_points(
             supported: vec![false; vertices.len()],
         };
     }
-    let tree = KdTree::new(points);
     let outcomes: Vec<(bool, bool)> = vertices
         .par_iter_mut()
         .zip(normals)
@@ -660,7 +660,14 @@ mod tests {
         };
         let before = error(&vertices);
         let normals = radial(&vertices);
-        let moved = project_onto_points(&mut vertices, &normals, &samples, &fit(0.05)).moved;
+        let moved = project_onto_points(
+            &mut vertices,
+            &normals,
+            &samples,
+            &KdTree::new(&samples),
+            &fit(0.05),
+        )
+        .moved;
         assert!(
             moved * 100 >= vertices.len() * 95,
             "{moved} of {}",
@@ -686,7 +693,13 @@ mod tests {
             .collect();
         let original = rippled_sphere(1.0, 0.01);
         let mut vertices = original.clone();
-        project_onto_points(&mut vertices, &radial(&original), &upper, &fit(0.05));
+        project_onto_points(
+            &mut vertices,
+            &radial(&original),
+            &upper,
+            &KdTree::new(&upper),
+            &fit(0.05),
+        );
         for (v, o) in vertices.iter().zip(&original) {
             if o.z < -0.1 {
                 assert_eq!(v, o);
@@ -703,7 +716,14 @@ mod tests {
         let mut vertices = original.clone();
         let normals = radial(&original);
         assert_eq!(
-            project_onto_points(&mut vertices, &normals, &circle, &fit(0.3)).moved,
+            project_onto_points(
+                &mut vertices,
+                &normals,
+                &circle,
+                &KdTree::new(&circle),
+                &fit(0.3),
+            )
+            .moved,
             0
         );
         assert_eq!(vertices, original);

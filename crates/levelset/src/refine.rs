@@ -89,14 +89,16 @@ pub fn refine_surface(
         reach,
         neighbours: SNAP_NEIGHBOURS,
     };
-    let projection = project_onto_points(&mut mesh.vertices, normals, points, &fit);
+    // One index of the points for both snapping steps.
+    let tree = KdTree::new(points);
+    let projection = project_onto_points(&mut mesh.vertices, normals, points, &tree, &fit);
     stats.snapped = projection.moved;
     if options.exact_points {
         let beside_edges: Vec<bool> = (projection.supported.iter().zip(&projection.fitted))
             .map(|(&supported, &fitted)| supported && !fitted)
             .collect();
         let before = mesh.vertices.clone();
-        project_onto_nearest_planes(&mut mesh.vertices, points, &beside_edges, spacing);
+        project_onto_nearest_planes(&mut mesh.vertices, points, &tree, &beside_edges, spacing);
         stats.snapped_to_planes = undo_degenerating_moves(mesh, &before);
     }
     if !options.fair_gaps {
@@ -122,13 +124,13 @@ pub fn refine_surface(
 fn project_onto_nearest_planes(
     vertices: &mut [DVec3],
     points: &[DVec3],
+    tree: &KdTree,
     which: &[bool],
     spacing: f64,
 ) {
     if points.len() < PLANE_NEIGHBOURS {
         return;
     }
-    let tree = KdTree::new(points);
     vertices
         .par_iter_mut()
         .zip(which)
@@ -136,7 +138,7 @@ fn project_onto_nearest_planes(
         .for_each(|(v, _)| {
             if let Some(near) = tree.nearest(*v) {
                 let p = points[near.index];
-                let n = normal_beside_edges(points, &tree, near.index, PLANE_NEIGHBOURS);
+                let n = normal_beside_edges(points, tree, near.index, PLANE_NEIGHBOURS);
                 let foot = *v - n * n.dot(*v - p);
                 if foot.distance(*v) <= spacing {
                     *v = foot;
