@@ -19,7 +19,10 @@
 # the default toolchain even when nightly exists; FUZZ_SEED=N fixes
 # libFuzzer's random seed (CI); FUZZ_RUNS=N stops each target after N
 # inputs (with FUZZ_SEED: the same inputs on every machine, whatever its
-# speed); RAYON_NUM_THREADS (default 1 per target).
+# speed); FUZZ_TIMEOUT=S (default 10) is how long one input may run before
+# it counts as a hang: raise it for long runs on a loaded or niced machine,
+# where a starved process is not a hang; RAYON_NUM_THREADS (default 1 per
+# target).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 cd "$here"
@@ -64,12 +67,12 @@ for t in "${targets[@]}"; do
   if [ -f "$here/dict/$t.dict" ]; then dict=(-dict="$here/dict/$t.dict"); fi
   before=$(ls "$artifacts" | wc -l)
   log="$here/corpus/$t.log"
-  # -timeout: a single input taking > 10 s is a hang finding.
+  # -timeout: a single input taking longer is a hang finding.
   # -rss_limit_mb / -malloc_limit_mb: an allocation beyond 1 GiB from a
   # tiny input is a finding (inputs are at most -max_len bytes).
   "${cargo[@]}" fuzz run "${flags[@]}" "$t" "$corpus" -- \
     -max_total_time="$seconds" "${dict[@]}" -max_len=65536 \
-    -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 ${FUZZ_SEED:+-seed="$FUZZ_SEED"} ${FUZZ_RUNS:+-runs="$FUZZ_RUNS"} \
+    -timeout="${FUZZ_TIMEOUT:-10}" -rss_limit_mb=2048 -malloc_limit_mb=1024 ${FUZZ_SEED:+-seed="$FUZZ_SEED"} ${FUZZ_RUNS:+-runs="$FUZZ_RUNS"} \
     -print_final_stats=1 -artifact_prefix="$artifacts/" >"$log" 2>&1 || true
   execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")
   rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo "?")
