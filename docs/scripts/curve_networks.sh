@@ -1,6 +1,11 @@
 #!/bin/bash
-# curve_networks.sh BIN OUTDIR [reconstruct flags]: the curve-network table rows (VIPSS torus samples from ../shared; bunny/fandisk section networks from docs/scripts/section_network.py in $SECTIONS)
+# curve_networks.sh BIN OUTDIR [reconstruct flags]: the curve-network table rows (VIPSS torus samples from ../shared; bunny/fandisk section networks from docs/scripts/section_network.py in $SECTIONS,
+# made there when missing with $PY, a python that has numpy and open3d, e.g. the bench harness's venv; default OUTDIR/sections)
 B=$1; O=$2; shift 2; mkdir -p $O; V=${SHARED:-../shared}/data/small/vipss
+SECTIONS=${SECTIONS:-$O/sections}; mkdir -p $SECTIONS
+here=$(dirname "$0")
+[ -f $SECTIONS/bunny15.obj ] || ${PY:-python3} $here/section_network.py ${SHARED:-../shared}/data/stanford_bunny/reconstruction/bun_zipper.ply $SECTIONS/bunny15
+[ -f $SECTIONS/fandisk15.obj ] || ${PY:-python3} $here/section_network.py ${SHARED:-../shared}/data/fandisk/fandisk.off $SECTIONS/fandisk15
 run() { name=$1 in=$2 gt=$3; shift 3
   /usr/bin/time -f "%e %M" -o $O/$name.time $B reconstruct $in -o $O/$name.ply --json "$@" > $O/$name.json 2>$O/$name.err || { echo "$name FAILED"; cat $O/$name.err; return; }
   $B eval $O/$name.ply -r $gt --data $in --json > $O/$name.eval 2>/dev/null
@@ -15,5 +20,5 @@ PY
 run crosscut $V/torus_crosscut.xyz $V/torus_gt.obj "$@"
 run wires $V/torus_wires.xyz $V/torus_gt.obj "$@"
 run parallelcut $V/torus_parallelcut.xyz $V/torus_gt.obj "$@"
-run bunny15 ${SECTIONS:-/work/notes/sec}/bunny15.obj ${SHARED:-../shared}/data/stanford_bunny/reconstruction/bun_zipper.ply "$@"
-run fandisk15 ${SECTIONS:-/work/notes/sec}/fandisk15.obj ${SHARED:-../shared}/data/fandisk/fandisk.off "$@"
+run bunny15 $SECTIONS/bunny15.obj ${SHARED:-../shared}/data/stanford_bunny/reconstruction/bun_zipper.ply "$@"
+run fandisk15 $SECTIONS/fandisk15.obj ${SHARED:-../shared}/data/fandisk/fandisk.off "$@"
