@@ -401,6 +401,11 @@ pub struct SurfaceFit {
     /// Data points per fit: more average more noise, fewer follow more
     /// detail.
     pub neighbours: usize,
+    /// Data whose offsets along the vertex normal lie this far apart form
+    /// separate sheets (the two sides of a thin part): where the fit to
+    /// all neighbours is not one sheet, the vertex's own sheet is fitted
+    /// alone. Zero: never.
+    pub sheet_gap: f64,
 }
 
 /// Move each vertex of a reconstructed surface (curve in 2D) onto the
@@ -422,6 +427,7 @@ pub fn project_onto_points(
         dim,
         reach,
         neighbours,
+        sheet_gap,
     } = *fit;
     if points.len() < neighbours {
         return Projection {
@@ -438,17 +444,23 @@ pub fn project_onto_points(
             if near.first().is_none_or(|n| n.distance > reach) {
                 return (false, false);
             }
-            let fit = project(*v, near.iter().map(|n| points[n.index]), dim);
+            let fits = |f: &Fit| {
+                f.point.distance(*v) <= reach
+                    && f.normal.dot(*normal).abs() >= SAME_SURFACE
+                    && f.residual <= ONE_SHEET * f.radius
+            };
+            let fit = project(*v, near.iter().map(|n| points[n.index]), dim)
+                .filter(fits)
+                .or_else(|| {
+                    let sheet = own_sheet(*v, *normal, points, tree, neighbours, sheet_gap)?;
+                    project(*v, sheet.into_iter(), dim).filter(fits)
+                });
             match fit {
-                Some(fit)
-                    if fit.point.distance(*v) <= reach
-                        && fit.normal.dot(*normal).abs() >= SAME_SURFACE
-                        && fit.residual <= ONE_SHEET * fit.radius =>
-                {
+                Some(fit) => {
                     *v = fit.point;
                     (true, true)
                 }
-                _ => (true, false),
+                None => (true, false),
             }
         })
         .collect();
@@ -460,6 +472,49 @@ pub fn project_onto_points(
             .map(|(supported, _)| supported)
             .collect(),
     }
+}
+
+/// Of the `2 * neighbours` data nearest `v`, those on the same sheet as
+/// the nearest one, when the data split into sheets: sorted by offset
+/// along the vertex `normal`, a step wider than `gap` separates two sheets
+/// (both sides of a fin or a thin cone). `None` without such a step or
+/// with fewer than half `neighbours` on the sheet.
+fn own_sheet(
+    v: DVec3,
+    normal: DVec3,
+    points: &[DVec3],
+    tree: &KdTree,
+    neighbours: usize,
+    gap: f64,
+) -> Option<Vec<DVec3>> {
+    if gap <= 0.0 {
+        return None;
+    }
+    let near = tree.knn(v, 2 * neighbours);
+    let nearest = points[near.first()?.index];
+    let offset = |p: DVec3| (p - v).dot(normal);
+    let mut offsets: Vec<f64> = near.iter().map(|n| offset(points[n.index])).collect();
+    offsets.sort_by(f64::total_cmp);
+    let own = offset(nearest);
+    // The sheet is the run of offsets around the nearest datum's without
+    // a step wider than `gap`.
+    let start = offsets.iter().rposition(|&o| o <= own)?;
+    let low = (1..=start)
+        .rev()
+        .find(|&i| offsets[i] - offsets[i - 1] > gap)
+        .map_or(f64::NEG_INFINITY, |i| offsets[i]);
+    let high = (start + 1..offsets.len())
+        .find(|&i| offsets[i] - offsets[i - 1] > gap)
+        .map_or(f64::INFINITY, |i| offsets[i - 1]);
+    if low == f64::NEG_INFINITY && high == f64::INFINITY {
+        return None;
+    }
+    let sheet: Vec<DVec3> = near
+        .iter()
+        .map(|n| points[n.index])
+        .filter(|&p| (low..=high).contains(&offset(p)))
+        .collect();
+    (sheet.len() >= neighbours / 2).then_some(sheet)
 }
 
 /// What [`project_onto_points`] did.
@@ -624,6 +679,7 @@ mod tests {
             dim: 3,
             reach,
             neighbours: 16,
+            sheet_gap: 0.0,
         }
     }
 
@@ -727,6 +783,43 @@ mod tests {
             0
         );
         assert_eq!(vertices, original);
+    }
+
+    #[test]
+    fn vertices_beside_a_thin_slab_snap_onto_their_own_side() {
+        // A slab 1.2 sample gaps thick: every 16-neighbourhood holds both
+        // sides, so the one-sheet fit refuses; the vertex's own side,
+        // split off by the gap along its normal, is one sheet.
+        let top: Vec<DVec3> = plane_points(20)
+            .into_iter()
+            .map(|p| p + DVec3::Z * 1.2)
+            .collect();
+        let points: Vec<DVec3> = plane_points(20).into_iter().chain(top).collect();
+        let tree = KdTree::new(&points);
+        let original: Vec<DVec3> = (0..40)
+            .map(|i| {
+                DVec3::new(
+                    5.0 + 0.25 * i as f64,
+                    7.3,
+                    if i % 2 == 0 { 1.45 } else { -0.25 },
+                )
+            })
+            .collect();
+        let normals: Vec<DVec3> = original.iter().map(|_| DVec3::Z).collect();
+        let snap = |sheet_gap: f64| {
+            let mut vertices = original.clone();
+            let fit = SurfaceFit {
+                sheet_gap,
+                ..fit(1.0)
+            };
+            project_onto_points(&mut vertices, &normals, &points, &tree, &fit);
+            vertices
+        };
+        assert_eq!(snap(0.0), original);
+        for (v, o) in snap(0.6).iter().zip(&original) {
+            let side = if o.z > 0.6 { 1.2 } else { 0.0 };
+            assert!((v.z - side).abs() < 1e-6, "{o} -> {v}");
+        }
     }
 
     #[test]

@@ -26,6 +26,11 @@ pub const SUPPORT_CELLS: f64 = 2.0;
 /// Data points per local fit when snapping.
 const SNAP_NEIGHBOURS: usize = 16;
 
+/// Data this many cells apart along a vertex normal lie on separate sheets
+/// (both sides of a fin a few cells thick); one sheet's samples lie within
+/// a fraction of a cell of each other there.
+const SHEET_GAP_CELLS: f64 = 1.0;
+
 /// Data points per plane fit beside sharp edges (few, so that a
 /// neighbourhood on one face is found close to the edge; harness shapes:
 /// 10 better than 16 on box, fandisk, bunny and spikes).
@@ -88,6 +93,7 @@ pub fn refine_surface(
         dim: 3,
         reach,
         neighbours: SNAP_NEIGHBOURS,
+        sheet_gap: SHEET_GAP_CELLS * spacing,
     };
     // One index of the points for both snapping steps.
     let tree = KdTree::new(points);
