@@ -100,14 +100,15 @@ fn main() {
         let options = UdfOptions {
             size,
             threshold,
+            feature_angle_deg: env("FEATURE_ANGLE", 30.0),
             ..Default::default()
         };
         let (udf, report) = build_udf(&mesh, &options).unwrap();
         let t = Instant::now();
         let (out, extract) = udf.extract();
         let stored = format!(
-            "{} directed, {} feature points ({} beside an edge; {} fanned, {} merged into a neighbour's fan, {} flips), {} moved samples, {} cells re-picked; {} boundary / {} feature cells",
-            report.directed, report.feature_points, report.sharp_cells, extract.fans, extract.merged, extract.flips, report.positions, report.repicked, report.boundary_cells, report.feature_cells
+            "{} directed, {} feature points ({} beside an edge; {} fanned, {} merged into a neighbour's fan, {} flips), {} moved samples, {} cells re-picked, {} repaired; {} boundary / {} feature cells",
+            report.directed, report.feature_points, report.sharp_cells, extract.fans, extract.merged, extract.flips, report.positions, report.repicked, report.repaired, report.boundary_cells, report.feature_cells
         );
         let name = format!("UDF {threshold}");
         row(

@@ -61,13 +61,10 @@ pub struct ExtractReport {
 }
 
 /// The zero set of `field` as a closed triangle mesh. `features` maps a
-/// cell (its lowest node's linear index) to the feature point it keeps;
-/// `seconds` to a second one, for cells that separate feature lines cross
-/// (see [`fan_two`]).
+/// cell (its lowest node's linear index) to the feature point it keeps.
 pub fn extract(
     field: &impl SampledField,
     features: &BTreeMap<usize, DVec3>,
-    seconds: &BTreeMap<usize, DVec3>,
 ) -> (TriMesh, ExtractReport) {
     let cells = active_cells(field);
     let (keys, vertices) = edge_vertices(field, &cells);
@@ -77,11 +74,9 @@ pub fn extract(
         .map(|&(cell, config, bits)| {
             let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
             match features.get(&cell) {
-                Some(&f) if !leans_on_neighbour(field, cell, f) => match seconds.get(&cell) {
-                    Some(&g) => fan_two(&patch.boundary(), [f, g], &vertices, &keys, field)
-                        .unwrap_or_else(|| patch.fan(f, &vertices, &keys, field)),
-                    None => patch.fan(f, &vertices, &keys, field),
-                },
+                Some(&f) if !leans_on_neighbour(field, cell, f) => {
+                    patch.fan(f, &vertices, &keys, field)
+                }
                 Some(_) => Patch {
                     fanned: Some(false),
                     ..patch
@@ -110,7 +105,7 @@ pub fn extract(
         match patch.fanned {
             Some(true) => {
                 report.fans += 1;
-                feature_vertices.extend((0..patch.extra.len() as u32).map(|i| base + i));
+                feature_vertices.insert(base);
             }
             Some(false) => report.fans_refused += 1,
             None => {}
@@ -486,109 +481,6 @@ fn fan_over(
         extra: vec![feature],
         fanned: Some(true),
     })
-}
-
-/// The crossing loop `boundary` triangulated around two feature points
-/// `[p, q]` (two feature lines through one cell, or a line leaving a
-/// corner): the loop splits into two runs of edges, fanned to `p` and to
-/// `q`, joined by a triangle at each end of the runs (which share the
-/// edge p-q). Of all splits whose triangles pass [`fan_over`]'s direction
-/// test, the one whose surface bends least (sum over interior edges of
-/// length times the angle between the two triangles' normals): a run
-/// that crosses a feature line bends where no feature is. `None` when the
-/// loop is not one or no split passes.
-fn fan_two(
-    boundary: &[(Vertex, Vertex)],
-    [p, q]: [DVec3; 2],
-    vertices: &[DVec3],
-    keys: &[u64],
-    field: &impl SampledField,
-) -> Option<Patch> {
-    if !is_one_loop(boundary) {
-        return None;
-    }
-    let next: HashMap<Vertex, Vertex> = boundary.iter().copied().collect();
-    let mut ring = vec![boundary[0].0];
-    while ring.len() < boundary.len() {
-        ring.push(next[ring.last()?]);
-    }
-    let ring: Vec<usize> = ring
-        .into_iter()
-        .map(|v| match v {
-            Vertex::Edge(i) => Some(i as usize),
-            Vertex::Extra(_) => None,
-        })
-        .collect::<Option<_>>()?;
-    let m = ring.len();
-    let h = field.spec().spacing;
-    let min_area2 = (1e-8 * h * h).powi(2);
-    let (fp, fq) = (m, m + 1); // p and q after the ring's crossings
-    let position = |v: usize| match v {
-        v if v == fp => p,
-        v if v == fq => q,
-        v => vertices[ring[v]],
-    };
-    // A triangle is refused where it is degenerate or turns against a
-    // crossing it touches.
-    let fits = |t: [usize; 3]| {
-        let n = triangle_normal(t.map(position));
-        n.length_squared() >= min_area2
-            && t.iter().filter(|&&v| v < m).all(|&v| {
-                n.normalize().dot(outward(field, keys[ring[v]])) >= -FAN_SLACK
-            })
-    };
-    let mut best: Option<(f64, Vec<[usize; 3]>)> = None;
-    for i in 0..m {
-        for j in (0..m).filter(|&j| j != i) {
-            // Edges i..j (cyclic) go to p, the rest to q.
-            let to_p = |k: usize| (k + m - i) % m < (j + m - i) % m;
-            let mut triangles: Vec<[usize; 3]> = (0..m)
-                .map(|k| [k, (k + 1) % m, if to_p(k) { fp } else { fq }])
-                .collect();
-            triangles.push([j, fq, fp]);
-            triangles.push([i, fp, fq]);
-            if !triangles.iter().all(|&t| fits(t)) {
-                continue;
-            }
-            let bend = bending(&triangles, position);
-            if best.as_ref().is_none_or(|b| bend < b.0) {
-                best = Some((bend, triangles));
-            }
-        }
-    }
-    let (_, triangles) = best?;
-    let vertex = |v: usize| match v {
-        v if v == fp => Vertex::Extra(0),
-        v if v == fq => Vertex::Extra(1),
-        v => Vertex::Edge(ring[v] as u32),
-    };
-    Some(Patch {
-        triangles: triangles.into_iter().map(|t| t.map(vertex)).collect(),
-        extra: vec![p, q],
-        fanned: Some(true),
-    })
-}
-
-/// Sum over the interior edges of `triangles` of the edge's length times
-/// the angle between the normals of its two triangles.
-fn bending(triangles: &[[usize; 3]], position: impl Fn(usize) -> DVec3) -> f64 {
-    let normals: Vec<DVec3> = triangles
-        .iter()
-        .map(|&t| triangle_normal(t.map(&position)).normalize_or_zero())
-        .collect();
-    let mut by_edge: HashMap<(usize, usize), usize> = HashMap::new();
-    let mut total = 0.0;
-    for (k, t) in triangles.iter().enumerate() {
-        for e in 0..3 {
-            let (a, b) = (t[e], t[(e + 1) % 3]);
-            if let Some(&other) = by_edge.get(&(b, a)) {
-                let angle = normals[k].dot(normals[other]).clamp(-1.0, 1.0).acos();
-                total += position(a).distance(position(b)) * angle;
-            }
-            by_edge.insert((a, b), k);
-        }
-    }
-    total
 }
 
 /// Area-weighted normal (twice the area vector) of a triangle.

@@ -170,7 +170,7 @@ impl OffsetField {
 
     /// The surface: marching cubes on the offset grid.
     pub fn extract(&self) -> (TriMesh, ExtractReport) {
-        extract(self, &BTreeMap::new(), &BTreeMap::new())
+        extract(self, &BTreeMap::new())
     }
 }
 

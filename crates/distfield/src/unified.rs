@@ -107,6 +107,9 @@ pub struct UdfReport {
     /// Cells crossed by separate feature lines whose point was changed
     /// for one whose surrounding surface lies nearer the mesh.
     pub repicked: usize,
+    /// Cells whose feature point the error-driven repair changed
+    /// ([`crate::refine`]).
+    pub repaired: usize,
     /// Directed distances given up because all corners of a feature cell
     /// already carried extra data.
     pub directed_dropped: usize,
@@ -220,7 +223,8 @@ pub fn build_udf(
         }
         report.feature_points += 1;
     }
-    for (cell, point) in sharp_cell_points(&field, &query, &cells, cos_limit) {
+    let (sharp, creased) = sharp_cell_points(&field, &query, &cells, cos_limit);
+    for (cell, point) in sharp {
         if let Some(node) = storage_for(&field, cell, point) {
             field.extras.insert(node, Extra::FeaturePoint(point));
             report.feature_points += 1;
@@ -230,6 +234,16 @@ pub fn build_udf(
     report.repicked = repick_multi_line(&mut field, &query, &cells);
     let near = options.threshold.min(NEAR_FEATURE_THRESHOLD);
     report.directed += directed_near_features(&mut field, &query, near);
+    let samples = crate::refine::MeshSamples::new(mesh, &field.spec);
+    let repaired = crate::refine::repair(
+        &mut field,
+        &query,
+        &samples,
+        &cells,
+        &creased,
+        crate::refine::TARGET,
+    );
+    report.repaired = repaired.changed;
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
@@ -361,18 +375,7 @@ pub(crate) fn repick_cell(
     if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(cell)) {
         return false; // a point beside the cell: its merged fan stays
     }
-    let lo = node_position(&spec, cell) - DVec3::splat(0.5 * h);
-    let hi = lo + DVec3::splat(2.0 * h);
-    let score = |field: &UnifiedField| {
-        let near: Vec<[DVec3; 3]> = local_surface(field, idx.map(|i| i - 3), 8)
-            .into_iter()
-            .filter(|&[a, b, c]| {
-                let m = (a + b + c) / 3.0;
-                m.cmpge(lo).all() && m.cmple(hi).all()
-            })
-            .collect();
-        error(&near)
-    };
+    let score = |field: &UnifiedField| error(&surface_near(field, cell, 0.5));
     let stored = field.extras.iter().find_map(|(&m, e)| match *e {
         Extra::FeaturePoint(q) if now == Some(q) => Some(m),
         _ => None,
@@ -414,10 +417,35 @@ pub(crate) fn repick_cell(
     best.1 != now
 }
 
+/// The triangles within half a cell of `cell` (by their centroids) of
+/// the surface extracted from a crop of 8³ samples around it, so that
+/// fans, merges into a neighbour's fan and the flips that join feature
+/// points all show. `cell` must lie 3 cells inside the grid.
+pub(crate) fn surface_near(field: &UnifiedField, cell: usize, reach: f64) -> Vec<[DVec3; 3]> {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let lo = node_position(&spec, cell) - DVec3::splat(reach * h);
+    let hi = lo + DVec3::splat((1.0 + 2.0 * reach) * h);
+    local_surface(field, spec.unlinear(cell).map(|i| i - 3), 8)
+        .into_iter()
+        .filter(|&[a, b, c]| {
+            let m = (a + b + c) / 3.0;
+            m.cmpge(lo).all() && m.cmple(hi).all()
+        })
+        .collect()
+}
+
 /// The surface of the block of `side`³ samples of `field` from sample
 /// `lo` on (the triangles near the block's border may differ from the
 /// whole field's).
 pub(crate) fn local_surface(field: &UnifiedField, lo: [usize; 3], side: usize) -> Vec<[DVec3; 3]> {
+    let (mesh, _) = crop(field, lo, side).extract();
+    (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect()
+}
+
+/// The block of `side`³ samples of `field` from sample `lo` on, as a
+/// field of its own.
+pub(crate) fn crop(field: &UnifiedField, lo: [usize; 3], side: usize) -> UnifiedField {
     let spec = field.spec;
     let mut values = Vec::with_capacity(side * side * side);
     let mut extras = BTreeMap::new();
@@ -432,7 +460,7 @@ pub(crate) fn local_surface(field: &UnifiedField, lo: [usize; 3], side: usize) -
             }
         }
     }
-    let crop = UnifiedField {
+    UnifiedField {
         spec: GridSpec {
             origin: spec.position(lo),
             spacing: spec.spacing,
@@ -440,9 +468,7 @@ pub(crate) fn local_surface(field: &UnifiedField, lo: [usize; 3], side: usize) -
         },
         values,
         extras,
-    };
-    let (mesh, _) = crop.extract();
-    (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect()
+    }
 }
 
 /// Samples with an edge crossing that interpolation misplaces by more than
@@ -560,15 +586,17 @@ const SHARP_MARGIN: f64 = 0.5;
 /// but whose crossings' normals differ by more than the feature angle:
 /// the QEF minimizer of the crossings' tangent planes, within
 /// [`SHARP_MARGIN`] of the cell, where the cell's fan around it fits.
+/// Also the cells without mesh features whose crossings' normals differ
+/// by more than a crease ([`crate::refine::CREASE_COS`]), for the repair.
 fn sharp_cell_points(
     field: &UnifiedField,
     query: &MeshQuery,
     featured: &BTreeMap<usize, CellFeatures>,
     cos_limit: f64,
-) -> Vec<(usize, DVec3)> {
+) -> (Vec<(usize, DVec3)>, Vec<usize>) {
     let spec = &field.spec;
     let [nx, ny, nz] = spec.dims;
-    (0..nz - 1)
+    let found: Vec<(usize, Option<DVec3>)> = (0..nz - 1)
         .into_par_iter()
         .flat_map_iter(|k| {
             let cells = (0..ny - 1).flat_map(move |j| (0..nx - 1).map(move |i| [i, j, k]));
@@ -578,10 +606,13 @@ fn sharp_cell_points(
                     return None;
                 }
                 let tangents = crossing_tangents(field, query, cell);
-                sharp_point(field, cell, &tangents, cos_limit).map(|p| (cell, p))
+                is_sharp(&tangents, crate::refine::CREASE_COS)
+                    .then(|| (cell, sharp_point(field, cell, &tangents, cos_limit)))
             })
         })
-        .collect()
+        .collect();
+    let points = found.iter().filter_map(|&(c, p)| Some((c, p?))).collect();
+    (points, found.into_iter().map(|(c, _)| c).collect())
 }
 
 /// The feature point of `cell` from its crossings' `tangents` when their
@@ -622,7 +653,11 @@ pub(crate) fn storage_for(field: &UnifiedField, cell: usize, point: DVec3) -> Op
 
 /// The exact crossings on a cell's sign-changing edges with the surface
 /// normal there (outward: from the inside sample to the outside one).
-fn crossing_tangents(field: &UnifiedField, query: &MeshQuery, cell: usize) -> Vec<Tangent> {
+pub(crate) fn crossing_tangents(
+    field: &UnifiedField,
+    query: &MeshQuery,
+    cell: usize,
+) -> Vec<Tangent> {
     crossed_edges(field, cell)
         .filter_map(|(origin, axis, va, _)| {
             let (d, n) = query.hit_with_normal(origin, axis, field.spec.spacing)?;
@@ -689,42 +724,21 @@ impl UnifiedField {
             .sum()
     }
 
-    /// Feature points by their cell (see [`owner_cell`]): of the points
-    /// a cell owns, the one stored at its lowest sample.
+    /// Feature points by their cell (see [`owner_cell`]).
     pub fn feature_points(&self) -> BTreeMap<usize, DVec3> {
-        let mut points = BTreeMap::new();
-        for (c, p) in self.owned_points() {
-            points.entry(c).or_insert(p);
-        }
-        points
-    }
-
-    /// Second feature points by their cell: of the points a cell owns,
-    /// the one stored at its second-lowest sample (cells crossed by two
-    /// feature lines; further points are ignored).
-    pub fn second_points(&self) -> BTreeMap<usize, DVec3> {
-        let mut first = std::collections::BTreeSet::new();
-        let mut points = BTreeMap::new();
-        for (c, p) in self.owned_points() {
-            if !first.insert(c) {
-                points.entry(c).or_insert(p);
-            }
-        }
-        points
-    }
-
-    /// Every stored feature point with its cell, in sample order.
-    fn owned_points(&self) -> impl Iterator<Item = (usize, DVec3)> + '_ {
-        self.extras.iter().filter_map(|(&n, e)| match *e {
-            Extra::FeaturePoint(p) => owner_cell(&self.spec, n as usize, p).map(|c| (c, p)),
-            _ => None,
-        })
+        self.extras
+            .iter()
+            .filter_map(|(&n, e)| match *e {
+                Extra::FeaturePoint(p) => owner_cell(&self.spec, n as usize, p).map(|c| (c, p)),
+                _ => None,
+            })
+            .collect()
     }
 
     /// The surface: marching cubes with the stored crossings, positions
     /// and feature fans.
     pub fn extract(&self) -> (TriMesh, ExtractReport) {
-        extract(self, &self.feature_points(), &self.second_points())
+        extract(self, &self.feature_points())
     }
 }
 
