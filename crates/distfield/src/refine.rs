@@ -313,16 +313,37 @@ fn block_error(
     let Some(whole) = cell_of(spec, lo + DVec3::splat(0.5 * h)) else {
         return off;
     };
-    let back = samples
-        .in_cells(block(spec, whole, 1))
-        .into_iter()
-        .map(|p| {
-            wide.iter()
-                .map(|&t| p.distance(closest_point_on_triangle(p, t)))
-                .fold(f64::INFINITY, f64::min)
-        })
-        .fold(0.0, f64::max);
+    let back = farthest_to(&samples.in_cells(block(spec, whole, 1)), &wide, off);
     off.max(back)
+}
+
+/// The largest distance from `points` to the triangles, or `floor` if
+/// that is larger (points nearer than the largest so far are left as
+/// soon as a triangle that near is found; triangles whose bounding
+/// sphere lies farther than the nearest so far are skipped).
+fn farthest_to(points: &[DVec3], triangles: &[[DVec3; 3]], floor: f64) -> f64 {
+    let spheres: Vec<(DVec3, f64)> = triangles
+        .iter()
+        .map(|t| {
+            let c = (t[0] + t[1] + t[2]) / 3.0;
+            (c, t.iter().map(|v| v.distance(c)).fold(0.0, f64::max))
+        })
+        .collect();
+    let mut worst = floor;
+    for &p in points {
+        let mut nearest = f64::INFINITY;
+        for (t, &(c, r)) in triangles.iter().zip(&spheres) {
+            if p.distance(c) - r >= nearest {
+                continue;
+            }
+            nearest = nearest.min(p.distance(closest_point_on_triangle(p, *t)));
+            if nearest <= worst {
+                break;
+            }
+        }
+        worst = worst.max(nearest);
+    }
+    worst
 }
 
 /// Cells near features whose surface (from the whole field) strays from
@@ -363,17 +384,7 @@ fn places_above(
                 .flatten()
                 .copied()
                 .collect();
-            let back = samples
-                .in_cells(std::iter::once(c))
-                .into_iter()
-                .map(|p| {
-                    around
-                        .iter()
-                        .map(|&t| p.distance(closest_point_on_triangle(p, t)))
-                        .fold(f64::INFINITY, f64::min)
-                })
-                .fold(0.0, f64::max);
-            let e = off.max(back);
+            let e = farthest_to(&samples.in_cells(std::iter::once(c)), &around, off);
             (e > limit).then_some((e, c))
         })
         .collect();
