@@ -105,14 +105,15 @@ pub(crate) fn repair(
     for c in places_above(field, query, samples, cells, creased, target * h) {
         let idx = spec.unlinear(c);
         let beside = |o: &[usize; 3]| (0..3).all(|a| idx[a].abs_diff(o[a]) <= 1);
-        if (0..3).any(|a| idx[a] < MARGIN || idx[a] + MARGIN + 2 > spec.dims[a])
-            || hopeless.iter().any(beside)
-        {
+        if spec.dims.iter().any(|&d| d < SIDE) || hopeless.iter().any(beside) {
             continue;
         }
-        let lo = idx.map(|i| i - MARGIN);
-        let local = crop(field, lo, 2 * MARGIN + 2);
-        let centre = local.spec.linear([MARGIN; 3]);
+        // The crop stays inside the grid: beside its border there is
+        // nothing the crop leaves out.
+        let lo: [usize; 3] =
+            std::array::from_fn(|a| idx[a].saturating_sub(MARGIN).min(spec.dims[a] - SIDE));
+        let local = crop(field, lo, SIDE);
+        let centre = local.spec.linear(std::array::from_fn(|a| idx[a] - lo[a]));
         let to_local = |n: usize| {
             let at = spec.unlinear(n);
             local.spec.linear(std::array::from_fn(|a| at[a] - lo[a]))
@@ -274,6 +275,8 @@ fn block(spec: &GridSpec<3>, cell: usize, reach: usize) -> impl Iterator<Item = 
 
 /// Samples of margin around a place in the crop [`repair`] scores.
 const MARGIN: usize = 3;
+/// Samples along each side of that crop.
+const SIDE: usize = 2 * MARGIN + 2;
 
 /// The surface's error around `cell` of the crop `local`, both ways: the
 /// surface within a cell of `cell` to the mesh, and the mesh's samples
