@@ -57,6 +57,8 @@ fn main() {
             .and_then(|s| s.parse().ok())
             .unwrap_or(d)
     };
+    // ONLY=udf skips the slow offset field while iterating.
+    let only_udf = std::env::var("ONLY").is_ok_and(|k| k == "udf");
     let mut odf_options = OdfOptions {
         size,
         ..Default::default()
@@ -64,10 +66,16 @@ fn main() {
     odf_options.weights.spring = env("ODF_SPRING", odf_options.weights.spring);
     odf_options.weights.ortho = env("ODF_ORTHO", odf_options.weights.ortho);
     odf_options.iterations = env("ODF_ITERATIONS", odf_options.iterations as f64) as usize;
-    let (odf, report) = build_odf(&mesh, &odf_options).unwrap();
-    let t = Instant::now();
-    let (out, _) = odf.extract();
-    let stored = format!(
+    let thresholds: Vec<f64> = match std::env::var("THRESHOLDS") {
+        Ok(list) => list.split(',').filter_map(|t| t.parse().ok()).collect(),
+        Err(_) if only_udf => vec![0.1],
+        Err(_) => vec![0.1, 0.2, 0.3],
+    };
+    if !only_udf {
+        let (odf, report) = build_odf(&mesh, &odf_options).unwrap();
+        let t = Instant::now();
+        let (out, _) = odf.extract();
+        let stored = format!(
         "{} samples moved ({} aligned with features, {} smoothed) of {} candidates; feature energy {:.1} -> {:.1}",
         report.moved,
         report.aligned,
@@ -76,29 +84,31 @@ fn main() {
         report.energy_before,
         report.energy_after
     );
-    row(
-        "ODF",
-        report.seconds,
-        t.elapsed().as_secs_f64(),
-        &out,
-        &mesh,
-        &exact,
-        odf.spec.spacing,
-        stored,
-    );
+        row(
+            "ODF",
+            report.seconds,
+            t.elapsed().as_secs_f64(),
+            &out,
+            &mesh,
+            &exact,
+            odf.spec.spacing,
+            stored,
+        );
+    }
 
-    for threshold in [0.1, 0.2, 0.3] {
+    for &threshold in &thresholds {
         let options = UdfOptions {
             size,
             threshold,
+            feature_angle_deg: env("FEATURE_ANGLE", 30.0),
             ..Default::default()
         };
         let (udf, report) = build_udf(&mesh, &options).unwrap();
         let t = Instant::now();
         let (out, extract) = udf.extract();
         let stored = format!(
-            "{} directed, {} feature points ({} beside an edge; {} fanned, {} merged into a neighbour's fan, {} flips), {} moved samples, {} cells re-picked; {} boundary / {} feature cells",
-            report.directed, report.feature_points, report.sharp_cells, extract.fans, extract.merged, extract.flips, report.positions, report.repicked, report.boundary_cells, report.feature_cells
+            "{} directed, {} feature points ({} beside an edge; {} fanned, {} merged into a neighbour's fan, {} flips), {} moved samples, {} cells re-picked, {} repaired; {} boundary / {} feature cells",
+            report.directed, report.feature_points, report.sharp_cells, extract.fans, extract.merged, extract.flips, report.positions, report.repicked, report.repaired, report.boundary_cells, report.feature_cells
         );
         let name = format!("UDF {threshold}");
         row(
@@ -140,7 +150,7 @@ fn row(
     let max = there.max.max(back_dev.max) / h;
     let mean = 0.5 * (there.mean + back_dev.mean) / h;
     println!("| {name} | {construct:.3} | {extract:.3} | {max:.3} | {mean:.4} | {stored} |");
-    if std::env::var_os("WORST").is_some() {
+    if let Some(worst) = std::env::var_os("WORST") {
         println!(
             "  worst output->mesh {:.3} h at {:?}; mesh->output {:.3} h at {:?}",
             there.max / h,
@@ -148,5 +158,49 @@ fn row(
             back_dev.max / h,
             back_dev.worst
         );
+        let places: usize = worst.to_str().and_then(|s| s.parse().ok()).unwrap_or(1);
+        if places > 1 {
+            let mut all = worst_places(out, exact, h);
+            all.extend(worst_places(mesh, &back, h));
+            all.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let mut kept: Vec<(f64, surfrecon_geom::DVec3)> = Vec::new();
+            for (d, p) in all {
+                if kept.len() >= places {
+                    break;
+                }
+                if kept.iter().all(|k| k.1.distance(p) > 1.5 * h) {
+                    kept.push((d, p));
+                }
+            }
+            for (d, p) in kept {
+                println!("    {d:.3} h at ({:.3}, {:.3}, {:.3})", p.x, p.y, p.z);
+            }
+        }
     }
+}
+
+/// Distances (in h) above 0.1 h from the vertices and 16 points per
+/// triangle of `from` to `to`, with where they are.
+fn worst_places(from: &TriMesh, to: &MeshQuery, h: f64) -> Vec<(f64, surfrecon_geom::DVec3)> {
+    let mut out = Vec::new();
+    for t in 0..from.triangles.len() {
+        let [a, b, c] = from.corners(t);
+        for i in 0..4 {
+            for j in 0..4 - i {
+                let (u, v) = ((i as f64 + 1.0 / 3.0) / 4.0, (j as f64 + 1.0 / 3.0) / 4.0);
+                let p = a + (b - a) * u + (c - a) * v;
+                let d = to.signed_distance(p).abs() / h;
+                if d > 0.1 {
+                    out.push((d, p));
+                }
+            }
+        }
+    }
+    for &p in &from.vertices {
+        let d = to.signed_distance(p).abs() / h;
+        if d > 0.1 {
+            out.push((d, p));
+        }
+    }
+    out
 }

@@ -22,6 +22,7 @@ pub mod features;
 pub mod format;
 pub mod offset;
 pub mod query;
+mod refine;
 pub mod sculpt;
 pub mod sharp;
 pub mod unified;

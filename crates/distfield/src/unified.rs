@@ -33,6 +33,18 @@ use surfrecon_grid::{GridSize, GridSpec};
 /// many grid spacings (the paper's 0.1).
 pub const DEFAULT_THRESHOLD: f64 = 0.1;
 
+/// Beside feature points, directed distances are stored where
+/// interpolation errs by more than this many spacings (or the threshold,
+/// if smaller): fandisk's max error 0.177 h with 0.02, also with 0.05,
+/// 0.181 h with 0.01 (0.194 h without).
+const NEAR_FEATURE_THRESHOLD: f64 = 0.02;
+
+/// Angle (degrees) between crossing normals above which a cell without
+/// mesh features takes the QEF point of its crossings (or the feature
+/// angle, if smaller): fandisk 0.177 h with 20° and 24°, but 0.101 h
+/// instead of 0.135 h at the second-worst place with 20°.
+const CREASE_ANGLE_DEG: f64 = 20.0;
+
 /// Distances are exact within this many cells of the surface and clamped
 /// beyond (signs stay right everywhere).
 pub(crate) const BAND_CELLS: f64 = 3.0;
@@ -96,11 +108,16 @@ pub struct UdfReport {
     pub feature_points: usize,
     pub positions: usize,
     /// Of the feature points, those of cells without a mesh feature inside
-    /// whose crossings' normals disagree (a sharp edge runs beside them).
+    /// whose crossings' normals differ by more than 20° or
+    /// the feature angle (a sharp edge runs beside them, or a crease
+    /// gentler than the feature angle through them).
     pub sharp_cells: usize,
     /// Cells crossed by separate feature lines whose point was changed
     /// for one whose surrounding surface lies nearer the mesh.
     pub repicked: usize,
+    /// Cells whose feature point the error-driven repair changed
+    /// ([`crate::refine`]).
+    pub repaired: usize,
     /// Directed distances given up because all corners of a feature cell
     /// already carried extra data.
     pub directed_dropped: usize,
@@ -151,7 +168,6 @@ pub fn build_udf(
     }
     report.feature_cells = cells.len();
     report.positions = snapped.len();
-    let cos_limit = options.feature_angle_deg.to_radians().cos();
     for (cell, f) in &cells {
         let Some(centroid) = crossing_centroid(&field, &query, *cell) else {
             continue;
@@ -214,7 +230,13 @@ pub fn build_udf(
         }
         report.feature_points += 1;
     }
-    for (cell, point) in sharp_cell_points(&field, &query, &cells, cos_limit) {
+    // Crossings bend sharply also at creases gentler than the feature
+    // angle (fandisk's blends meet its faces at 28°, 0.14 h off without
+    // a point there): cells without mesh features take a QEF point from
+    // 20° on.
+    let crease = options.feature_angle_deg.min(CREASE_ANGLE_DEG);
+    let (sharp, creased) = sharp_cell_points(&field, &query, &cells, crease.to_radians().cos());
+    for (cell, point) in sharp {
         if let Some(node) = storage_for(&field, cell, point) {
             field.extras.insert(node, Extra::FeaturePoint(point));
             report.feature_points += 1;
@@ -222,6 +244,18 @@ pub fn build_udf(
         }
     }
     report.repicked = repick_multi_line(&mut field, &query, &cells);
+    let near = options.threshold.min(NEAR_FEATURE_THRESHOLD);
+    report.directed += directed_near_features(&mut field, &query, near);
+    let samples = crate::refine::MeshSamples::new(mesh, &field.spec);
+    let repaired = crate::refine::repair(
+        &mut field,
+        &query,
+        &samples,
+        &cells,
+        &creased,
+        crate::refine::TARGET,
+    );
+    report.repaired = repaired.changed;
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
@@ -353,18 +387,7 @@ pub(crate) fn repick_cell(
     if now.is_some_and(|p| crate::features::cell_of(&spec, p) != Some(cell)) {
         return false; // a point beside the cell: its merged fan stays
     }
-    let lo = node_position(&spec, cell) - DVec3::splat(0.5 * h);
-    let hi = lo + DVec3::splat(2.0 * h);
-    let score = |field: &UnifiedField| {
-        let near: Vec<[DVec3; 3]> = local_surface(field, idx.map(|i| i - 3), 8)
-            .into_iter()
-            .filter(|&[a, b, c]| {
-                let m = (a + b + c) / 3.0;
-                m.cmpge(lo).all() && m.cmple(hi).all()
-            })
-            .collect();
-        error(&near)
-    };
+    let score = |field: &UnifiedField| error(&surface_near(field, cell, 0.5));
     let stored = field.extras.iter().find_map(|(&m, e)| match *e {
         Extra::FeaturePoint(q) if now == Some(q) => Some(m),
         _ => None,
@@ -406,10 +429,35 @@ pub(crate) fn repick_cell(
     best.1 != now
 }
 
+/// The triangles within half a cell of `cell` (by their centroids) of
+/// the surface extracted from a crop of 8³ samples around it, so that
+/// fans, merges into a neighbour's fan and the flips that join feature
+/// points all show. `cell` must lie 3 cells inside the grid.
+pub(crate) fn surface_near(field: &UnifiedField, cell: usize, reach: f64) -> Vec<[DVec3; 3]> {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let lo = node_position(&spec, cell) - DVec3::splat(reach * h);
+    let hi = lo + DVec3::splat((1.0 + 2.0 * reach) * h);
+    local_surface(field, spec.unlinear(cell).map(|i| i - 3), 8)
+        .into_iter()
+        .filter(|&[a, b, c]| {
+            let m = (a + b + c) / 3.0;
+            m.cmpge(lo).all() && m.cmple(hi).all()
+        })
+        .collect()
+}
+
 /// The surface of the block of `side`³ samples of `field` from sample
 /// `lo` on (the triangles near the block's border may differ from the
 /// whole field's).
 pub(crate) fn local_surface(field: &UnifiedField, lo: [usize; 3], side: usize) -> Vec<[DVec3; 3]> {
+    let (mesh, _) = crop(field, lo, side).extract();
+    (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect()
+}
+
+/// The block of `side`³ samples of `field` from sample `lo` on, as a
+/// field of its own.
+pub(crate) fn crop(field: &UnifiedField, lo: [usize; 3], side: usize) -> UnifiedField {
     let spec = field.spec;
     let mut values = Vec::with_capacity(side * side * side);
     let mut extras = BTreeMap::new();
@@ -424,7 +472,7 @@ pub(crate) fn local_surface(field: &UnifiedField, lo: [usize; 3], side: usize) -
             }
         }
     }
-    let crop = UnifiedField {
+    UnifiedField {
         spec: GridSpec {
             origin: spec.position(lo),
             spacing: spec.spacing,
@@ -432,9 +480,7 @@ pub(crate) fn local_surface(field: &UnifiedField, lo: [usize; 3], side: usize) -
         },
         values,
         extras,
-    };
-    let (mesh, _) = crop.extract();
-    (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect()
+    }
 }
 
 /// Samples with an edge crossing that interpolation misplaces by more than
@@ -444,29 +490,90 @@ fn directed_distances(
     query: &MeshQuery,
     threshold: f64,
 ) -> Vec<(u32, [f64; 3])> {
-    let spec = &field.spec;
-    let h = spec.spacing;
-    let strides = spec.strides();
+    let h = field.spec.spacing;
     (0..field.values.len())
         .into_par_iter()
         .filter_map(|node| {
-            let idx = spec.unlinear(node);
-            let mut directed = [f64::INFINITY; 3];
-            let mut needed = false;
-            for axis in (0..3).filter(|&a| idx[a] + 1 < spec.dims[a]) {
-                let (a, b) = (field.values[node], field.values[node + strides[axis]]);
-                if (a >= 0.0) == (b >= 0.0) {
-                    continue;
-                }
-                let origin = DVec3::from_array(spec.position(idx));
-                if let Some(d) = query.hit_along(origin, axis, h) {
-                    directed[axis] = d;
-                    needed |= (d - crossing_fraction(a, b, 0.0) * h).abs() > threshold * h;
-                }
-            }
-            needed.then_some((node as u32, directed))
+            let (directed, error) = exact_crossings(field, query, node);
+            (error > threshold * h).then_some((node as u32, directed))
         })
         .collect()
+}
+
+/// The exact distances from sample `node` along +x, +y, +z to the
+/// surface on its sign-changing edges (infinite on the others), and the
+/// largest distance by which interpolating the two samples misplaces one.
+fn exact_crossings(field: &UnifiedField, query: &MeshQuery, node: usize) -> ([f64; 3], f64) {
+    let spec = &field.spec;
+    let h = spec.spacing;
+    let strides = spec.strides();
+    let idx = spec.unlinear(node);
+    let mut directed = [f64::INFINITY; 3];
+    let mut error = 0.0f64;
+    for axis in (0..3).filter(|&a| idx[a] + 1 < spec.dims[a]) {
+        let (a, b) = (field.values[node], field.values[node + strides[axis]]);
+        if (a >= 0.0) == (b >= 0.0) {
+            continue;
+        }
+        let origin = DVec3::from_array(spec.position(idx));
+        if let Some(d) = query.hit_along(origin, axis, h) {
+            directed[axis] = d;
+            error = error.max((d - crossing_fraction(a, b, 0.0) * h).abs());
+        }
+    }
+    (directed, error)
+}
+
+/// Beside sharp features a crossing misplaced by less than the threshold
+/// still folds the surface: a fan triangle from a feature point to it
+/// turns (0.09 h under fandisk's ridge on a face 0.04 h from a grid plane
+/// kept the flip that joins two feature points from happening, 0.17 h).
+/// So the corners of the cells with a feature point store their exact
+/// crossings where interpolation errs by more than `threshold` spacings;
+/// a corner that holds the cell's feature point hands it to another
+/// corner that can hold it and needs nothing itself. Returns how many
+/// were stored.
+fn directed_near_features(field: &mut UnifiedField, query: &MeshQuery, threshold: f64) -> usize {
+    let h = field.spec.spacing;
+    let mut nodes: Vec<usize> = field
+        .feature_points()
+        .keys()
+        .flat_map(|&c| corner_nodes(&field.spec, c))
+        .filter(|&n| {
+            !matches!(
+                field.extras.get(&(n as u32)),
+                Some(Extra::Directed(_) | Extra::Position(_))
+            )
+        })
+        .collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    let found: Vec<(u32, [f64; 3])> = nodes
+        .into_par_iter()
+        .filter_map(|node| {
+            let (directed, error) = exact_crossings(field, query, node);
+            (error > threshold * h).then_some((node as u32, directed))
+        })
+        .collect();
+    let needy: std::collections::HashSet<u32> = found.iter().map(|f| f.0).collect();
+    let mut count = 0;
+    for (node, directed) in found {
+        if let Some(&Extra::FeaturePoint(p)) = field.extras.get(&node) {
+            let Some(cell) = owner_cell(&field.spec, node as usize, p) else {
+                continue;
+            };
+            let other = corner_nodes(&field.spec, cell).into_iter().find(|&m| {
+                !needy.contains(&(m as u32))
+                    && !field.extras.contains_key(&(m as u32))
+                    && owner_cell(&field.spec, m, p) == Some(cell)
+            });
+            let Some(m) = other else { continue };
+            field.extras.insert(m as u32, Extra::FeaturePoint(p));
+        }
+        field.extras.insert(node, Extra::Directed(directed));
+        count += 1;
+    }
+    count
 }
 
 /// The largest distance from `points` to the triangles.
@@ -491,15 +598,17 @@ const SHARP_MARGIN: f64 = 0.5;
 /// but whose crossings' normals differ by more than the feature angle:
 /// the QEF minimizer of the crossings' tangent planes, within
 /// [`SHARP_MARGIN`] of the cell, where the cell's fan around it fits.
+/// Also the cells without mesh features whose crossings' normals differ
+/// by more than a crease ([`crate::refine::CREASE_COS`]), for the repair.
 fn sharp_cell_points(
     field: &UnifiedField,
     query: &MeshQuery,
     featured: &BTreeMap<usize, CellFeatures>,
     cos_limit: f64,
-) -> Vec<(usize, DVec3)> {
+) -> (Vec<(usize, DVec3)>, Vec<usize>) {
     let spec = &field.spec;
     let [nx, ny, nz] = spec.dims;
-    (0..nz - 1)
+    let found: Vec<(usize, Option<DVec3>)> = (0..nz - 1)
         .into_par_iter()
         .flat_map_iter(|k| {
             let cells = (0..ny - 1).flat_map(move |j| (0..nx - 1).map(move |i| [i, j, k]));
@@ -509,10 +618,13 @@ fn sharp_cell_points(
                     return None;
                 }
                 let tangents = crossing_tangents(field, query, cell);
-                sharp_point(field, cell, &tangents, cos_limit).map(|p| (cell, p))
+                is_sharp(&tangents, crate::refine::CREASE_COS)
+                    .then(|| (cell, sharp_point(field, cell, &tangents, cos_limit)))
             })
         })
-        .collect()
+        .collect();
+    let points = found.iter().filter_map(|&(c, p)| Some((c, p?))).collect();
+    (points, found.into_iter().map(|(c, _)| c).collect())
 }
 
 /// The feature point of `cell` from its crossings' `tangents` when their
@@ -553,7 +665,11 @@ pub(crate) fn storage_for(field: &UnifiedField, cell: usize, point: DVec3) -> Op
 
 /// The exact crossings on a cell's sign-changing edges with the surface
 /// normal there (outward: from the inside sample to the outside one).
-fn crossing_tangents(field: &UnifiedField, query: &MeshQuery, cell: usize) -> Vec<Tangent> {
+pub(crate) fn crossing_tangents(
+    field: &UnifiedField,
+    query: &MeshQuery,
+    cell: usize,
+) -> Vec<Tangent> {
     crossed_edges(field, cell)
         .filter_map(|(origin, axis, va, _)| {
             let (d, n) = query.hit_with_normal(origin, axis, field.spec.spacing)?;

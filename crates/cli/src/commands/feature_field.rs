@@ -69,6 +69,7 @@ pub fn run(args: &Args, size: GridSize, ctx: &Context) -> anyhow::Result<()> {
             "feature_points": r.feature_points,
             "sharp_cells": r.sharp_cells,
             "cells_repicked": r.repicked,
+            "cells_repaired": r.repaired,
             "sample_positions": r.positions,
             "directed_dropped": r.directed_dropped,
         });

@@ -1,0 +1,396 @@
+//! Error-driven repair of a unified field's feature points.
+//!
+//! Construction knows the mesh, so it can see where the extracted surface
+//! strays from it. The rules that pick one point per cell (corners first,
+//! the point whose fan passes nearest the cell's features, ...) fail
+//! where several features crowd a few cells: two lines through one cell,
+//! a line leaving a corner that a sample holds, a line through a cell
+//! the surface does not cross. There the surface's error is measured, in
+//! both directions, over the block of cells around each place above a
+//! target, and the crossed cells of the block try other points: their
+//! own candidates, points on the features of neighbours the surface does
+//! not cross, the QEF point of their crossings where those bend (also at
+//! creases gentler than the feature angle), or none. What brings the
+//! block's surface nearest the mesh is kept.
+
+use crate::extract::corner_nodes;
+use crate::features::{cell_of, nudge_into, CellFeatures};
+use crate::query::MeshQuery;
+use crate::sharp::{clamp_near, is_sharp, owner_cell};
+use crate::unified::{crop, sample_points, storage_for, Extra, UnifiedField};
+use rayon::prelude::*;
+use std::collections::{BTreeMap, HashMap};
+use surfrecon_geom::metrics::closest_point_on_triangle;
+use surfrecon_geom::{DVec3, TriMesh};
+use surfrecon_grid::GridSpec;
+
+/// Points on the mesh (its vertices and six points inside each triangle)
+/// by the cell containing them.
+pub(crate) struct MeshSamples {
+    by_cell: HashMap<usize, Vec<DVec3>>,
+}
+
+impl MeshSamples {
+    pub(crate) fn new(mesh: &TriMesh, spec: &GridSpec<3>) -> Self {
+        let mut by_cell: HashMap<usize, Vec<DVec3>> = HashMap::new();
+        let inner = (0..mesh.triangles.len()).flat_map(|t| {
+            let [a, b, c] = mesh.corners(t);
+            (0..3).flat_map(move |i| {
+                (0..3 - i).map(move |j| {
+                    let (u, v) = ((i as f64 + 1.0 / 3.0) / 3.0, (j as f64 + 1.0 / 3.0) / 3.0);
+                    a + (b - a) * u + (c - a) * v
+                })
+            })
+        });
+        for p in mesh.vertices.iter().copied().chain(inner) {
+            if let Some(c) = cell_of(spec, p) {
+                by_cell.entry(c).or_default().push(p);
+            }
+        }
+        Self { by_cell }
+    }
+
+    fn in_cells(&self, cells: impl Iterator<Item = usize>) -> Vec<DVec3> {
+        cells
+            .filter_map(|c| self.by_cell.get(&c))
+            .flatten()
+            .copied()
+            .collect()
+    }
+}
+
+/// What [`repair`] changed.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Repaired {
+    /// Places whose block was measured above the target.
+    pub places: usize,
+    /// Cells whose feature point changed or was removed.
+    pub changed: usize,
+}
+
+/// Error (in spacings) above which the surface around a place is
+/// repaired.
+pub(crate) const TARGET: f64 = 0.1;
+
+/// Tries at a place beyond which, if none helps, its neighbours are
+/// skipped (fandisk: 50-73 around its crowded feature lines, 5-12 along
+/// creases).
+const CROWDED: usize = 24;
+/// Candidate points tried per feature cell (spread over its candidates).
+const CANDIDATES_PER_CELL: usize = 4;
+/// Cosine of the angle between crossing normals above which a cell's
+/// crossings' QEF point is tried (10°: fandisk has creases of 28°, below
+/// the feature angle, that cost 0.14 h).
+pub(crate) const CREASE_COS: f64 = 0.984_807_753_012_208;
+/// Points tried per neighbour the surface does not cross.
+const NEIGHBOUR_CANDIDATES: usize = 4;
+
+/// Repair the feature points around every place where the surface of
+/// `field` strays from the mesh by more than `target` spacings (see the
+/// module doc). `cells` are the mesh's features by cell.
+pub(crate) fn repair(
+    field: &mut UnifiedField,
+    query: &MeshQuery,
+    samples: &MeshSamples,
+    cells: &BTreeMap<usize, CellFeatures>,
+    creased: &[usize],
+    target: f64,
+) -> Repaired {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let mut report = Repaired::default();
+    // Places next to one where many tries (crowded features) helped
+    // nothing would repeat most of them, at a cost.
+    let mut hopeless: Vec<[usize; 3]> = Vec::new();
+    for c in places_above(field, query, samples, cells, creased, target * h) {
+        let idx = spec.unlinear(c);
+        let beside = |o: &[usize; 3]| (0..3).all(|a| idx[a].abs_diff(o[a]) <= 1);
+        if spec.dims.iter().any(|&d| d < SIDE) || hopeless.iter().any(beside) {
+            continue;
+        }
+        // The crop stays inside the grid: beside its border there is
+        // nothing the crop leaves out.
+        let lo: [usize; 3] =
+            std::array::from_fn(|a| idx[a].saturating_sub(MARGIN).min(spec.dims[a] - SIDE));
+        let local = crop(field, lo, SIDE);
+        let centre = local.spec.linear(std::array::from_fn(|a| idx[a] - lo[a]));
+        let to_local = |n: usize| {
+            let at = spec.unlinear(n);
+            local.spec.linear(std::array::from_fn(|a| at[a] - lo[a]))
+        };
+        let now = block_error(&local, query, samples, centre, &spec);
+        if now <= target * h {
+            continue;
+        }
+        report.places += 1;
+        let tried: Vec<(usize, Action)> = block(&spec, c, 1)
+            .filter(|&n| field.crosses(n))
+            .flat_map(|n| {
+                actions(field, query, cells, n)
+                    .into_iter()
+                    .map(move |a| (n, a))
+            })
+            .collect();
+        let tries = tried.len();
+        let best = tried
+            .into_par_iter()
+            .filter_map(|(n, action)| {
+                let mut trial = local.clone();
+                apply(&mut trial, to_local(n), &action).then(|| {
+                    (
+                        block_error(&trial, query, samples, centre, &spec),
+                        n,
+                        action,
+                    )
+                })
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        match best.filter(|b| b.0 < now - 0.005 * h) {
+            Some((_, n, action)) => {
+                apply(field, n, &action);
+                report.changed += 1;
+            }
+            None if tries > CROWDED => hopeless.push(idx),
+            None => {}
+        }
+    }
+    report
+}
+
+/// One change to a cell's feature points.
+#[derive(Debug, Clone, Copy)]
+enum Action {
+    /// The cell keeps this point alone.
+    Replace(DVec3),
+    /// The cell keeps no point (its table triangles).
+    Remove,
+}
+
+/// What `cell` may try: its own candidates, points on features of
+/// neighbours the surface does not cross (within half a cell), the QEF
+/// point of its crossings where their normals differ, or no point.
+fn actions(
+    field: &UnifiedField,
+    query: &MeshQuery,
+    cells: &BTreeMap<usize, CellFeatures>,
+    cell: usize,
+) -> Vec<Action> {
+    let spec = &field.spec;
+    let h = spec.spacing;
+    let margin = 0.5 * h;
+    let now = owned(field, cell);
+    let tangents = crate::unified::crossing_tangents(field, query, cell);
+    let mut out = Vec::new();
+    if !now.is_empty() {
+        out.push(Action::Remove);
+    }
+    // A flat patch gains nothing from a point on it.
+    if is_sharp(&tangents, CREASE_COS) {
+        if let Some(q) = crate::sharp::qef_minimizer(&tangents) {
+            out.push(Action::Replace(clamp_near(spec, cell, q, margin)));
+        }
+    }
+    let lo = DVec3::from_array(spec.position(spec.unlinear(cell)));
+    let reach = |p: &DVec3| {
+        let outside = (lo - *p).max(*p - lo - DVec3::splat(h)).max(DVec3::ZERO);
+        outside.max_element() <= margin
+    };
+    for m in block(spec, cell, 1).filter(|&m| m != cell && !field.crosses(m)) {
+        if let Some(f) = cells.get(&m) {
+            let probes: Vec<DVec3> = f.probes().into_iter().filter(reach).collect();
+            let step = (probes.len() / NEIGHBOUR_CANDIDATES).max(1);
+            out.extend(
+                probes
+                    .into_iter()
+                    .step_by(step)
+                    .map(|p| Action::Replace(clamp_near(spec, cell, p, margin))),
+            );
+        }
+    }
+    let Some(f) = cells.get(&cell) else {
+        return out;
+    };
+    let centroid = tangents.iter().map(|t| t.0).sum::<DVec3>() / tangents.len().max(1) as f64;
+    let candidates = f.candidates(centroid);
+    let step = (candidates.len() / CANDIDATES_PER_CELL).max(1);
+    out.extend(
+        candidates
+            .into_iter()
+            .step_by(step)
+            .map(|p| Action::Replace(nudge_into(spec, cell, p))),
+    );
+    out
+}
+
+/// The feature points `cell` owns, in the order of the samples storing
+/// them.
+fn owned(field: &UnifiedField, cell: usize) -> Vec<DVec3> {
+    corner_nodes(&field.spec, cell)
+        .into_iter()
+        .filter_map(|n| match field.extras.get(&(n as u32)) {
+            Some(&Extra::FeaturePoint(p)) if owner_cell(&field.spec, n, p) == Some(cell) => Some(p),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Apply `action` to `cell`; false if no sample can store the point.
+fn apply(field: &mut UnifiedField, cell: usize, action: &Action) -> bool {
+    let spec = field.spec;
+    for n in corner_nodes(&spec, cell) {
+        if let Some(&Extra::FeaturePoint(p)) = field.extras.get(&(n as u32)) {
+            if owner_cell(&spec, n, p) == Some(cell) {
+                field.extras.remove(&(n as u32));
+            }
+        }
+    }
+    match *action {
+        Action::Remove => true,
+        Action::Replace(p) => match storage_for(field, cell, p) {
+            Some(n) => {
+                field.extras.insert(n, Extra::FeaturePoint(p));
+                true
+            }
+            None => false,
+        },
+    }
+}
+
+/// The cells within `reach` of `cell` along every axis.
+fn block(spec: &GridSpec<3>, cell: usize, reach: usize) -> impl Iterator<Item = usize> + '_ {
+    let idx = spec.unlinear(cell);
+    let side = 2 * reach + 1;
+    (0..side * side * side).filter_map(move |k| {
+        let off = [k % side, (k / side) % side, k / (side * side)];
+        let mut at = [0usize; 3];
+        for a in 0..3 {
+            at[a] = (idx[a] + off[a]).checked_sub(reach)?;
+            if at[a] + 1 >= spec.dims[a] {
+                return None;
+            }
+        }
+        Some(spec.linear(at))
+    })
+}
+
+/// Samples of margin around a place in the crop [`repair`] scores.
+const MARGIN: usize = 3;
+/// Samples along each side of that crop.
+const SIDE: usize = 2 * MARGIN + 2;
+
+/// The surface's error around `cell` of the crop `local`, both ways: the
+/// surface within a cell of `cell` to the mesh, and the mesh's samples
+/// within a cell of it to the surface within two cells. `spec` is the
+/// whole field's grid (the mesh samples are binned by its cells).
+fn block_error(
+    local: &UnifiedField,
+    query: &MeshQuery,
+    samples: &MeshSamples,
+    cell: usize,
+    spec: &GridSpec<3>,
+) -> f64 {
+    let h = spec.spacing;
+    let (mesh, _) = local.extract();
+    let triangles: Vec<[DVec3; 3]> = (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect();
+    let lo = local.spec.position(local.spec.unlinear(cell));
+    let lo = DVec3::from_array(lo);
+    let within = |t: &[DVec3; 3], reach: f64| {
+        let m = (t[0] + t[1] + t[2]) / 3.0;
+        m.cmpge(lo - DVec3::splat(reach * h)).all()
+            && m.cmple(lo + DVec3::splat((1.0 + reach) * h)).all()
+    };
+    let near: Vec<[DVec3; 3]> = triangles
+        .iter()
+        .filter(|t| within(t, 1.0))
+        .copied()
+        .collect();
+    let wide: Vec<[DVec3; 3]> = triangles
+        .iter()
+        .filter(|t| within(t, 2.0))
+        .copied()
+        .collect();
+    let off = sample_points(&near)
+        .chain(near.iter().flatten().copied())
+        .map(|p| query.signed_distance(p).abs())
+        .fold(0.0, f64::max);
+    let Some(whole) = cell_of(spec, lo + DVec3::splat(0.5 * h)) else {
+        return off;
+    };
+    let back = farthest_to(&samples.in_cells(block(spec, whole, 1)), &wide, off);
+    off.max(back)
+}
+
+/// The largest distance from `points` to the triangles, or `floor` if
+/// that is larger (points nearer than the largest so far are left as
+/// soon as a triangle that near is found; triangles whose bounding
+/// sphere lies farther than the nearest so far are skipped).
+fn farthest_to(points: &[DVec3], triangles: &[[DVec3; 3]], floor: f64) -> f64 {
+    let spheres: Vec<(DVec3, f64)> = triangles
+        .iter()
+        .map(|t| {
+            let c = (t[0] + t[1] + t[2]) / 3.0;
+            (c, t.iter().map(|v| v.distance(c)).fold(0.0, f64::max))
+        })
+        .collect();
+    let mut worst = floor;
+    for &p in points {
+        let mut nearest = f64::INFINITY;
+        for (t, &(c, r)) in triangles.iter().zip(&spheres) {
+            if p.distance(c) - r >= nearest {
+                continue;
+            }
+            nearest = nearest.min(p.distance(closest_point_on_triangle(p, *t)));
+            if nearest <= worst {
+                break;
+            }
+        }
+        worst = worst.max(nearest);
+    }
+    worst
+}
+
+/// Cells near features whose surface (from the whole field) strays from
+/// the mesh by more than `limit`, worst first.
+fn places_above(
+    field: &UnifiedField,
+    query: &MeshQuery,
+    samples: &MeshSamples,
+    cells: &BTreeMap<usize, CellFeatures>,
+    creased: &[usize],
+    limit: f64,
+) -> Vec<usize> {
+    let spec = field.spec;
+    let (surface, _) = field.extract();
+    let mut by_cell: HashMap<usize, Vec<[DVec3; 3]>> = HashMap::new();
+    for t in 0..surface.triangles.len() {
+        let tri = surface.corners(t);
+        if let Some(c) = cell_of(&spec, (tri[0] + tri[1] + tri[2]) / 3.0) {
+            by_cell.entry(c).or_default().push(tri);
+        }
+    }
+    let mut near: Vec<usize> = cells
+        .keys()
+        .chain(creased)
+        .flat_map(|&c| block(&spec, c, 1))
+        .collect();
+    near.sort_unstable();
+    near.dedup();
+    let mut errors: Vec<(f64, usize)> = near
+        .into_par_iter()
+        .filter_map(|c| {
+            let own = by_cell.get(&c).map(Vec::as_slice).unwrap_or(&[]);
+            let off = sample_points(own)
+                .map(|p| query.signed_distance(p).abs())
+                .fold(0.0, f64::max);
+            let around: Vec<[DVec3; 3]> = block(&spec, c, 1)
+                .filter_map(|n| by_cell.get(&n))
+                .flatten()
+                .copied()
+                .collect();
+            let e = farthest_to(&samples.in_cells(std::iter::once(c)), &around, off);
+            (e > limit).then_some((e, c))
+        })
+        .collect();
+    errors.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    errors.into_iter().map(|(_, c)| c).collect()
+}
