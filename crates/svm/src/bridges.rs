@@ -18,8 +18,9 @@ use crate::mesh::Implicit;
 use glam::DVec3;
 use surfrecon_grid::GridSpec;
 
-/// Farthest two inside nodes may be apart, in cells, to be joined.
-pub const BRIDGE_CELLS: i64 = 4;
+/// Farthest two inside nodes may be apart, in cells, to be joined (4:
+/// harness spikes non-uniform kept a cone tip 5 cells off the body).
+pub const BRIDGE_CELLS: i64 = 6;
 
 /// f is checked along a join at this fraction of a cell.
 const CHECK_STEP: f64 = 0.25;
