@@ -246,6 +246,9 @@ pub struct SvmMeshReport {
     pub nodes_evaluated: usize,
     /// Closed pieces under three cells dropped from the mesh.
     pub specks_removed: usize,
+    /// Pieces of the fitted function's inside joined where they are
+    /// thinner than a mesh cell (a thin tip the grid would cut into crumbs).
+    pub thin_joins: usize,
     /// Vertices moved onto the points' local fit (points used as measured).
     pub snapped: usize,
     /// Of the others, beside sharp edges, onto the nearest point's plane.

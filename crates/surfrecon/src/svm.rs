@@ -106,6 +106,7 @@ pub(crate) fn run(
             cells_visited: m.cells_visited,
             nodes_evaluated: m.nodes_evaluated,
             specks_removed: m.specks_removed,
+            thin_joins: m.thin_joins,
             snapped: refined.map_or(0, |r| r.snapped),
             snapped_to_planes: refined.map_or(0, |r| r.snapped_to_planes),
             vertices: mesh.vertices.len(),

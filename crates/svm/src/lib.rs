@@ -20,6 +20,7 @@
 //! - [`warp::fit_warp`] computes a dense deformation field between two
 //!   fitted shapes (morphing).
 
+pub mod bridges;
 pub mod cells;
 pub mod curve_network;
 pub mod error;

@@ -10,6 +10,7 @@
 //! qualifies). Waves are sorted, so the result does not depend on the
 //! thread count.
 
+use crate::bridges::bridge_thin_parts;
 use crate::cells::{FastMap, FastSet};
 use crate::error::{Result, SvmError};
 use crate::model::SvmModel;
@@ -50,6 +51,9 @@ pub struct MeshReport {
     /// Closed pieces dropped from the mesh: smaller than [`SPECK_CELLS`],
     /// or away from the data ([`DATA_CELLS`]).
     pub specks_removed: usize,
+    /// Pieces of f's inside joined where they are thinner than a cell
+    /// (see [`crate::bridges`]).
+    pub thin_joins: usize,
 }
 
 /// A closed piece whose bounding-box diagonal is under this many cells is
@@ -101,8 +105,9 @@ pub fn mesh_model(
         GridSize::Resolution(opts.resolution),
         1,
     )?;
-    let values = follow_surface(model, seeds, &spec)?;
+    let mut values = follow_surface(model, seeds, &spec)?;
     let (cells_visited, nodes_evaluated) = (values.cells_visited, values.nodes.len());
+    let thin_joins = bridge_thin_parts(model, &spec, &mut values.nodes);
     let background = 2.0 * spec.spacing;
     let nodes = outside_on_the_rim(values.nodes, spec.dims, background);
     let grid = BlockGrid::from_nodes(spec, background, nodes)?;
@@ -122,6 +127,7 @@ pub fn mesh_model(
         cells_visited,
         nodes_evaluated,
         specks_removed,
+        thin_joins,
     };
     mesh.normals = Some(
         model
@@ -396,5 +402,114 @@ mod tests {
         assert_eq!(report.specks_removed, 1);
         let farthest = mesh.vertices.iter().map(|v| v.length()).fold(0.0, f64::max);
         assert!(farthest < 0.51, "the small ball is still there: {farthest}");
+    }
+
+    /// A ball of radius 0.5 with a rod of radius 0.4 cells along x from
+    /// its centre, through grid nodes at its start and rising one cell
+    /// (in y) every eight: nodes lie inside the rod for about four cells
+    /// each time the rod passes a row of nodes, and none lie inside for
+    /// two cells between, so marching cubes alone cuts the rod into
+    /// pieces.
+    struct BallAndRod {
+        /// A grid node on the rod's axis, the grid spacing.
+        start: DVec3,
+        cell: f64,
+    }
+
+    impl BallAndRod {
+        const LENGTH_CELLS: f64 = 40.0;
+
+        fn axis(&self) -> (DVec3, DVec3) {
+            let direction = DVec3::new(8.0, 1.0, 0.0).normalize();
+            (self.start, direction)
+        }
+
+        fn value(&self, p: DVec3) -> f64 {
+            let (start, direction) = self.axis();
+            let length = Self::LENGTH_CELLS * self.cell;
+            let along = (p - start).dot(direction).clamp(0.0, length);
+            let rod = p.distance(start + direction * along) - 0.4 * self.cell;
+            rod.min(p.length() - 0.5)
+        }
+
+        fn seeds(&self) -> Vec<DVec3> {
+            let (start, direction) = self.axis();
+            let length = Self::LENGTH_CELLS * self.cell;
+            let rod = (0..400).map(|i| start + direction * (length * i as f64 / 400.0));
+            fibonacci_sphere(2000, 0.5).into_iter().chain(rod).collect()
+        }
+    }
+
+    impl Implicit for BallAndRod {
+        fn values_grouped(&self, points: &[DVec3], _: &[Vec<u32>]) -> Vec<f64> {
+            points.iter().map(|&p| self.value(p)).collect()
+        }
+
+        fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
+            points.iter().map(|p| p.normalize_or_zero()).collect()
+        }
+    }
+
+    fn fibonacci_sphere(n: usize, radius: f64) -> Vec<DVec3> {
+        (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let phi = i as f64 * 2.399963;
+                let r = (1.0 - z * z).sqrt();
+                DVec3::new(r * phi.cos(), r * phi.sin(), z) * radius
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_rod_thinner_than_a_cell_stays_joined_to_its_body() {
+        let opts = MeshOptions {
+            resolution: 96,
+            margin: 0.0,
+        };
+        // Fixed bounds, so the rod can be laid out against the grid that
+        // `mesh_model` builds for them.
+        let bounds = Aabb {
+            min: DVec3::new(-0.6, -0.6, -0.6),
+            max: DVec3::new(1.8, 0.6, 0.6),
+        };
+        let spec = GridSpec::<3>::from_bounds(
+            bounds.min.to_array(),
+            bounds.max.to_array(),
+            GridSize::Resolution(opts.resolution),
+            1,
+        )
+        .unwrap();
+        let node = |p: DVec3| DVec3::from_array(spec.position(cell_of(&spec, p).unwrap()));
+        let shape = BallAndRod {
+            start: node(DVec3::new(0.2, 0.0, 0.0)),
+            cell: spec.spacing,
+        };
+        let (mesh, report) = mesh_model(&shape, &shape.seeds(), bounds, &opts).unwrap();
+        assert!(report.thin_joins >= 3, "{report:?}");
+        assert_eq!(mesh.piece_count(), 1, "{report:?}");
+        let farthest = mesh.vertices.iter().map(|v| v.x).fold(f64::MIN, f64::max);
+        let end = shape.start.x + 0.99 * BallAndRod::LENGTH_CELLS * spec.spacing;
+        assert!(farthest > end, "the rod ends at x = {farthest}, not {end}");
+    }
+
+    #[test]
+    fn separate_balls_near_each_other_are_not_joined() {
+        // Two balls two cells apart (0.03 at 128 cells over 1.9): f is
+        // positive between them, so no join, whatever the distance.
+        let balls = TwoBalls([(DVec3::ZERO, 0.5), (DVec3::new(0.63, 0.0, 0.0), 0.1)]);
+        let mut seeds = fibonacci_sphere(2000, 0.5);
+        seeds.extend(
+            fibonacci_sphere(200, 0.1)
+                .into_iter()
+                .map(|p| p + DVec3::new(0.63, 0.0, 0.0)),
+        );
+        let opts = MeshOptions {
+            resolution: 128,
+            margin: 0.1,
+        };
+        let (mesh, report) = mesh_model(&balls, &seeds, Aabb::from_points(&seeds), &opts).unwrap();
+        assert_eq!(report.thin_joins, 0);
+        assert_eq!(mesh.piece_count(), 2);
     }
 }
