@@ -136,7 +136,8 @@ pub fn clean_points_with_normals(
     let Some(noise) = noise_level(&kept, &tree, dim) else {
         return (kept, kept_normals, stats);
     };
-    let cleaned = project_along_normals(&kept, &kept_normals, &tree, noise.neighbours());
+    let unit: Vec<DVec3> = kept_normals.iter().map(|n| n.normalize_or_zero()).collect();
+    let cleaned = project_along_normals(&kept, &unit, &tree, noise.neighbours());
     record_shift(&mut stats, &kept, &cleaned);
     (cleaned, kept_normals, stats)
 }
