@@ -118,10 +118,8 @@ pub fn clean_points_with_normals(
     normals: &[DVec3],
     dim: usize,
 ) -> (Vec<DVec3>, Vec<DVec3>, CleaningStats) {
-    if normals.is_empty() || dim != 3 || points.len() < MIN_POINTS {
-        let (cleaned, stats) = clean_points(points, dim);
-        let kept_normals = normals_of_nearest(points, normals, &cleaned);
-        return (cleaned, kept_normals, stats);
+    if points.len() < MIN_POINTS {
+        return (points.to_vec(), normals.to_vec(), CleaningStats::default());
     }
     let kept = remove_outliers(points, dim);
     let kept_normals = normals_of_nearest(points, normals, &kept);
@@ -136,8 +134,12 @@ pub fn clean_points_with_normals(
     let Some(noise) = noise_level(&kept, &tree, dim) else {
         return (kept, kept_normals, stats);
     };
-    let unit: Vec<DVec3> = kept_normals.iter().map(|n| n.normalize_or_zero()).collect();
-    let cleaned = project_along_normals(&kept, &unit, &tree, noise.neighbours());
+    let cleaned = if dim == 3 && !kept_normals.is_empty() {
+        let unit: Vec<DVec3> = kept_normals.iter().map(|n| n.normalize_or_zero()).collect();
+        project_along_normals(&kept, &unit, &tree, noise.neighbours())
+    } else {
+        project_onto_quadrics(&kept, &tree, dim)
+    };
     record_shift(&mut stats, &kept, &cleaned);
     (cleaned, kept_normals, stats)
 }
@@ -160,28 +162,19 @@ pub fn normals_of_nearest(points: &[DVec3], normals: &[DVec3], cleaned: &[DVec3]
 /// dimensions (in 2D only x and y are used and z is kept). Returns the
 /// cleaned points, in input order, and what was done.
 pub fn clean_points(points: &[DVec3], dim: usize) -> (Vec<DVec3>, CleaningStats) {
-    if points.len() < MIN_POINTS {
-        return (points.to_vec(), CleaningStats::default());
-    }
-    let kept = remove_outliers(points, dim);
-    let mut stats = CleaningStats {
-        outliers: points.len() - kept.len(),
-        ..Default::default()
-    };
-    if kept.len() < MIN_POINTS {
-        return (kept, stats);
-    }
-    let tree = KdTree::new(&kept);
-    if noise_level(&kept, &tree, dim).is_none() {
-        return (kept, stats);
-    }
-    let mut cleaned = project_all(&NeighbourTable::build(&kept, &tree, NEIGHBOURS), dim);
+    let (cleaned, _, stats) = clean_points_with_normals(points, &[], dim);
+    (cleaned, stats)
+}
+
+/// [`PROJECTION_PASSES`] rounds of [`project_all`] onto the quadrics of
+/// each point's [`NEIGHBOURS`] (the first indexed by `tree`).
+fn project_onto_quadrics(points: &[DVec3], tree: &KdTree, dim: usize) -> Vec<DVec3> {
+    let mut cleaned = project_all(&NeighbourTable::build(points, tree, NEIGHBOURS), dim);
     for _ in 1..PROJECTION_PASSES {
         let tree = KdTree::new(&cleaned);
         cleaned = project_all(&NeighbourTable::build(&cleaned, &tree, NEIGHBOURS), dim);
     }
-    record_shift(&mut stats, &kept, &cleaned);
-    (cleaned, stats)
+    cleaned
 }
 
 /// Outliers close to each other shield one another (each is a typical
