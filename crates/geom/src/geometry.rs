@@ -97,7 +97,7 @@ impl TriMesh {
     /// numbered 0.. in the order of their first vertex, with the number of
     /// pieces; vertices in no triangle are pieces of their own.
     pub fn piece_labels(&self) -> (Vec<usize>, usize) {
-        let mut sets = crate::metrics::DisjointSets::new(self.vertices.len());
+        let mut sets = crate::disjoint_sets::DisjointSets::new(self.vertices.len());
         for &[a, b, c] in &self.triangles {
             sets.union(a as usize, b as usize);
             sets.union(b as usize, c as usize);

@@ -20,6 +20,7 @@
 pub mod aabb;
 pub mod curves;
 pub mod data_fit;
+pub mod disjoint_sets;
 pub mod error;
 pub mod fairing;
 pub mod geometry;

@@ -20,6 +20,7 @@
 //!   sample and its closest point on the other surface (absolute, so it does
 //!   not depend on orientation); only when both sides have normals.
 
+use crate::disjoint_sets::DisjointSets;
 use crate::spatial::KdTree;
 use crate::{shapes, Aabb, GeomError, Geometry, PointCloud, TriMesh};
 use glam::DVec3;
@@ -686,41 +687,6 @@ fn components(triangles: &[[u32; 3]], n: usize, faces_at: &VertexFaces) -> usize
     (0..n)
         .filter(|&v| !faces_at.of(v).is_empty() && sets.find(v) == v)
         .count()
-}
-
-/// Union-find with path halving and union by size.
-pub(crate) struct DisjointSets {
-    parent: Vec<usize>,
-    size: Vec<usize>,
-}
-
-impl DisjointSets {
-    pub(crate) fn new(n: usize) -> Self {
-        DisjointSets {
-            parent: (0..n).collect(),
-            size: vec![1; n],
-        }
-    }
-
-    pub(crate) fn find(&mut self, mut x: usize) -> usize {
-        while self.parent[x] != x {
-            self.parent[x] = self.parent[self.parent[x]];
-            x = self.parent[x];
-        }
-        x
-    }
-
-    pub(crate) fn union(&mut self, a: usize, b: usize) {
-        let (mut a, mut b) = (self.find(a), self.find(b));
-        if a == b {
-            return;
-        }
-        if self.size[a] < self.size[b] {
-            std::mem::swap(&mut a, &mut b);
-        }
-        self.parent[b] = a;
-        self.size[a] += self.size[b];
-    }
 }
 
 #[cfg(test)]

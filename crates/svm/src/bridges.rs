@@ -16,6 +16,7 @@
 use crate::cells::FastMap;
 use crate::mesh::Implicit;
 use glam::DVec3;
+use surfrecon_geom::disjoint_sets::DisjointSets;
 use surfrecon_grid::GridSpec;
 
 /// Farthest two inside nodes may be apart, in cells, to be joined (4:
@@ -94,7 +95,7 @@ pub fn bridge_thin_parts(
     let inside: Vec<usize> = (0..band.nodes.len())
         .filter(|&i| band.nodes[i].1 < 0.0)
         .collect();
-    let mut pieces = UnionFind::new(band.nodes.len());
+    let mut pieces = DisjointSets::new(band.nodes.len());
     for &i in &inside {
         let n = band.nodes[i].0.map(|c| c as i64);
         for d in FACES {
@@ -157,7 +158,7 @@ const CANDIDATES_PER_PAIR: usize = 64;
 /// For every piece but the largest: pairs of one of its boundary nodes and
 /// an inside node of another piece within [`BRIDGE_CELLS`], shortest first
 /// per pair of pieces (at most [`CANDIDATES_PER_PAIR`] each).
-fn join_candidates(band: &Band, inside: &[usize], pieces: &mut UnionFind) -> Vec<Candidate> {
+fn join_candidates(band: &Band, inside: &[usize], pieces: &mut DisjointSets) -> Vec<Candidate> {
     let mut sizes: FastMap<usize> = FastMap::default();
     for &i in inside {
         *sizes.entry(pieces.find(i) as u64).or_default() += 1;
@@ -231,30 +232,6 @@ fn chain(a: [i64; 3], b: [i64; 3]) -> Vec<[i64; 3]> {
         out.push(at);
     }
     out
-}
-
-/// Disjoint sets over node slots, with path halving.
-struct UnionFind(Vec<usize>);
-
-impl UnionFind {
-    fn new(n: usize) -> Self {
-        UnionFind((0..n).collect())
-    }
-
-    fn find(&mut self, mut i: usize) -> usize {
-        while self.0[i] != i {
-            self.0[i] = self.0[self.0[i]];
-            i = self.0[i];
-        }
-        i
-    }
-
-    fn union(&mut self, a: usize, b: usize) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        if ra != rb {
-            self.0[ra.max(rb)] = ra.min(rb);
-        }
-    }
 }
 
 #[cfg(test)]
