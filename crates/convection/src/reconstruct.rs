@@ -119,6 +119,9 @@ pub struct Report {
     /// Connected sheets those pairs form.
     pub thin_parts: usize,
     /// Sheet triangles the 2D convection keeps (thin parts, not membranes).
+    /// This and the two counts below are 0 when the surface without thin
+    /// parts restored is already one piece: restoring could not leave
+    /// fewer, so the thin-part stage does not run.
     pub thin_sheet_kept: usize,
     /// Tunnels through thin parts closed by the restored tetrahedra (holes
     /// through a plate swept bare; see `tunnels`), and the tetrahedra
@@ -409,22 +412,22 @@ fn finish(
     report.pseudo_surface_facets = surface.num_facets();
 
     let clock = Instant::now();
-    let solid = match thin_parts {
-        true => {
-            // Ties broken by input index: the same mesh however the
-            // triangulation numbers its vertices and tetrahedra.
-            let rank: Vec<u32> = (0..tri.points().len())
-                .map(|v| (site.of_vertex)(VertexId(v as u32)).map_or(u32::MAX, |i| i as u32))
-                .collect();
-            let thick = thicken(&surface, tri, &rank, &spacing, params.thin_size);
-            report.thin_sheet_kept = thick.sheet_kept;
-            report.thin_tunnels_closed = thick.tunnels.closed;
-            report.thin_tunnel_tets = thick.tunnels.kept;
-            thick.restored
+    let restore = |report: &mut Report| {
+        if !thin_parts {
+            return Vec::new();
         }
-        false => Vec::new(),
+        // Ties broken by input index: the same mesh however the
+        // triangulation numbers its vertices and tetrahedra.
+        let rank: Vec<u32> = (0..tri.points().len())
+            .map(|v| (site.of_vertex)(VertexId(v as u32)).map_or(u32::MAX, |i| i as u32))
+            .collect();
+        let thick = thicken(&surface, tri, &rank, &spacing, params.thin_size);
+        report.thin_sheet_kept = thick.sheet_kept;
+        report.thin_tunnels_closed = thick.tunnels.closed;
+        report.thin_tunnel_tets = thick.tunnels.kept;
+        thick.restored
     };
-    let mesh = extract_mesh(&surface, tri, &solid, site, params, report);
+    let mesh = extract_mesh(&surface, tri, restore, site, params, report);
     report.seconds.output = clock.elapsed().as_secs_f64();
     Ok(mesh)
 }
@@ -584,12 +587,12 @@ fn open_pockets(surface: &mut PseudoSurface, normals: &[DVec3], spacing: &[f64],
 }
 
 /// The manifold output mesh: coupled sheets left out, thin parts restored
-/// when that leaves fewer pieces and no more boundary edges, pinches
-/// removed, short holes closed.
+/// (`restore`: per tetrahedron slot) when that leaves fewer pieces and no
+/// more boundary edges, pinches removed, short holes closed.
 fn extract_mesh(
     surface: &PseudoSurface,
     tri: &Triangulation,
-    restored: &[bool],
+    restore: impl FnOnce(&mut Report) -> Vec<bool>,
     site: &Sites,
     params: &Params,
     report: &mut Report,
@@ -603,12 +606,18 @@ fn extract_mesh(
     report.thin_parts = count_sheets(surface, &sheet);
     let mut best = closed_boundary(surface, tri, &[], site, params);
     report.thin_tets_restored = 0;
+    // With one piece (or none) restoring cannot leave fewer: the thin-part
+    // stage, the costliest of the output at scale, is skipped.
+    let restored = match best.pieces > 1 {
+        true => restore(report),
+        false => Vec::new(),
+    };
     if restored.iter().any(|&r| r) {
         // Restoring can still pinch the surface where a thin part meets the
         // rest, or (on noisy samples, whose sheets pass for thin parts) fill
         // a volume that swallows points: keep it only where it pays off as
         // a whole.
-        let thick = closed_boundary(surface, tri, restored, site, params);
+        let thick = closed_boundary(surface, tri, &restored, site, params);
         if thick.boundary_edges <= best.boundary_edges
             && thick.pieces < best.pieces
             && thick.points_used >= best.points_used
