@@ -6,6 +6,7 @@ use crate::error::{Classify, Error, ErrorKind, Result};
 use crate::report::*;
 use crate::{check, data_fit_report, Loss, Output, SvmC, SvmOptions};
 use std::time::Instant;
+use surfrecon_geom::aabb::offset_to_origin;
 use surfrecon_geom::normals::{estimate_normals, orient_normals};
 use surfrecon_geom::progress::Hook;
 use surfrecon_geom::spatial::KdTree;
@@ -27,8 +28,16 @@ pub(crate) fn run(
     data_fit: bool,
     hook: Hook,
 ) -> Result<Output> {
-    let input_points = crate::require_points(input, "fit")?;
+    let given_points = crate::require_points(input, "fit")?;
     let started = Instant::now();
+    // Far from the origin the fit and the mesh grid lose the data's
+    // precision (eight points a few units apart near 2e16 ran for half a
+    // minute): they run on the data moved near it, exactly, and the mesh
+    // and model are moved back.
+    let bounds = given_points.bounds();
+    let by = offset_to_origin(bounds.min.to_array(), bounds.max.to_array());
+    let moved_points = (by != DVec3::ZERO).then(|| moved(given_points, -by));
+    let input_points = moved_points.as_ref().unwrap_or(given_points);
     // Only noisy points are used cleaned: dropping the few stray points of
     // clean data cut thin tips off (spikes: a cone's tip as a second
     // piece), and the fit keeps strays out by itself.
@@ -53,7 +62,8 @@ pub(crate) fn run(
     let (model, fit) = match &o.model_in {
         Some(path) => (
             SvmModel::load(path)
-                .map_err(|e| e.within(&format!("cannot load model {}", path.display())))?,
+                .map_err(|e| e.within(&format!("cannot load model {}", path.display())))?
+                .translated(-by),
             SvmFit::Loaded {
                 loaded: path.display().to_string(),
             },
@@ -63,6 +73,12 @@ pub(crate) fn run(
                 normals_estimated = Some(o.normal_k);
             }
             let (model, mut fit) = fit_model(points, o, noise_floor, hook)?;
+            if let Some(path) = &o.model_out {
+                model
+                    .translated(by)
+                    .save(path)
+                    .map_err(|e| e.within(&format!("cannot write model {}", path.display())))?;
+            }
             fit.cleaning = cleaning.as_ref().map(|(_, report)| *report);
             (model, SvmFit::Fitted(Box::new(fit)))
         }
@@ -93,6 +109,7 @@ pub(crate) fn run(
         };
         refine_surface(&mut mesh, &points.positions, m.spacing, options)
     });
+    mesh.vertices.iter_mut().for_each(|v| *v += by);
     let svm = SvmSummary {
         method: "svm",
         fit,
@@ -128,7 +145,14 @@ pub(crate) fn run(
     })
 }
 
-/// Normals, parameters (given or selected), the fit, and the optional save.
+/// `points` moved by `by`.
+fn moved(points: &PointCloud, by: DVec3) -> PointCloud {
+    let mut moved = points.clone();
+    moved.positions.iter_mut().for_each(|p| *p += by);
+    moved
+}
+
+/// Normals, parameters (given or selected) and the fit.
 fn fit_model(
     points: &PointCloud,
     o: &SvmOptions,
@@ -180,11 +204,6 @@ fn fit_model(
     };
     let (model, report) = surfrecon_svm::fit_with(&points.positions, &normals, &opts, hook)
         .map_err(|e| e.within("SVM fit failed"))?;
-    if let Some(path) = &o.model_out {
-        model
-            .save(path)
-            .map_err(|e| e.within(&format!("cannot write model {}", path.display())))?;
-    }
     let fit = SvmFitReport {
         c: opts.c,
         epsilon: opts.epsilon,

@@ -102,6 +102,50 @@ fn coordinates_near_the_f64_limit_are_refused() {
     assert!(e.to_string().contains("the data span only"), "{e}");
 }
 
+/// The fuzzer's input (`recon_svm`, a 30-minute run): three points a few
+/// units apart at coordinates near 2e16 (an ulp there is 4), each eight
+/// times; SVM, C chosen, ε 0, cleaning off. The fit ran for half a minute
+/// (libFuzzer called it a hang) before the mesh grid was refused as finer
+/// than f64 resolves there. The SVM now runs on the data moved near the
+/// origin: the same surface as there, moved; the finding's resolution 0
+/// is then refused as such.
+#[test]
+fn svm_on_three_points_near_2e16_is_the_surface_near_the_origin_moved() {
+    let three = [
+        DVec3::new(-7500000000000003.0, -2.0000000000000004e16, -1.5e16),
+        DVec3::new(-7500000000000002.0, -2e16, -1.5000000000000004e16),
+        DVec3::new(
+            -7500000000000004.0,
+            -2.0000000000000004e16,
+            -1.5000000000000002e16,
+        ),
+    ];
+    let shift = DVec3::new(-7.5e15, -2e16, -1.5e16);
+    let near_origin: Vec<DVec3> = three.repeat(8).iter().map(|&p| p - shift).collect();
+    let svm = Method::Svm(SvmOptions {
+        c: SvmC::Auto,
+        epsilon: 0.0,
+        accuracy: 0.0002,
+        loss: Loss::Epsilon,
+        drop_levels: 0,
+        normal_k: 0,
+        cleaning: false,
+        ..SvmOptions::default()
+    });
+    compare_moved(&near_origin, shift, 16, &svm);
+    let far = Geometry::from_points(PointCloud::new(three.repeat(8)));
+    let options = Options {
+        method: svm,
+        resolution: Some(0),
+        curve_network: false,
+        join_pieces: false,
+        data_fit: false,
+    };
+    let e = error_of(&far, &options);
+    assert_eq!(e.kind, ErrorKind::InvalidInput);
+    assert!(format!("{e:?}").contains("resolution"), "{e:?}");
+}
+
 /// The fuzzer's input: one point near 1e30 (with six degenerate
 /// triangles on it), ε = 0.1, resolution 4. Planar, so the 2D level set
 /// ran on a grid of spacing 0.25 whose nodes all had the same position
@@ -167,7 +211,7 @@ fn reconstructions_far_from_the_origin_are_moved_copies() {
         })
         .collect();
     let shift = DVec3::new(2f64.powi(49) + 2f64.powi(48), -(2f64.powi(49)), 0.0);
-    compare_moved(&circle, shift, 256);
+    compare_moved(&circle, shift, 256, &level_set());
     // 3D: a sphere of radius 16, integer coordinates (an ulp at 2^52 is
     // 1); spacing 0.8.
     let sphere: Vec<DVec3> = icosphere(DVec3::ZERO, 16.0, 2)
@@ -175,22 +219,26 @@ fn reconstructions_far_from_the_origin_are_moved_copies() {
         .iter()
         .map(|v| v.round())
         .collect();
-    compare_moved(
-        &sphere,
-        DVec3::new(2f64.powi(52), 0.0, -(2f64.powi(52))),
-        40,
-    );
+    let shift = DVec3::new(2f64.powi(52), 0.0, -(2f64.powi(52)));
+    compare_moved(&sphere, shift, 40, &level_set());
+    // The SVM too (it fitted for half a minute on eight points a few units
+    // apart near 2e16, then refused the mesh grid as too fine).
+    compare_moved(&sphere, shift, 40, &Method::Svm(SvmOptions::default()));
 }
 
-/// Reconstruct `points` and `points + shift` with the level set at
+fn level_set() -> Method {
+    Method::LevelSet(LevelSetOptions {
+        refine: false,
+        ..LevelSetOptions::default()
+    })
+}
+
+/// Reconstruct `points` and `points + shift` with `method` at
 /// `resolution`: same curves or triangles, vertices within the rounding
 /// of the shifted coordinates.
-fn compare_moved(points: &[DVec3], shift: DVec3, resolution: usize) {
+fn compare_moved(points: &[DVec3], shift: DVec3, resolution: usize, method: &Method) {
     let options = Options {
-        method: Method::LevelSet(LevelSetOptions {
-            refine: false,
-            ..LevelSetOptions::default()
-        }),
+        method: method.clone(),
         resolution: Some(resolution),
         curve_network: false,
         join_pieces: true,

@@ -306,6 +306,18 @@ impl SvmModel {
         }
     }
 
+    /// The same function moved by `by`: f'(x) = f(x − by).
+    pub fn translated(&self, by: DVec3) -> SvmModel {
+        let level = |l: &Level| {
+            let centres = l.centres.iter().map(|&c| c + by).collect();
+            Level::new(l.width, centres, l.coefficients.clone())
+        };
+        SvmModel {
+            offset: self.offset,
+            levels: self.levels.iter().map(level).collect(),
+        }
+    }
+
     /// Write the model in the format documented at the top of this module.
     pub fn write_to(&self, w: &mut dyn Write) -> std::io::Result<()> {
         w.write_all(MAGIC)?;
@@ -573,6 +585,19 @@ mod tests {
         let mut neg = bytes.clone();
         neg[24..32].copy_from_slice(&(-1.0f64).to_le_bytes());
         assert!(err(&neg).1.contains("not positive"));
+    }
+
+    #[test]
+    fn a_translated_model_is_the_same_function_moved() {
+        let m = sample_model();
+        let by = DVec3::new(1e6, -2.5, 1024.0);
+        let moved = m.translated(by);
+        for i in 0..200 {
+            let x = DVec3::new(i as f64 * 0.013 - 1.3, (i % 7) as f64 * 0.1, -0.2);
+            let (a, b) = (m.value(x), moved.value(x + by));
+            // Moving x by 1e6 rounds it by about 1e-10.
+            assert!((a - b).abs() < 1e-6, "{a} against {b} at {x}");
+        }
     }
 
     #[test]
