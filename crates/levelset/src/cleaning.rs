@@ -44,6 +44,13 @@ const GLOBAL_RATIO: f64 = 5.0;
 /// In 3D a neighbourhood is surface-like when its second principal
 /// variance is at least this share of the largest (not a curve).
 const SURFACE_LIKE: f64 = 0.05;
+/// Data whose variance along their principal direction is at least this
+/// many times the next one's sample a tube, if thin and all round (a
+/// 16-point patch of a surface: 1-3).
+const TUBE_ELONGATION: f64 = 4.0;
+/// ... and whose two smaller variances are within this ratio (round
+/// across; harness: 0.3 keeps the spikes' gain, none the holes' losses).
+const TUBE_ROUNDNESS: f64 = 0.3;
 /// Data count as noisy when the typical quadric fit residual is at least
 /// this share of the neighbourhood radius.
 const NOISE_SHARE: f64 = 0.02;
@@ -570,15 +577,23 @@ pub fn project_onto_points(
                     && f.normal.dot(*normal).abs() >= SAME_SURFACE
                     && f.residual <= ONE_SHEET * f.radius
             };
-            let fit = project(*v, near.iter().map(|n| points[n.index]), dim)
+            let around = near.iter().map(|n| points[n.index]);
+            let fit = project(*v, around.clone(), dim)
                 .filter(fits)
+                .map(|f| f.point)
+                .or_else(|| {
+                    let onto = onto_tube(*v, *normal, around, sheet_gap)?;
+                    (onto.distance(*v) <= reach).then_some(onto)
+                })
                 .or_else(|| {
                     let sheet = own_sheet(*v, *normal, points, tree, neighbours, sheet_gap)?;
-                    project(*v, sheet.into_iter(), dim).filter(fits)
+                    project(*v, sheet.into_iter(), dim)
+                        .filter(fits)
+                        .map(|f| f.point)
                 });
             match fit {
-                Some(fit) => {
-                    *v = fit.point;
+                Some(point) => {
+                    *v = point;
                     (true, true)
                 }
                 None => (true, false),
@@ -593,6 +608,55 @@ pub fn project_onto_points(
             .map(|(supported, _)| supported)
             .collect(),
     }
+}
+
+/// `v` moved radially onto the tube the data `around` it sample, where
+/// they sample one of radius below `thickness` all round (a needle, a cone's
+/// tip): its axis is the data's principal direction through their centre,
+/// its radius their mean distance from the axis. A plane fitted there is
+/// some plane through the axis, and vertices flattened onto such planes
+/// made thin parts ragged. `None` for other data, 2D data (`thickness`
+/// 0) or a vertex whose `normal` is not across the axis.
+fn onto_tube(
+    v: DVec3,
+    normal: DVec3,
+    around: impl Iterator<Item = DVec3> + Clone,
+    thickness: f64,
+) -> Option<DVec3> {
+    let count = around.clone().count() as f64;
+    if thickness <= 0.0 || count < 3.0 {
+        return None;
+    }
+    let centre = around.clone().fold(DVec3::ZERO, |s, q| s + q) / count;
+    let mut cov = [[0.0; 3]; 3];
+    for q in around.clone() {
+        let d = (q - centre).to_array();
+        (0..3).for_each(|r| (0..3).for_each(|c| cov[r][c] += d[r] * d[c]));
+    }
+    let (variances, directions) = symmetric_eigen3(cov);
+    let axis = directions[2].try_normalize()?;
+    // Much longer than wide, round across (a plate's rim or a hole's is
+    // flat across), and the vertex's surface runs along it.
+    let [flat, wide, long] = variances;
+    if long < TUBE_ELONGATION * wide || flat < TUBE_ROUNDNESS * wide || normal.dot(axis).abs() > 0.5
+    {
+        return None;
+    }
+    let across = |q: DVec3| {
+        let d = q - centre;
+        d - axis * d.dot(axis)
+    };
+    let radius = around.clone().map(|q| across(q).length()).sum::<f64>() / count;
+    // All round: the directions to the data from the axis cancel out
+    // (one side of a plate's rim would not).
+    let sides = around
+        .filter_map(|q| across(q).try_normalize())
+        .fold(DVec3::ZERO, |s, u| s + u);
+    let outward = across(v).try_normalize()?;
+    if radius > thickness || sides.length() > 0.5 * count {
+        return None;
+    }
+    Some(v - across(v) + outward * radius)
 }
 
 /// Of the `2 * neighbours` data nearest `v`, those on the same sheet as
@@ -940,6 +1004,41 @@ mod tests {
         for (v, o) in snap(0.6).iter().zip(&original) {
             let side = if o.z > 0.6 { 1.2 } else { 0.0 };
             assert!((v.z - side).abs() < 1e-6, "{o} -> {v}");
+        }
+    }
+
+    #[test]
+    fn vertices_around_a_needle_go_onto_its_tube() {
+        // A needle of radius 0.05 on a grid of spacing 1: three samples
+        // per ring, rings 0.1 apart, each turned (16 neighbours are a
+        // stretch much longer than wide). The grid's tube around it
+        // (radius 0.7) stayed, or went onto planes through the axis.
+        let points: Vec<DVec3> = (0..100)
+            .flat_map(|ring| {
+                (0..3).map(move |k| {
+                    let t = (k as f64 + 0.37 * ring as f64) * std::f64::consts::TAU / 3.0;
+                    DVec3::new(0.1 * ring as f64, 0.05 * t.cos(), 0.05 * t.sin())
+                })
+            })
+            .collect();
+        let tree = KdTree::new(&points);
+        let radial = |k: usize| {
+            let t = k as f64 * std::f64::consts::TAU / 8.0;
+            DVec3::new(0.0, t.cos(), t.sin())
+        };
+        let mut vertices: Vec<DVec3> = (0..8).map(|k| DVec3::X * 5.03 + radial(k) * 0.7).collect();
+        let normals: Vec<DVec3> = (0..8).map(radial).collect();
+        let fit = SurfaceFit {
+            sheet_gap: 1.0,
+            ..fit(2.0)
+        };
+        let moved = project_onto_points(&mut vertices, &normals, &points, &tree, &fit);
+        assert_eq!(moved.moved, 8);
+        for (k, v) in vertices.iter().enumerate() {
+            let radius = DVec3::new(0.0, v.y, v.z).length();
+            assert!((radius - 0.05).abs() < 0.02, "{v}: radius {radius}");
+            assert!((v.x - 5.03).abs() < 0.03, "{v} moved along the axis");
+            assert!(v.dot(radial(k)) > 0.0, "{v} crossed the axis");
         }
     }
 
