@@ -3,23 +3,31 @@
 //! so that samples can sit on the corners and edges a regular grid cuts.
 //!
 //! Samples start on their nodes with the regular signed distances. The
-//! samples around cells crossed by sharp features then move to minimize
+//! samples around cells crossed by sharp features (and around those
+//! cells' neighbours near the surface) then move to minimize
 //!   E = λ_d E_dist + λ_s Σ_edges (1 − |g_i − g_j| / h)² + λ_o Σ (ê_i · ê_j)²
-//! where E_dist sums, over each feature element (corner, bend, edge piece)
-//! in a cell, the squared distance to the nearest vertex marching cubes
-//! puts in that cell (in units of h²), the spring term keeps grid edges
-//! near their rest length h and the orthogonality term keeps the edges at
-//! a sample (and at its neighbours) perpendicular. The search is the
-//! paper's: per sample try ±x, ±y, ±z steps (plus a jump onto a feature
-//! point in reach, and the other side for a sample on the surface), take
-//! the best legal move, halve the step each round. Before it, the samples whose boxes a
-//! feature passes through are put onto it (corners first) and stay there
-//! (the paper's alignment of samples with features); on the surface a
-//! sample may take either side. A move is legal when the sample stays in
-//! its box, every cell around it stays convex and the surface in its
-//! cells keeps its topology. Samples of the same index parity share no cell and no
-//! energy term, so each parity class moves in parallel and the result
-//! does not depend on the thread count.
+//! where E_dist sums, over the probes of each such cell (its corners,
+//! bends and points along its feature edge pieces, and where the true
+//! surface crosses lines through it), the squared distance to the
+//! triangles marching cubes makes, plus the squared distances from those
+//! triangles back to the true surface (in units of h²). For a move of one
+//! sample the probes of its eight cells are measured against the surface
+//! of all eight: a sample moving onto a cell face carries the surface
+//! into the next cell. The spring term keeps grid edges near their rest
+//! length h and the orthogonality term keeps the edges at a sample (and
+//! at its neighbours) perpendicular. The search is the paper's: per
+//! sample try ±x, ±y, ±z steps (plus a jump onto a feature point in
+//! reach, onto the nearest surface point, and the other side for a sample
+//! on the surface), take the best legal move, halve the step each round;
+//! after the first round only samples next to one that moved are tried.
+//! Before it, the samples whose boxes a feature passes through are put
+//! onto it (corners first) and stay there (the paper's alignment of
+//! samples with features); on a convex feature such a sample goes outside
+//! first, on a concave one inside. A move is legal when the sample stays
+//! in its box, every cell around it stays convex and the surface in its
+//! cells keeps its topology. Samples of the same index parity share no
+//! cell and no energy term, so each parity class moves in parallel and
+//! the result does not depend on the thread count.
 
 use crate::extract::{corner_nodes, crosses, extract, ExtractReport, SampledField};
 use crate::features::{
@@ -149,9 +157,23 @@ pub fn build_odf(
     };
     report.aligned = aligned.len();
     let mut step = 0.25 * field.spec.spacing;
+    // After the first round only samples sharing a cell with one that
+    // moved are tried again: the others' energy is unchanged, and the
+    // smaller steps seldom find what the larger did not (fandisk: same
+    // error, a quarter less CPU).
+    let mut active = candidates.clone();
     for _ in 0..options.iterations {
-        search.round(&mut field, &candidates, &aligned, step);
+        let moved = search.round(&mut field, &active, &aligned, step);
         step *= 0.5;
+        let near: BTreeSet<usize> = moved
+            .iter()
+            .flat_map(|&n| {
+                search
+                    .cells_around(n)
+                    .flat_map(|c| corner_nodes(&field.spec, c))
+            })
+            .collect();
+        active.retain(|n| near.contains(n));
     }
     report.smoothed = search.smooth_away_from_surface(&mut field);
     report.moved = field.moved.len();
@@ -629,14 +651,15 @@ impl<'a> Search<'a> {
 
     /// One round over the candidates, parity class by parity class.
     /// Samples in `pinned` stay where they are but may change side when
-    /// they lie on the surface.
+    /// they lie on the surface. Returns the samples that moved.
     pub fn round(
         &self,
         field: &mut impl Movable,
         candidates: &[usize],
         pinned: &BTreeSet<usize>,
         step: f64,
-    ) {
+    ) -> Vec<usize> {
+        let mut moved = Vec::new();
         for class in 0..8 {
             let moves: Vec<(usize, DVec3, f64)> = candidates
                 .par_iter()
@@ -645,8 +668,10 @@ impl<'a> Search<'a> {
                 .collect();
             for (n, p, v) in moves {
                 field.set(n, p, v);
+                moved.push(n);
             }
         }
+        moved
     }
 
     /// The best legal move of sample `node` that lowers its energy.
