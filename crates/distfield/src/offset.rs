@@ -111,7 +111,9 @@ pub struct OdfReport {
     pub moved: usize,
     /// Samples moved by Laplacian smoothing away from the surface.
     pub smoothed: usize,
-    /// Total energy of the feature cells before and after.
+    /// Total E_dist (each cell's probes against its own triangles) of
+    /// the fitted cells, the feature cells and their neighbours near the
+    /// surface, before and after.
     pub energy_before: f64,
     pub energy_after: f64,
     pub seconds: f64,
@@ -138,6 +140,7 @@ pub fn build_odf(
     let query = MeshQuery::new(mesh)?;
     let features = Features::detect(mesh, options.feature_angle_deg);
     let mut cells = cells_with_features(mesh, &features, &spec, |_| true);
+    let feature_cells = cells.len();
     add_cells_beside(&mut cells, &spec, &values);
     let mut field = OffsetField {
         spec,
@@ -150,7 +153,7 @@ pub fn build_odf(
     let candidates = search.candidates();
     let mut report = OdfReport {
         samples: field.values.len(),
-        feature_cells: cells.len(),
+        feature_cells,
         candidates: candidates.len(),
         energy_before: search.total_energy(&field),
         ..Default::default()
@@ -919,7 +922,7 @@ impl<'a> Search<'a> {
         stays_convex(self.spec, node, p, |n| field.position(n))
     }
 
-    /// Total E_dist over the feature cells.
+    /// Total E_dist over the fitted cells (see [`OdfReport::energy_before`]).
     pub fn total_energy(&self, field: &impl Movable) -> f64 {
         let at = |n: usize| (field.position(n), field.value(n));
         self.cells.keys().map(|&c| self.cell_energy(c, &at)).sum()
