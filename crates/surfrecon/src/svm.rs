@@ -7,7 +7,7 @@ use crate::report::*;
 use crate::{check, data_fit_report, Loss, Output, SvmC, SvmOptions};
 use std::time::Instant;
 use surfrecon_geom::aabb::offset_to_origin;
-use surfrecon_geom::normals::{estimate_normals, orient_normals};
+use surfrecon_geom::normals::estimate_oriented_sheet_normals;
 use surfrecon_geom::progress::Hook;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, PointCloud};
@@ -248,13 +248,12 @@ fn cleaned_if_noisy(points: &PointCloud) -> Option<(PointCloud, CleaningReport)>
     Some((cleaned, CleaningReport::from(&stats)))
 }
 
-/// The input's normals, or normals estimated from `k` neighbours and
-/// oriented consistently outward.
+/// The input's normals, or normals estimated from `k` neighbours (on
+/// thin parts from the point's own side) and oriented consistently
+/// outward.
 fn normals_for(points: &PointCloud, k: usize) -> Vec<DVec3> {
     if let Some(n) = &points.normals {
         return n.clone();
     }
-    let mut normals = estimate_normals(&points.positions, k);
-    orient_normals(&points.positions, &mut normals, k);
-    normals
+    estimate_oriented_sheet_normals(&points.positions, k)
 }

@@ -60,6 +60,11 @@ pub struct SurfaceSamples {
 /// Scatter of noisy samples about the surface, in noise σ.
 const NOISE_SCATTER: f64 = 2.0;
 
+/// Neighbours searched for the other side of a thin part (see
+/// [`SurfaceSamples::backs_onto_other_side`]): on a plate a couple of
+/// spacings thick, about half of them lie across it.
+pub const THIN_NEIGHBOURS: usize = 32;
+
 /// Neighbours that define a sample's local reach and normal agreement.
 pub const LOCAL_NEIGHBOURS: usize = 6;
 
@@ -203,6 +208,26 @@ impl SurfaceSamples {
         for (i, a) in touched.into_iter().zip(agrees) {
             self.normal_agrees[i] = a;
         }
+    }
+
+    /// Whether sample `i` backs onto the other side of a part thinner
+    /// than `within`: one of its [`THIN_NEIGHBOURS`] nearest samples lies
+    /// behind it (more along its normal than beside it, at most `within`
+    /// away) and faces the other way. Such a pair is consistent as it is,
+    /// and a level wider than the part only sees a blob there, whose
+    /// gradient says nothing about which way each side faces.
+    pub fn backs_onto_other_side(&self, i: usize, within: f64) -> bool {
+        let (p, n) = (self.points[i], self.normals[i]);
+        self.tree
+            .knn(p, THIN_NEIGHBOURS + 1)
+            .into_iter()
+            .filter(|m| m.index != i && m.distance <= within)
+            .any(|m| {
+                let d = self.points[m.index] - p;
+                let behind = -d.dot(n);
+                let beside = (d + behind * n).length();
+                behind > beside && self.normals[m.index].dot(n) < -0.5
+            })
     }
 
     /// Indices of the samples that are not isolated: whose [`Self::reach`]
