@@ -34,6 +34,7 @@ use crate::features::{
     cells_with_features, clip_to_cells, closest_on_segment, CellFeatures, Features,
 };
 use crate::query::MeshQuery;
+use crate::refine::block;
 use crate::unified::BAND_CELLS;
 use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
@@ -205,24 +206,6 @@ fn add_cells_beside(cells: &mut BTreeMap<usize, CellFeatures>, spec: &GridSpec<3
     for c in beside {
         cells.entry(c).or_default();
     }
-}
-
-/// The cells within `reach` cells of `cell` in every axis (itself
-/// included), inside the grid.
-fn block(spec: &GridSpec<3>, cell: usize, reach: usize) -> impl Iterator<Item = usize> + '_ {
-    let idx = spec.unlinear(cell);
-    let side = 2 * reach + 1;
-    (0..side * side * side).filter_map(move |k| {
-        let d = [k % side, (k / side) % side, k / (side * side)];
-        let mut at = [0usize; 3];
-        for a in 0..3 {
-            at[a] = (idx[a] + d[a]).checked_sub(reach)?;
-            if at[a] + 1 >= spec.dims[a] {
-                return None;
-            }
-        }
-        Some(spec.linear(at))
-    })
 }
 
 impl OffsetField {

@@ -256,8 +256,13 @@ fn apply(field: &mut UnifiedField, cell: usize, action: &Action) -> bool {
     }
 }
 
-/// The cells within `reach` of `cell` along every axis.
-fn block(spec: &GridSpec<3>, cell: usize, reach: usize) -> impl Iterator<Item = usize> + '_ {
+/// The cells within `reach` of `cell` along every axis (itself
+/// included), inside the grid.
+pub(crate) fn block(
+    spec: &GridSpec<3>,
+    cell: usize,
+    reach: usize,
+) -> impl Iterator<Item = usize> + '_ {
     let idx = spec.unlinear(cell);
     let side = 2 * reach + 1;
     (0..side * side * side).filter_map(move |k| {
