@@ -229,8 +229,8 @@ const SHEET_PARALLEL: f64 = 0.94;
 /// The axes of the plain plane fit through `points`, smallest scatter
 /// first ([`FALLBACK_NORMAL`] first when they do not determine a plane).
 fn plane_axes(points: &[DVec3]) -> [DVec3; 3] {
-    match covariance(points.iter().copied()) {
-        Some(cov) if symmetric_eigen3(cov).1[0].is_finite() => symmetric_eigen3(cov).1,
+    match covariance(points.iter().copied()).map(|cov| symmetric_eigen3(cov).1) {
+        Some(axes) if axes[0].is_finite() => axes,
         _ => [FALLBACK_NORMAL, DVec3::X, DVec3::Y],
     }
 }
