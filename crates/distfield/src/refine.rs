@@ -16,7 +16,7 @@
 use crate::extract::corner_nodes;
 use crate::features::{cell_of, nudge_into, CellFeatures};
 use crate::query::MeshQuery;
-use crate::sharp::{clamp_near, is_sharp, owner_cell};
+use crate::sharp::{clamp_near, is_sharp, owner_cell, Tangent};
 use crate::unified::{crop, sample_points, storage_for, Extra, UnifiedField};
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
@@ -30,19 +30,33 @@ pub(crate) struct MeshSamples {
     by_cell: HashMap<usize, Vec<DVec3>>,
 }
 
+/// The exact surface a field is repaired against.
+pub(crate) trait Exact: Sync {
+    /// Signed distance to the surface (negative inside).
+    fn signed_distance(&self, p: DVec3) -> f64;
+    /// The surface's crossings of `cell`'s sign-changing edges with its
+    /// outward normals there.
+    fn tangents(&self, field: &UnifiedField, cell: usize) -> Vec<Tangent>;
+}
+
+impl Exact for MeshQuery {
+    fn signed_distance(&self, p: DVec3) -> f64 {
+        MeshQuery::signed_distance(self, p)
+    }
+    fn tangents(&self, field: &UnifiedField, cell: usize) -> Vec<Tangent> {
+        crate::unified::crossing_tangents(field, self, cell)
+    }
+}
+
 impl MeshSamples {
     pub(crate) fn new(mesh: &TriMesh, spec: &GridSpec<3>) -> Self {
+        Self::from_points(spec, mesh_points(mesh))
+    }
+
+    /// `points` on the surface, binned by cell.
+    pub(crate) fn from_points(spec: &GridSpec<3>, points: impl Iterator<Item = DVec3>) -> Self {
         let mut by_cell: HashMap<usize, Vec<DVec3>> = HashMap::new();
-        let inner = (0..mesh.triangles.len()).flat_map(|t| {
-            let [a, b, c] = mesh.corners(t);
-            (0..3).flat_map(move |i| {
-                (0..3 - i).map(move |j| {
-                    let (u, v) = ((i as f64 + 1.0 / 3.0) / 3.0, (j as f64 + 1.0 / 3.0) / 3.0);
-                    a + (b - a) * u + (c - a) * v
-                })
-            })
-        });
-        for p in mesh.vertices.iter().copied().chain(inner) {
+        for p in points {
             if let Some(c) = cell_of(spec, p) {
                 by_cell.entry(c).or_default().push(p);
             }
@@ -57,6 +71,20 @@ impl MeshSamples {
             .copied()
             .collect()
     }
+}
+
+/// A mesh's vertices and six points inside each of its triangles.
+pub(crate) fn mesh_points(mesh: &TriMesh) -> impl Iterator<Item = DVec3> + '_ {
+    let inner = (0..mesh.triangles.len()).flat_map(|t| {
+        let [a, b, c] = mesh.corners(t);
+        (0..3).flat_map(move |i| {
+            (0..3 - i).map(move |j| {
+                let (u, v) = ((i as f64 + 1.0 / 3.0) / 3.0, (j as f64 + 1.0 / 3.0) / 3.0);
+                a + (b - a) * u + (c - a) * v
+            })
+        })
+    });
+    mesh.vertices.iter().copied().chain(inner)
 }
 
 /// What [`repair`] changed.
@@ -90,7 +118,7 @@ const NEIGHBOUR_CANDIDATES: usize = 4;
 /// module doc). `cells` are the mesh's features by cell.
 pub(crate) fn repair(
     field: &mut UnifiedField,
-    query: &MeshQuery,
+    query: &impl Exact,
     samples: &MeshSamples,
     cells: &BTreeMap<usize, CellFeatures>,
     creased: &[usize],
@@ -171,7 +199,7 @@ enum Action {
 /// point of its crossings where their normals differ, or no point.
 fn actions(
     field: &UnifiedField,
-    query: &MeshQuery,
+    query: &impl Exact,
     cells: &BTreeMap<usize, CellFeatures>,
     cell: usize,
 ) -> Vec<Action> {
@@ -179,7 +207,7 @@ fn actions(
     let h = spec.spacing;
     let margin = 0.5 * h;
     let now = owned(field, cell);
-    let tangents = crate::unified::crossing_tangents(field, query, cell);
+    let tangents = query.tangents(field, cell);
     let mut out = Vec::new();
     if !now.is_empty() {
         out.push(Action::Remove);
@@ -289,7 +317,7 @@ const SIDE: usize = 2 * MARGIN + 2;
 /// whole field's grid (the mesh samples are binned by its cells).
 fn block_error(
     local: &UnifiedField,
-    query: &MeshQuery,
+    query: &impl Exact,
     samples: &MeshSamples,
     cell: usize,
     spec: &GridSpec<3>,
@@ -358,7 +386,7 @@ fn farthest_to(points: &[DVec3], triangles: &[[DVec3; 3]], floor: f64) -> f64 {
 /// the mesh by more than `limit`, worst first.
 fn places_above(
     field: &UnifiedField,
-    query: &MeshQuery,
+    query: &impl Exact,
     samples: &MeshSamples,
     cells: &BTreeMap<usize, CellFeatures>,
     creased: &[usize],
