@@ -100,8 +100,10 @@ pub(crate) struct Repaired {
 }
 
 /// Error (in spacings) above which the surface around a place is
-/// repaired.
-pub(crate) const TARGET: f64 = 0.1;
+/// repaired. The repair measures six points per triangle; fandisk's
+/// max, measured with 16, was 0.101 h with 0.1, 0.100 h with 0.09 and
+/// 0.089 h with 0.08 (43 places instead of about 10).
+pub(crate) const TARGET: f64 = 0.08;
 
 /// Tries at a place beyond which, if none helps, its neighbours are
 /// skipped (fandisk: 50-73 around its crowded feature lines, 5-12 along
@@ -158,6 +160,9 @@ pub(crate) fn repair(
                 break;
             }
             report.places += (round == 0) as usize;
+            // A sample is a corner of up to eight cells of the block:
+            // it is turned or moved once.
+            let mut moved = std::collections::HashSet::new();
             let tried: Vec<(usize, Action)> = block(&spec, c, 1)
                 .filter(|&n| field.crosses(n))
                 .flat_map(|n| {
@@ -165,21 +170,47 @@ pub(crate) fn repair(
                         .into_iter()
                         .map(move |a| (n, a))
                 })
+                .filter(|&(n, a)| match a {
+                    Action::Turn(k) => moved.insert((corner_nodes(&spec, n)[k], None)),
+                    Action::Snap {
+                        corner,
+                        point,
+                        inside,
+                    } => {
+                        let key = Some((point.to_array().map(f64::to_bits), inside));
+                        moved.insert((corner_nodes(&spec, n)[corner], key))
+                    }
+                    _ => true,
+                })
                 .collect();
             let tries = tried.len();
-            let best = tried
-                .into_par_iter()
-                .filter_map(|(n, action)| {
-                    let mut trial = local.clone();
-                    apply(&mut trial, to_local(n), &action).then(|| {
-                        (
-                            block_error(&trial, query, samples, centre, &spec),
-                            n,
-                            action,
-                        )
+            let evaluate = |list: Vec<(usize, Action)>| {
+                list.into_par_iter()
+                    .filter_map(|(n, action)| {
+                        let mut trial = local.clone();
+                        apply(&mut trial, to_local(n), &action).then(|| {
+                            (
+                                block_error(&trial, query, samples, centre, &spec),
+                                n,
+                                action,
+                            )
+                        })
                     })
-                })
-                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                    .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+            };
+            // Moving samples is tried only where other points leave the
+            // place above the target (most places need none, at half
+            // the cost).
+            let (moves, points): (Vec<_>, Vec<_>) = tried
+                .into_iter()
+                .partition(|(_, a)| matches!(a, Action::Turn(_) | Action::Snap { .. }));
+            let mut best = evaluate(points);
+            if best.is_none_or(|b| b.0 > target * h) {
+                best = best
+                    .into_iter()
+                    .chain(evaluate(moves))
+                    .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            }
             match best.filter(|b| b.0 < now - 0.005 * h) {
                 Some((_, n, action)) => {
                     apply(field, n, &action);
