@@ -10,8 +10,13 @@
 //! target, and the crossed cells of the block try other points: their
 //! own candidates, points on the features of neighbours the surface does
 //! not cross, the QEF point of their crossings where those bend (also at
-//! creases gentler than the feature angle), or none. What brings the
-//! block's surface nearest the mesh is kept.
+//! creases gentler than the feature angle), or none; where that is not
+//! enough, a sample near the surface may turn to its other side, and in
+//! cells crossed by two feature lines a sample may move onto the line
+//! the cell's point does not keep (an offset field's sample in the
+//! unified field). What brings the block's surface nearest the mesh is
+//! kept, up to three changes per place. Sculpting repairs its changed
+//! cells the same way against the exact result ([`Exact`]).
 
 use crate::extract::corner_nodes;
 use crate::extract::SampledField;
