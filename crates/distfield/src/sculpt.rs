@@ -19,6 +19,7 @@ use crate::offset::{
     cells_around, may_take, node_position, on_outer_layer, stays_convex, OffsetField,
 };
 use crate::query::MeshQuery;
+use crate::refine::{mesh_points, Exact, MeshSamples};
 use crate::sharp::clamp_near;
 use crate::sharp::Tangent;
 use crate::unified::{
@@ -164,6 +165,9 @@ pub struct SculptReport {
     /// Of those, samples given the side other than against most of their
     /// neighbours, where that puts the cells' surface nearer the result.
     pub turned: usize,
+    /// Cells whose feature point the error-driven repair against the
+    /// exact result changed ([`crate::refine`]).
+    pub repaired: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -464,7 +468,123 @@ pub fn sculpt_udf(
     }
     report.turned = choose_sides(field, &combined, &snapped, &old_features, &corners);
     report.repicked = repick(field, &combined, &cells, &old_features, &corners);
+    report.repaired = repair(field, &combined, &surface, &cells, &old_features, &corners);
     Ok(report)
+}
+
+/// Construction's error-driven repair ([`crate::refine::repair`]) around
+/// the changed `cells`, against the exact result: the combined distance
+/// one way, points on the result the other (the object's surface where
+/// the tool left it, the tool's where it cuts the object, the new edges
+/// and corners). The rules above pick each cell's point by its own
+/// crop; only the two-way error over a block sees what they leave, e.g.
+/// a point that keeps the new edge but cuts an old one next door.
+/// Returns the number of cells changed.
+fn repair(
+    field: &mut UnifiedField,
+    combined: &Combined,
+    surface: &TriMesh,
+    cells: &[usize],
+    old_features: &BTreeMap<usize, CellFeatures>,
+    corners: &[DVec3],
+) -> usize {
+    let spec = field.spec;
+    let features: BTreeMap<usize, CellFeatures> = cells
+        .par_iter()
+        .filter_map(|&c| {
+            let bends = result_features(&spec, combined, c, old_features.get(&c), corners);
+            (!bends.is_empty()).then(|| {
+                let f = CellFeatures {
+                    bends,
+                    ..Default::default()
+                };
+                (c, f)
+            })
+        })
+        .collect();
+    let region: BTreeSet<usize> = cells
+        .iter()
+        .flat_map(|&c| crate::refine::block(&spec, c, 1))
+        .collect();
+    let points = result_points(&spec, combined, surface, &region)
+        .into_iter()
+        .chain(features.values().flat_map(|f| f.bends.iter().copied()));
+    let samples = MeshSamples::from_points(&spec, points);
+    crate::refine::repair(
+        field,
+        combined,
+        &samples,
+        &features,
+        cells,
+        crate::refine::TARGET,
+    )
+    .changed
+}
+
+/// Lattice points per axis and cell projected onto the tool for
+/// [`result_points`].
+const TOOL_SAMPLES: usize = 4;
+
+/// Points on the exact result in the cells of `region`: the object's
+/// surface points (as [`MeshSamples`] takes them) and projections onto
+/// the tool of a lattice in each cell, where the result keeps them.
+fn result_points(
+    spec: &GridSpec<3>,
+    combined: &Combined,
+    surface: &TriMesh,
+    region: &BTreeSet<usize>,
+) -> Vec<DVec3> {
+    let h = spec.spacing;
+    let kept = |p: &DVec3| {
+        crate::features::cell_of(spec, *p).is_some_and(|c| region.contains(&c))
+            && combined.signed_distance(*p).abs() < 1e-3 * h
+    };
+    let object: Vec<DVec3> = mesh_points(surface).collect();
+    let mut points: Vec<DVec3> = object.into_par_iter().filter(kept).collect();
+    let step = h / TOOL_SAMPLES as f64;
+    let region: Vec<usize> = region.iter().copied().collect();
+    // Only cells the tool's surface passes through have its points.
+    let touched = |c: &&usize| {
+        let centre = node_position(spec, **c) + DVec3::splat(0.5 * h);
+        combined.tool.signed_distance(centre).abs() <= 0.5 * 3f64.sqrt() * h
+    };
+    points.par_extend(region.par_iter().filter(touched).flat_map_iter(|&c| {
+        let lo = node_position(spec, c) + DVec3::splat(0.5 * step);
+        let n = TOOL_SAMPLES;
+        (0..n * n * n).filter_map(move |k| {
+            let at =
+                lo + DVec3::new((k % n) as f64, ((k / n) % n) as f64, (k / (n * n)) as f64) * step;
+            let p = combined.tool.closest_point(at);
+            kept(&p).then_some(p)
+        })
+    }));
+    points
+}
+
+impl Exact for Combined<'_> {
+    fn signed_distance(&self, p: DVec3) -> f64 {
+        Combined::signed_distance(self, p)
+    }
+
+    fn tangents(&self, field: &UnifiedField, cell: usize) -> Vec<Tangent> {
+        let spec = &field.spec;
+        let h = spec.spacing;
+        let nodes = corner_nodes(spec, cell);
+        EDGE_CORNERS
+            .iter()
+            .filter_map(|&[a, b]| {
+                let (na, nb) = (nodes[a as usize], nodes[b as usize]);
+                if (field.values[na] >= 0.0) == (field.values[nb] >= 0.0) {
+                    return None;
+                }
+                let axis = (a ^ b).trailing_zeros() as usize;
+                let origin = node_position(spec, na);
+                let mut p = origin;
+                p[axis] += edge_root(self, origin, axis, h)?;
+                Some((p, self.normal(p, h)?))
+            })
+            .collect()
+    }
 }
 
 /// A sample moved onto a new corner sits on the surface and may count as

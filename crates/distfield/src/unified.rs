@@ -115,8 +115,8 @@ pub struct UdfReport {
     /// Cells crossed by separate feature lines whose point was changed
     /// for one whose surrounding surface lies nearer the mesh.
     pub repicked: usize,
-    /// Cells whose feature point the error-driven repair changed
-    /// ([`crate::refine`]).
+    /// Changes the error-driven repair made ([`crate::refine`]): feature
+    /// points replaced or removed, samples turned or moved.
     pub repaired: usize,
     /// Directed distances given up because all corners of a feature cell
     /// already carried extra data.
@@ -256,6 +256,12 @@ pub fn build_udf(
         crate::refine::TARGET,
     );
     report.repaired = repaired.changed;
+    // The repair may move samples too.
+    report.positions = field
+        .extras
+        .values()
+        .filter(|e| matches!(e, Extra::Position(_)))
+        .count();
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))

@@ -528,8 +528,9 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
 /// Fandisk's unified field at 64 cells, exact point-to-triangle errors
 /// both ways (16 points per triangle, as the bench): exact crossings
 /// beside feature points, and the error-driven repair of feature points
-/// at 28° creases and at lines passing through cells the surface does
-/// not cross, bring the max and the mean down.
+/// at 28° creases, at lines passing through cells the surface does not
+/// cross and at two lines crossing the same cells, bring the max and the
+/// mean down (the goal: ≤ 0.1 h).
 #[test]
 fn fandisk_udf_error_below_the_repaired_bounds() {
     let shape = fandisk();
@@ -540,9 +541,11 @@ fn fandisk_udf_error_below_the_repaired_bounds() {
     assert_closed_manifold(&mesh, 2);
     let (max, mean) = two_way_error(&shape, &exact, &mesh, 16);
     eprintln!("udf: max {} h, mean {} h, {report:?}", max / h, mean / h);
-    // Main before these changes: 0.194 h / 0.0039 h; now 0.177 / 0.0028.
-    assert!(max < 0.185 * h, "udf max {} h", max / h);
-    assert!(mean < 0.0033 * h, "udf mean {} h", mean / h);
+    // Session 18: 0.194 h / 0.0039 h before the repair, 0.177 / 0.0027
+    // after; now 0.089 / 0.0027 (samples moved onto the second of two
+    // feature lines crossing the same cells, repair from 0.08 h on).
+    assert!(max < 0.1 * h, "udf max {} h", max / h);
+    assert!(mean < 0.003 * h, "udf mean {} h", mean / h);
     assert!(report.repaired > 0, "{report:?}");
 }
 
@@ -679,13 +682,14 @@ fn sculpting_fandisk_keeps_the_new_edge_beside_old_ones() {
                 / h
         })
         .fold(0.0, f64::max);
-    // 0.18 h and 0.32 h; 0.52 h and 0.36 h before samples were moved onto
-    // the new corners (on the side that fans nearer the result; 0.27 h
-    // with that alone) and the changed cells re-picked their points by
-    // the surface extracted around them.
+    // 0.13 h and 0.11 h since the changed cells are repaired against the
+    // exact result (0.18 h and 0.32 h before); 0.52 h and 0.36 h before
+    // samples were moved onto the new corners (on the side that fans
+    // nearer the result; 0.27 h with that alone) and the changed cells
+    // re-picked their points by the surface extracted around them.
     eprintln!("new edge off the surface by {worst} h; surface off the result by {off} h");
-    assert!(worst < 0.25, "the new edge is cut by {worst} h");
-    assert!(off < 0.4, "the surface leaves the result by {off} h");
+    assert!(worst < 0.15, "the new edge is cut by {worst} h");
+    assert!(off < 0.15, "the surface leaves the result by {off} h");
 }
 
 /// The ODF keeps sharp edges where faces lie just inside grid planes, as
@@ -720,4 +724,82 @@ fn odf_keeps_edges_of_faces_just_inside_grid_planes() {
         assert!(max < max_bound * h, "{name}: max {} h", max / h);
         assert!(mean < mean_bound * h, "{name}: mean {} h", mean / h);
     }
+}
+
+/// The turned bar with one long edge chamfered by a face `width` wide:
+/// two parallel feature lines that close together cross the same cells.
+fn chamfered_bar(width: f64) -> TriMesh {
+    let c = width / 2f64.sqrt();
+    let section = [
+        (-0.23, -0.19),
+        (0.23, -0.19),
+        (0.23, 0.19 - c),
+        (0.23 - c, 0.19),
+        (-0.23, 0.19),
+    ];
+    let vertices: Vec<DVec3> = [-1.0, 1.0]
+        .iter()
+        .flat_map(|&x| section.iter().map(move |&(y, z)| DVec3::new(x, y, z)))
+        .collect();
+    let n = section.len() as u32;
+    let mut triangles = Vec::new();
+    for i in 1..n - 1 {
+        triangles.push([n, n + i, n + i + 1]); // x = +1, outward +x
+        triangles.push([0, i + 1, i]); // x = -1
+    }
+    for i in 0..n {
+        let j = (i + 1) % n;
+        triangles.push([i, j, n + j]);
+        triangles.push([i, n + j, n + i]);
+    }
+    let bar = TriMesh {
+        vertices,
+        triangles,
+        normals: None,
+    };
+    rotate(&bar, [0.13, 0.07, 0.61])
+}
+
+/// Two feature lines 0.4 h apart (a chamfer along the turned bar's edge)
+/// cross the same cells and leave them through the same faces: one
+/// feature point per cell keeps one of them, and the repair's turned and
+/// moved samples (which took fandisk's such place from 0.18 h to below
+/// 0.1 h) keep the surface closed but gain little along a whole chamfer:
+/// its lines stay 0.21 h off (the same without the moves), 0.17-0.24 h
+/// for chamfers 0.3-0.5 h wide at 24 and 31 cells. A regression bound,
+/// not the 0.1 h goal.
+#[test]
+fn udf_keeps_two_feature_lines_crossing_the_same_cells() {
+    let size = GridSize::Resolution(24);
+    let h = grid_for(&turned_bar(), size, 2).unwrap().spacing;
+    let bar = chamfered_bar(0.4 * h);
+    let (udf, report) = udf_of(&bar, size);
+    assert!((udf.spec.spacing - h).abs() < 1e-3 * h);
+    let (mesh, _) = udf.extract();
+    assert_closed_manifold(&mesh, 2);
+    let features = surfrecon_distfield::features::Features::detect(&bar, 30.0);
+    assert_eq!(features.edges.len(), 15);
+    let surface = MeshQuery::new(&mesh).unwrap();
+    // The chamfer's two long edges: between vertices 2-7 and 3-8.
+    let mut worst = 0.0f64;
+    for (a, b) in [(2, 7), (3, 8)] {
+        let (a, b) = (bar.vertices[a], bar.vertices[b]);
+        let n = (a.distance(b) / (0.05 * h)) as usize;
+        for k in 0..=n {
+            let p = a.lerp(b, k as f64 / n as f64);
+            if p.distance(a).min(p.distance(b)) > 1.5 * h {
+                worst = worst.max(surface.signed_distance(p).abs() / h);
+            }
+        }
+    }
+    let exact = MeshQuery::new(&bar).unwrap();
+    let (max, mean) = two_way_error(&bar, &exact, &mesh, 16);
+    eprintln!(
+        "{report:?}\nchamfer lines {worst} h; everywhere max {} h, mean {} h",
+        max / h,
+        mean / h
+    );
+    assert!(report.repaired > 0, "{report:?}");
+    assert!(worst < 0.25, "a chamfer line is cut by {worst} h");
+    assert!(max < 0.2 * h, "max {} h", max / h);
 }

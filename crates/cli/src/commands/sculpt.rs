@@ -55,6 +55,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "samples_moved_onto_corners": r.snapped,
             "samples_turned": r.turned,
             "feature_points_repicked": r.repicked,
+            "feature_points_repaired": r.repaired,
         }));
     }
     field.write(&args.output)?;
