@@ -76,10 +76,12 @@ fn main() {
         let t = Instant::now();
         let (out, _) = odf.extract();
         let stored = format!(
-        "{} samples moved ({} aligned with features, {} smoothed) of {} candidates; feature energy {:.1} -> {:.1}",
+        "{} samples moved ({} aligned with features, {} smoothed, {} repair moves at {} places) of {} candidates; feature energy {:.1} -> {:.1}",
         report.moved,
         report.aligned,
         report.smoothed,
+        report.repaired,
+        report.repair_places,
         report.candidates,
         report.energy_before,
         report.energy_after

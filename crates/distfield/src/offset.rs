@@ -38,6 +38,8 @@ use crate::refine::block;
 use crate::unified::BAND_CELLS;
 use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
+
+mod repair;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::time::Instant;
 use surfrecon_geom::metrics::closest_point_on_triangle;
@@ -112,6 +114,10 @@ pub struct OdfReport {
     pub moved: usize,
     /// Samples moved by Laplacian smoothing away from the surface.
     pub smoothed: usize,
+    /// Places where the surface strayed from the mesh by more than
+    /// 0.1 h after the search, and moves the repair kept there.
+    pub repair_places: usize,
+    pub repaired: usize,
     /// Total E_dist (each cell's probes against its own triangles) of
     /// the fitted cells, the feature cells and their neighbours near the
     /// surface, before and after.
@@ -175,6 +181,8 @@ pub fn build_odf(
             .collect();
         active.retain(|n| near.contains(n));
     }
+    let points = repair::MeshPoints::new(mesh, &spec);
+    (report.repair_places, report.repaired) = repair::repair(&search, &mut field, &points);
     let mut field = field.into_field();
     report.smoothed = search.smooth_away_from_surface(&mut field);
     report.moved = field.moved.len();

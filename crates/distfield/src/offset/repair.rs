@@ -1,0 +1,323 @@
+//! Error-driven repair of an offset field's samples.
+//!
+//! The search minimizes a sum of squares over each sample's cells, which
+//! is a poor proxy for the largest error: where a feature line bends or
+//! two lines meet within a cell, the sum is lowest with the surface a
+//! little off everywhere, or far off at one point. Construction knows
+//! the mesh, so it measures the surface against it in both directions
+//! around the fitted cells, and at each place above [`TARGET`], worst
+//! first, lets the samples near the worst point try other positions:
+//! small steps, their nearest surface point, feature points in reach,
+//! the other side where they lie on the surface. A try is scored by the
+//! largest error over every cell it changes and the cells around the
+//! place; the best one that lowers it is kept, up to
+//! [`MOVES_PER_PLACE`] per place.
+
+use super::{
+    cell_triangles, corner_nodes, node_position, on_outer_layer, on_surface_values, Movable,
+    Search,
+};
+use crate::features::cell_of;
+use crate::refine::block;
+use std::collections::{BTreeSet, HashMap};
+use surfrecon_geom::metrics::closest_point_on_triangle;
+use surfrecon_geom::{DVec3, TriMesh};
+use surfrecon_grid::GridSpec;
+
+/// Error (in spacings) above which a place is repaired.
+pub(crate) const TARGET: f64 = 0.1;
+/// Moves kept at one place at most.
+const MOVES_PER_PLACE: usize = 3;
+/// Least gain (in spacings) for a move to be kept.
+const GAIN: f64 = 0.005;
+/// Samples within this many spacings of a place's worst point try moves.
+const REACH: f64 = 1.2;
+/// Distance (in spacings) counted for a mesh point with no surface near.
+const FAR: f64 = 2.0;
+
+/// Points on the mesh (its vertices and ten points inside each triangle,
+/// the lattice the error measurements use) by the cell containing them.
+pub(crate) struct MeshPoints {
+    by_cell: HashMap<usize, Vec<DVec3>>,
+}
+
+impl MeshPoints {
+    pub(crate) fn new(mesh: &TriMesh, spec: &GridSpec<3>) -> Self {
+        let mut by_cell: HashMap<usize, Vec<DVec3>> = HashMap::new();
+        let inner = (0..mesh.triangles.len()).flat_map(|t| lattice(mesh.corners(t)));
+        for p in mesh.vertices.iter().copied().chain(inner) {
+            if let Some(c) = cell_of(spec, p) {
+                by_cell.entry(c).or_default().push(p);
+            }
+        }
+        Self { by_cell }
+    }
+
+    fn in_cell(&self, cell: usize) -> &[DVec3] {
+        self.by_cell.get(&cell).map(Vec::as_slice).unwrap_or(&[])
+    }
+}
+
+/// Ten points spread inside a triangle.
+fn lattice([a, b, c]: [DVec3; 3]) -> impl Iterator<Item = DVec3> {
+    (0..4).flat_map(move |i| {
+        (0..4 - i).map(move |j| {
+            let (u, v) = ((i as f64 + 1.0 / 3.0) / 4.0, (j as f64 + 1.0 / 3.0) / 4.0);
+            a + (b - a) * u + (c - a) * v
+        })
+    })
+}
+
+/// An error and where it is.
+#[derive(Clone, Copy, Debug)]
+struct Worst {
+    error: f64,
+    at: DVec3,
+}
+
+impl Worst {
+    const NONE: Self = Self {
+        error: 0.0,
+        at: DVec3::ZERO,
+    };
+
+    fn max(self, other: Self) -> Self {
+        if other.error > self.error {
+            other
+        } else {
+            self
+        }
+    }
+}
+
+/// The measurements of one field.
+struct Gauge<'s, 'a> {
+    search: &'s Search<'a>,
+    points: &'s MeshPoints,
+}
+
+/// The triangles of some cells.
+type Surface = HashMap<usize, Vec<[DVec3; 3]>>;
+
+impl Gauge<'_, '_> {
+    fn spec(&self) -> &GridSpec<3> {
+        self.search.spec
+    }
+
+    /// The triangles marching cubes makes in each of `cells`.
+    fn surface(&self, field: &impl Movable, cells: impl Iterator<Item = usize>) -> Surface {
+        cells
+            .map(|c| {
+                let corners =
+                    corner_nodes(self.spec(), c).map(|n| (field.position(n), field.value(n)));
+                (c, cell_triangles(&corners))
+            })
+            .collect()
+    }
+
+    /// The largest distance from `triangles` (their corners and a
+    /// lattice inside each) to the mesh.
+    fn off(&self, triangles: &[[DVec3; 3]]) -> Worst {
+        let mut worst = Worst::NONE;
+        for p in triangles.iter().flat_map(|&t| t.into_iter().chain(lattice(t))) {
+            let d = self.search.query.signed_distance(p).abs();
+            if d > worst.error {
+                worst = Worst { error: d, at: p };
+            }
+        }
+        worst
+    }
+
+    /// The largest distance from the mesh points in `cell` to the
+    /// triangles of the cells around it, or `floor` if that is larger
+    /// (a point stops at the first triangle nearer than the largest so
+    /// far).
+    fn back<'t>(
+        &self,
+        cell: usize,
+        surface: &dyn Fn(usize) -> &'t [[DVec3; 3]],
+        floor: Worst,
+    ) -> Worst {
+        let points = self.points.in_cell(cell);
+        if points.is_empty() {
+            return floor;
+        }
+        let around: Vec<[DVec3; 3]> = block(self.spec(), cell, 1)
+            .flat_map(|c| surface(c).iter().copied())
+            .collect();
+        let mut worst = floor;
+        let far = FAR * self.spec().spacing;
+        for &p in points {
+            let mut nearest = far;
+            for t in &around {
+                nearest = nearest.min(p.distance(closest_point_on_triangle(p, *t)));
+                if nearest <= worst.error {
+                    break;
+                }
+            }
+            if nearest > worst.error {
+                worst = Worst {
+                    error: nearest,
+                    at: p,
+                };
+            }
+        }
+        worst
+    }
+}
+
+/// Repair the samples of `field` around every place where its surface
+/// strays from the mesh by more than [`TARGET`] spacings (see the module
+/// doc). Returns the places above it and how many moves were kept.
+pub(crate) fn repair(
+    search: &Search,
+    field: &mut impl Movable,
+    points: &MeshPoints,
+) -> (usize, usize) {
+    let gauge = Gauge { search, points };
+    let spec = *search.spec;
+    let h = spec.spacing;
+    let fitted: BTreeSet<usize> = search
+        .cells
+        .keys()
+        .flat_map(|&c| block(&spec, c, 1))
+        .collect();
+    let surface = gauge.surface(&*field, fitted.iter().flat_map(|&c| block(&spec, c, 1)));
+    let empty: Vec<[DVec3; 3]> = Vec::new();
+    let of = |c: usize| surface.get(&c).unwrap_or(&empty).as_slice();
+    let mut places: Vec<(f64, usize)> = fitted
+        .iter()
+        .map(|&c| (gauge.back(c, &of, gauge.off(of(c))).error, c))
+        .filter(|&(e, _)| e > TARGET * h)
+        .collect();
+    places.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut kept = 0;
+    for &(_, place) in &places {
+        for _ in 0..MOVES_PER_PLACE {
+            match best_move(&gauge, &*field, place) {
+                Some((n, p, v)) => {
+                    field.set(n, p, v);
+                    kept += 1;
+                }
+                None => break,
+            }
+        }
+    }
+    (places.len(), kept)
+}
+
+/// The move of a sample near `place`'s worst point that lowers the
+/// largest error over the cells around the place and those the move
+/// changes, by at least [`GAIN`], most; None if the place is within
+/// [`TARGET`] or nothing helps.
+fn best_move(gauge: &Gauge, field: &impl Movable, place: usize) -> Option<(usize, DVec3, f64)> {
+    let spec = gauge.spec();
+    let h = spec.spacing;
+    let surface = gauge.surface(field, block(spec, place, 4));
+    let empty: Vec<[DVec3; 3]> = Vec::new();
+    let of = |c: usize| surface.get(&c).unwrap_or(&empty).as_slice();
+    let worst = gauge.back(place, &of, gauge.off(of(place)));
+    if worst.error <= TARGET * h {
+        return None;
+    }
+    let around: Vec<usize> = block(spec, place, 1).collect();
+    let mut off: HashMap<usize, Worst> = HashMap::new();
+    let mut back: HashMap<usize, Worst> = HashMap::new();
+    let samples: BTreeSet<usize> = around
+        .iter()
+        .flat_map(|&c| corner_nodes(spec, c))
+        .filter(|&n| !on_outer_layer(spec, n) && field.position(n).distance(worst.at) <= REACH * h)
+        .collect();
+    let mut best: Option<(f64, usize, DVec3, f64)> = None;
+    for n in samples {
+        let own: Vec<usize> = gauge.search.cells_around(n).collect();
+        // The cells whose error the move can change: its own eight and
+        // those whose mesh points may find their nearest triangle there.
+        let touched: BTreeSet<usize> = own
+            .iter()
+            .flat_map(|&c| block(spec, c, 1))
+            .chain(around.iter().copied())
+            .collect();
+        let mut old = Worst::NONE;
+        let mut kept_off = Worst::NONE;
+        for &c in &touched {
+            let o = *off.entry(c).or_insert_with(|| gauge.off(of(c)));
+            let b = *back
+                .entry(c)
+                .or_insert_with(|| gauge.back(c, &of, Worst::NONE));
+            old = old.max(o).max(b);
+            if !own.contains(&c) {
+                kept_off = kept_off.max(o);
+            }
+        }
+        for (p, v) in tries(gauge.search, field, n) {
+            let changed: Surface = own
+                .iter()
+                .map(|&c| {
+                    let corners = corner_nodes(spec, c).map(|m| {
+                        if m == n {
+                            (p, v)
+                        } else {
+                            (field.position(m), field.value(m))
+                        }
+                    });
+                    (c, cell_triangles(&corners))
+                })
+                .collect();
+            let after = |c: usize| changed.get(&c).map_or_else(|| of(c), Vec::as_slice);
+            // A try stops once it cannot beat the old error or the best.
+            let beaten = |new: Worst| {
+                let gain = old.error - new.error;
+                gain < GAIN * h || best.is_some_and(|b| gain <= b.0)
+            };
+            let mut new = kept_off;
+            for &c in &own {
+                new = new.max(gauge.off(after(c)));
+            }
+            for &c in &touched {
+                if beaten(new) {
+                    break;
+                }
+                new = gauge.back(c, &after, new);
+            }
+            if !beaten(new) {
+                best = Some((old.error - new.error, n, p, v));
+            }
+        }
+    }
+    best.map(|(_, n, p, v)| (n, p, v))
+}
+
+/// The legal positions and values sample `n` may try: steps of h/8 and
+/// h/4 along the axes, its nearest surface point, feature points in its
+/// cells, and the other side where it lies on the surface.
+fn tries(search: &Search, field: &impl Movable, n: usize) -> Vec<(DVec3, f64)> {
+    let spec = search.spec;
+    let h = spec.spacing;
+    let here = field.position(n);
+    let mut places: Vec<DVec3> = vec![here, search.query.closest_point(here)];
+    for step in [0.125 * h, 0.25 * h] {
+        for k in 0..6 {
+            let mut d = DVec3::ZERO;
+            d[k / 2] = if k % 2 == 0 { step } else { -step };
+            places.push(here + d);
+        }
+    }
+    places.extend(search.feature_points_near(n, here));
+    let home = node_position(spec, n);
+    let reach = 0.5 * h * (1.0 - 1e-9);
+    let mut out = Vec::new();
+    for p in places {
+        if (p - home).abs().max_element() > reach || !search.stays_convex(field, n, p) {
+            continue;
+        }
+        for v in on_surface_values(search.query.signed_distance(p), h) {
+            if (p, v) != (here, field.value(n)) {
+                if let Some(v) = search.same_topology(field, n, v) {
+                    out.push((p, v));
+                }
+            }
+        }
+    }
+    out
+}
