@@ -14,8 +14,7 @@
 //! [`MOVES_PER_PLACE`] per place.
 
 use super::{
-    cell_triangles, corner_nodes, node_position, on_outer_layer, on_surface_values, Movable,
-    Search,
+    cell_triangles, corner_nodes, node_position, on_outer_layer, on_surface_values, Movable, Search,
 };
 use crate::features::cell_of;
 use crate::refine::block;
@@ -119,7 +118,10 @@ impl Gauge<'_, '_> {
     /// lattice inside each) to the mesh.
     fn off(&self, triangles: &[[DVec3; 3]]) -> Worst {
         let mut worst = Worst::NONE;
-        for p in triangles.iter().flat_map(|&t| t.into_iter().chain(lattice(t))) {
+        for p in triangles
+            .iter()
+            .flat_map(|&t| t.into_iter().chain(lattice(t)))
+        {
             let d = self.search.query.signed_distance(p).abs();
             if d > worst.error {
                 worst = Worst { error: d, at: p };
@@ -195,8 +197,10 @@ pub(crate) fn repair(
     for &(_, place) in &places {
         for _ in 0..MOVES_PER_PLACE {
             match best_move(&gauge, &*field, place) {
-                Some((n, p, v)) => {
-                    field.set(n, p, v);
+                Some(m) => {
+                    for (n, p, v) in m {
+                        field.set(n, p, v);
+                    }
                     kept += 1;
                 }
                 None => break,
@@ -210,7 +214,7 @@ pub(crate) fn repair(
 /// largest error over the cells around the place and those the move
 /// changes, by at least [`GAIN`], most; None if the place is within
 /// [`TARGET`] or nothing helps.
-fn best_move(gauge: &Gauge, field: &impl Movable, place: usize) -> Option<(usize, DVec3, f64)> {
+fn best_move(gauge: &Gauge, field: &impl Movable, place: usize) -> Option<Move> {
     let spec = gauge.spec();
     let h = spec.spacing;
     let surface = gauge.surface(field, block(spec, place, 4));
@@ -228,49 +232,43 @@ fn best_move(gauge: &Gauge, field: &impl Movable, place: usize) -> Option<(usize
         .flat_map(|&c| corner_nodes(spec, c))
         .filter(|&n| !on_outer_layer(spec, n) && field.position(n).distance(worst.at) <= REACH * h)
         .collect();
-    let mut best: Option<(f64, usize, DVec3, f64)> = None;
+    let mut best: Option<(f64, Move)> = None;
     for n in samples {
-        let own: Vec<usize> = gauge.search.cells_around(n).collect();
-        // The cells whose error the move can change: its own eight and
-        // those whose mesh points may find their nearest triangle there.
-        let touched: BTreeSet<usize> = own
-            .iter()
-            .flat_map(|&c| block(spec, c, 1))
-            .chain(around.iter().copied())
-            .collect();
-        let mut old = Worst::NONE;
-        let mut kept_off = Worst::NONE;
-        for &c in &touched {
-            let o = *off.entry(c).or_insert_with(|| gauge.off(of(c)));
-            let b = *back
-                .entry(c)
-                .or_insert_with(|| gauge.back(c, &of, Worst::NONE));
-            old = old.max(o).max(b);
-            if !own.contains(&c) {
-                kept_off = kept_off.max(o);
-            }
-        }
-        for (p, v) in tries(gauge.search, field, n) {
-            let changed: Surface = own
-                .iter()
-                .map(|&c| {
-                    let corners = corner_nodes(spec, c).map(|m| {
-                        if m == n {
-                            (p, v)
-                        } else {
-                            (field.position(m), field.value(m))
-                        }
-                    });
-                    (c, cell_triangles(&corners))
-                })
+        for m in tries(gauge.search, field, n) {
+            let view = Overlay {
+                base: field,
+                moves: m.clone(),
+            };
+            let own: BTreeSet<usize> = (m.iter())
+                .flat_map(|&(n, _, _)| gauge.search.cells_around(n))
                 .collect();
+            // The cells whose error the move can change: its own and
+            // those whose mesh points may find their nearest triangle
+            // there.
+            let touched: BTreeSet<usize> = own
+                .iter()
+                .flat_map(|&c| block(spec, c, 1))
+                .chain(around.iter().copied())
+                .collect();
+            let mut old = Worst::NONE;
+            let mut new = Worst::NONE;
+            for &c in &touched {
+                let o = *off.entry(c).or_insert_with(|| gauge.off(of(c)));
+                let b = *back
+                    .entry(c)
+                    .or_insert_with(|| gauge.back(c, &of, Worst::NONE));
+                old = old.max(o).max(b);
+                if !own.contains(&c) {
+                    new = new.max(o);
+                }
+            }
+            let changed: Surface = gauge.surface(&view, own.iter().copied());
             let after = |c: usize| changed.get(&c).map_or_else(|| of(c), Vec::as_slice);
             // A try stops once it cannot beat the old error or the best.
             let beaten = |new: Worst| {
                 let gain = old.error - new.error;
-                gain < GAIN * h || best.is_some_and(|b| gain <= b.0)
+                gain < GAIN * h || best.as_ref().is_some_and(|b| gain <= b.0)
             };
-            let mut new = kept_off;
             for &c in &own {
                 new = new.max(gauge.off(after(c)));
             }
@@ -281,17 +279,43 @@ fn best_move(gauge: &Gauge, field: &impl Movable, place: usize) -> Option<(usize
                 new = gauge.back(c, &after, new);
             }
             if !beaten(new) {
-                best = Some((old.error - new.error, n, p, v));
+                best = Some((old.error - new.error, m));
             }
         }
     }
-    best.map(|(_, n, p, v)| (n, p, v))
+    best.map(|(_, m)| m)
 }
 
-/// The legal positions and values sample `n` may try: steps of h/8 and
-/// h/4 along the axes, its nearest surface point, feature points in its
-/// cells, and the other side where it lies on the surface.
-fn tries(search: &Search, field: &impl Movable, n: usize) -> Vec<(DVec3, f64)> {
+/// Samples to move, in order: (sample, position, value).
+type Move = Vec<(usize, DVec3, f64)>;
+
+/// A field seen with some of its samples moved.
+struct Overlay<'f, F> {
+    base: &'f F,
+    moves: Move,
+}
+
+impl<F: Movable> Movable for Overlay<'_, F> {
+    fn value(&self, node: usize) -> f64 {
+        let moved = self.moves.iter().rev().find(|m| m.0 == node);
+        moved.map_or_else(|| self.base.value(node), |m| m.2)
+    }
+    fn position(&self, node: usize) -> DVec3 {
+        let moved = self.moves.iter().rev().find(|m| m.0 == node);
+        moved.map_or_else(|| self.base.position(node), |m| m.1)
+    }
+    fn set(&mut self, node: usize, position: DVec3, value: f64) {
+        self.moves.push((node, position, value));
+    }
+}
+
+/// The legal moves sample `n` may try: steps of h/8 and h/4 along the
+/// axes, its nearest surface point, feature points in its cells, and the
+/// other side where it lies on the surface. A position that would make a
+/// cell concave is tried with a neighbour put back on its node first,
+/// where that makes room (a sample off its node can block the way to a
+/// corner just inside the next box).
+fn tries(search: &Search, field: &impl Movable, n: usize) -> Vec<Move> {
     let spec = search.spec;
     let h = spec.spacing;
     let here = field.position(n);
@@ -308,16 +332,61 @@ fn tries(search: &Search, field: &impl Movable, n: usize) -> Vec<(DVec3, f64)> {
     let reach = 0.5 * h * (1.0 - 1e-9);
     let mut out = Vec::new();
     for p in places {
-        if (p - home).abs().max_element() > reach || !search.stays_convex(field, n, p) {
+        if (p - home).abs().max_element() > reach {
             continue;
         }
+        let first: Move = if search.stays_convex(field, n, p) {
+            Vec::new()
+        } else {
+            match make_room(search, field, n, p) {
+                Some(m) => vec![m],
+                None => continue,
+            }
+        };
+        let view = Overlay {
+            base: field,
+            moves: first.clone(),
+        };
         for v in on_surface_values(search.query.signed_distance(p), h) {
-            if (p, v) != (here, field.value(n)) {
-                if let Some(v) = search.same_topology(field, n, v) {
-                    out.push((p, v));
-                }
+            if first.is_empty() && (p, v) == (here, field.value(n)) {
+                continue;
+            }
+            if let Some(v) = search.same_topology(&view, n, v) {
+                let mut m = first.clone();
+                m.push((n, p, v));
+                out.push(m);
             }
         }
     }
     out
+}
+
+/// A neighbour of `n` put back on its node (legally) so that `n` may go
+/// to `p` keeping every cell convex, if one does.
+fn make_room(
+    search: &Search,
+    field: &impl Movable,
+    n: usize,
+    p: DVec3,
+) -> Option<(usize, DVec3, f64)> {
+    let spec = search.spec;
+    let h = spec.spacing;
+    let neighbours: BTreeSet<usize> = (search.cells_around(n))
+        .flat_map(|c| corner_nodes(spec, c))
+        .filter(|&m| m != n && !on_outer_layer(spec, m))
+        .collect();
+    neighbours.into_iter().find_map(|m| {
+        let home = node_position(spec, m);
+        if field.position(m) == home || !search.stays_convex(field, m, home) {
+            return None;
+        }
+        let v = on_surface_values(search.query.signed_distance(home), h)
+            .into_iter()
+            .find_map(|v| search.same_topology(field, m, v))?;
+        let view = Overlay {
+            base: field,
+            moves: vec![(m, home, v)],
+        };
+        search.stays_convex(&view, n, p).then_some((m, home, v))
+    })
 }
