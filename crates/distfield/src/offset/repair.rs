@@ -18,6 +18,7 @@ use super::{
 };
 use crate::features::cell_of;
 use crate::refine::block;
+use rayon::prelude::*;
 use std::collections::{BTreeSet, HashMap};
 use surfrecon_geom::metrics::closest_point_on_triangle;
 use surfrecon_geom::{DVec3, TriMesh};
@@ -187,8 +188,9 @@ pub(crate) fn repair(
     let surface = gauge.surface(&*field, fitted.iter().flat_map(|&c| block(&spec, c, 1)));
     let empty: Vec<[DVec3; 3]> = Vec::new();
     let of = |c: usize| surface.get(&c).unwrap_or(&empty).as_slice();
+    let fitted: Vec<usize> = fitted.into_iter().collect();
     let mut places: Vec<(f64, usize)> = fitted
-        .iter()
+        .par_iter()
         .map(|&c| (gauge.back(c, &of, gauge.off(of(c))).error, c))
         .filter(|&(e, _)| e > TARGET * h)
         .collect();
@@ -217,7 +219,9 @@ pub(crate) fn repair(
 fn best_move(gauge: &Gauge, field: &impl Movable, place: usize) -> Option<Move> {
     let spec = gauge.spec();
     let h = spec.spacing;
-    let surface = gauge.surface(field, block(spec, place, 4));
+    // A move changes cells up to three from the place (a neighbour put
+    // back on its node), whose errors see the triangles two further.
+    let surface = gauge.surface(field, block(spec, place, 5));
     let empty: Vec<[DVec3; 3]> = Vec::new();
     let of = |c: usize| surface.get(&c).unwrap_or(&empty).as_slice();
     let worst = gauge.back(place, &of, gauge.off(of(place)));
@@ -225,65 +229,75 @@ fn best_move(gauge: &Gauge, field: &impl Movable, place: usize) -> Option<Move> 
         return None;
     }
     let around: Vec<usize> = block(spec, place, 1).collect();
-    let mut off: HashMap<usize, Worst> = HashMap::new();
-    let mut back: HashMap<usize, Worst> = HashMap::new();
     let samples: BTreeSet<usize> = around
         .iter()
         .flat_map(|&c| corner_nodes(spec, c))
         .filter(|&n| !on_outer_layer(spec, n) && field.position(n).distance(worst.at) <= REACH * h)
         .collect();
-    let mut best: Option<(f64, Move)> = None;
-    for n in samples {
-        for m in tries(gauge.search, field, n) {
+    let samples: Vec<usize> = samples.into_iter().collect();
+    let moves: Vec<Move> = samples
+        .par_iter()
+        .flat_map_iter(|&n| tries(gauge.search, field, n))
+        .collect();
+    // Per move, its own cells and those whose mesh points may find their
+    // nearest triangle there, with the cells around the place.
+    let cells: Vec<(BTreeSet<usize>, BTreeSet<usize>)> = moves
+        .iter()
+        .map(|m| {
+            let own: BTreeSet<usize> = (m.iter())
+                .flat_map(|&(n, _, _)| gauge.search.cells_around(n))
+                .collect();
+            let touched = (own.iter())
+                .flat_map(|&c| block(spec, c, 1))
+                .chain(around.iter().copied())
+                .collect();
+            (own, touched)
+        })
+        .collect();
+    let region: BTreeSet<usize> = cells.iter().flat_map(|(_, t)| t.iter().copied()).collect();
+    let now: HashMap<usize, (Worst, Worst)> = region
+        .into_par_iter()
+        .map(|c| (c, (gauge.off(of(c)), gauge.back(c, &of, Worst::NONE))))
+        .collect();
+    let gains: Vec<f64> = (moves.par_iter().zip(&cells))
+        .map(|(m, (own, touched))| {
+            let mut old = Worst::NONE;
+            let mut new = Worst::NONE;
+            for c in touched {
+                let (o, b) = now[c];
+                old = old.max(o).max(b);
+                if !own.contains(c) {
+                    new = new.max(o);
+                }
+            }
             let view = Overlay {
                 base: field,
                 moves: m.clone(),
             };
-            let own: BTreeSet<usize> = (m.iter())
-                .flat_map(|&(n, _, _)| gauge.search.cells_around(n))
-                .collect();
-            // The cells whose error the move can change: its own and
-            // those whose mesh points may find their nearest triangle
-            // there.
-            let touched: BTreeSet<usize> = own
-                .iter()
-                .flat_map(|&c| block(spec, c, 1))
-                .chain(around.iter().copied())
-                .collect();
-            let mut old = Worst::NONE;
-            let mut new = Worst::NONE;
-            for &c in &touched {
-                let o = *off.entry(c).or_insert_with(|| gauge.off(of(c)));
-                let b = *back
-                    .entry(c)
-                    .or_insert_with(|| gauge.back(c, &of, Worst::NONE));
-                old = old.max(o).max(b);
-                if !own.contains(&c) {
-                    new = new.max(o);
-                }
-            }
             let changed: Surface = gauge.surface(&view, own.iter().copied());
             let after = |c: usize| changed.get(&c).map_or_else(|| of(c), Vec::as_slice);
-            // A try stops once it cannot beat the old error or the best.
-            let beaten = |new: Worst| {
-                let gain = old.error - new.error;
-                gain < GAIN * h || best.as_ref().is_some_and(|b| gain <= b.0)
-            };
-            for &c in &own {
+            for &c in own {
                 new = new.max(gauge.off(after(c)));
             }
-            for &c in &touched {
-                if beaten(new) {
+            // A try stops once it cannot gain enough.
+            for &c in touched {
+                if old.error - new.error < GAIN * h {
                     break;
                 }
                 new = gauge.back(c, &after, new);
             }
-            if !beaten(new) {
-                best = Some((old.error - new.error, m));
-            }
-        }
-    }
-    best.map(|(_, m)| m)
+            old.error - new.error
+        })
+        .collect();
+    // The largest gain, the first of equal ones.
+    let best =
+        (0..moves.len())
+            .filter(|&k| gains[k] >= GAIN * h)
+            .fold(None, |best: Option<usize>, k| match best {
+                Some(b) if gains[b] >= gains[k] => Some(b),
+                _ => Some(k),
+            });
+    best.map(|k| moves[k].clone())
 }
 
 /// Samples to move, in order: (sample, position, value).
