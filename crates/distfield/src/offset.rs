@@ -182,7 +182,11 @@ pub fn build_odf(
         active.retain(|n| near.contains(n));
     }
     let points = repair::MeshPoints::new(mesh, &spec);
-    (report.repair_places, report.repaired) = repair::repair(&search, &mut field, &points);
+    let crease_angle = repair::CREASE_ANGLE_DEG.min(options.feature_angle_deg);
+    let creases = Features::detect(mesh, crease_angle);
+    let creases = cells_with_features(mesh, &creases, &spec, |_| true);
+    (report.repair_places, report.repaired) =
+        repair::repair(&search, &mut field, &points, &creases);
     let mut field = field.into_field();
     report.smoothed = search.smooth_away_from_surface(&mut field);
     report.moved = field.moved.len();
