@@ -281,39 +281,20 @@ fn distance2_to(p: DVec3, triangles: &[[DVec3; 3]]) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-/// Triangles with their bounding boxes, in groups with theirs, for
-/// nearest-distance queries that skip the groups and triangles whose box
-/// is farther than the best so far.
+/// Triangles with their bounding boxes, for nearest-distance queries
+/// that skip the triangles whose box is farther than the best so far.
 #[derive(Default)]
 struct Boxed {
     triangles: Vec<([DVec3; 3], DVec3, DVec3)>,
-    /// Bounding box and triangle range of each group.
-    groups: Vec<(DVec3, DVec3, std::ops::Range<usize>)>,
 }
 
 impl Boxed {
     fn new(triangles: impl IntoIterator<Item = [DVec3; 3]>) -> Self {
-        Self::grouped(std::iter::once(triangles))
-    }
-
-    /// Triangles in groups (the cells of a block): a query far from a
-    /// group skips it at once.
-    fn grouped<G: IntoIterator<Item = [DVec3; 3]>>(groups: impl IntoIterator<Item = G>) -> Self {
-        let mut boxed = Self::default();
-        for group in groups {
-            let start = boxed.triangles.len();
-            let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-            for t in group {
-                let (a, b) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-                (lo, hi) = (lo.min(a), hi.max(b));
-                boxed.triangles.push((t, a, b));
-            }
-            let end = boxed.triangles.len();
-            if end > start {
-                boxed.groups.push((lo, hi, start..end));
-            }
-        }
-        boxed
+        let triangles = triangles
+            .into_iter()
+            .map(|t| (t, t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
+            .collect();
+        Self { triangles }
     }
 
     /// Squared distance from `p` to the nearest triangle, or `cap` if
@@ -324,28 +305,20 @@ impl Boxed {
 
     /// [`Self::distance2`] starting from triangle `*hint` (the nearest
     /// to a point close by), which then becomes the nearest to `p`: a
-    /// near first guess lets the box test skip most triangles. (A
-    /// group's box holds its triangles' boxes, so skipping it skips only
-    /// triangles the box test would skip.)
+    /// near first guess lets the box test skip most triangles.
     fn distance2_from(&self, p: DVec3, cap: f64, hint: &mut usize) -> f64 {
         let d2 = |t: &[DVec3; 3]| p.distance_squared(closest_point_on_triangle(p, *t));
-        let away = |lo: DVec3, hi: DVec3| (lo - p).max(p - hi).max(DVec3::ZERO).length_squared();
         let mut best = cap;
         if let Some((t, _, _)) = self.triangles.get(*hint) {
             best = best.min(d2(t));
         }
-        for (lo, hi, range) in &self.groups {
-            if away(*lo, *hi) >= best {
-                continue;
-            }
-            for k in range.clone() {
-                let (t, lo, hi) = &self.triangles[k];
-                if k != *hint && away(*lo, *hi) < best {
-                    let d = d2(t);
-                    if d < best {
-                        best = d;
-                        *hint = k;
-                    }
+        for (k, (t, lo, hi)) in self.triangles.iter().enumerate() {
+            let outside = (*lo - p).max(p - *hi).max(DVec3::ZERO);
+            if k != *hint && outside.length_squared() < best {
+                let d = d2(t);
+                if d < best {
+                    best = d;
+                    *hint = k;
                 }
             }
         }
@@ -913,6 +886,9 @@ impl<'a> Search<'a> {
         }
         let w = self.weights;
         let total = |distance: f64| w.distance * distance + w.spring * spring + w.ortho * ortho;
+        if total(0.0) >= bound {
+            return None;
+        }
         let distance = self.block_energy(node, &at, &|partial| total(partial) >= bound, memo)?;
         Some(total(distance))
     }
@@ -999,12 +975,12 @@ impl<'a> Search<'a> {
                 (c, corners.map(|(p, _)| p), patch)
             })
             .collect();
-        let solid = Boxed::grouped(patches.iter().map(|(_, _, patch)| {
-            patch
+        let solid = Boxed::new(
+            patches
                 .iter()
-                .copied()
-                .filter(|t| (t[1] - t[0]).cross(t[2] - t[0]).length() > 1e-6 * h2)
-        }));
+                .flat_map(|(_, _, patch)| patch.iter().copied())
+                .filter(|t| (t[1] - t[0]).cross(t[2] - t[0]).length() > 1e-6 * h2),
+        );
         let mut hint = 0;
         let mut to_block = |q: DVec3| solid.distance2_from(q, UNREACHED * h2, &mut hint);
         let mut energy = 0.0;
