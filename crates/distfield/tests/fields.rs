@@ -494,6 +494,18 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
     )
     .unwrap();
     let (odf_mesh, _) = odf.extract();
+    // Every sample stays inside its cell (the box of half a spacing
+    // around its node), the repair's moves included.
+    for (&n, &p) in &odf.moved {
+        let node = DVec3::from_array(odf.spec.position(odf.spec.unlinear(n as usize)));
+        let off = (p - node).abs().max_element();
+        let h = odf.spec.spacing;
+        assert!(
+            off < 0.5 * h,
+            "sample {n} at {p}, {} h off its node",
+            off / h
+        );
+    }
     for (name, mesh) in [("udf", &udf_mesh), ("odf", &odf_mesh)] {
         assert_closed_manifold(mesh, 2);
         let (max, mean) = error(mesh);
