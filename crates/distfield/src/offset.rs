@@ -743,7 +743,8 @@ impl<'a> Search<'a> {
                 f64::INFINITY,
                 &mut memo,
             )
-            .expect("no bound");
+            // Only an infinite energy (huge weights) reaches no bound.
+            .unwrap_or(f64::INFINITY);
         // A try must come below `current` and below the best so far:
         // its energy is abandoned once its partial sum reaches that.
         let mut best: Option<(DVec3, f64, f64)> = None;
