@@ -32,6 +32,9 @@ pub(crate) const CREASE_ANGLE_DEG: f64 = 20.0;
 pub(crate) const TARGET: f64 = 0.1;
 /// Moves kept at one place at most.
 const MOVES_PER_PLACE: usize = 3;
+/// Error (in spacings) above which a place where no single move helps
+/// tries pairs of moves.
+const PAIRS_ABOVE: f64 = 0.125;
 /// Least gain (in spacings) for a move to be kept.
 const GAIN: f64 = 0.005;
 /// Samples within this many spacings of a place's worst point try moves.
@@ -250,63 +253,111 @@ fn best_move(gauge: &Gauge, field: &impl Movable, place: usize) -> Option<Move> 
         .collect();
     // Per move, its own cells and those whose mesh points may find their
     // nearest triangle there, with the cells around the place.
-    let cells: Vec<(BTreeSet<usize>, BTreeSet<usize>)> = moves
-        .iter()
-        .map(|m| {
-            let own: BTreeSet<usize> = (m.iter())
-                .flat_map(|&(n, _, _)| gauge.search.cells_around(n))
-                .collect();
-            let touched = (own.iter())
-                .flat_map(|&c| block(spec, c, 1))
-                .chain(around.iter().copied())
-                .collect();
-            (own, touched)
-        })
-        .collect();
+    let cells_of = |m: &Move| -> (BTreeSet<usize>, BTreeSet<usize>) {
+        let own: BTreeSet<usize> = (m.iter())
+            .flat_map(|&(n, _, _)| gauge.search.cells_around(n))
+            .collect();
+        let touched = (own.iter())
+            .flat_map(|&c| block(spec, c, 1))
+            .chain(around.iter().copied())
+            .collect();
+        (own, touched)
+    };
+    let cells: Vec<(BTreeSet<usize>, BTreeSet<usize>)> = moves.iter().map(cells_of).collect();
     let region: BTreeSet<usize> = cells.iter().flat_map(|(_, t)| t.iter().copied()).collect();
     let now: HashMap<usize, (Worst, Worst)> = region
         .into_par_iter()
         .map(|c| (c, (gauge.off(of(c)), gauge.back(c, &of, Worst::NONE))))
         .collect();
-    let gains: Vec<f64> = (moves.par_iter().zip(&cells))
-        .map(|(m, (own, touched))| {
-            let mut old = Worst::NONE;
-            let mut new = Worst::NONE;
-            for c in touched {
-                let (o, b) = now[c];
-                old = old.max(o).max(b);
-                if !own.contains(c) {
-                    new = new.max(o);
-                }
+    let errors_now = |c: usize| {
+        now.get(&c)
+            .copied()
+            .unwrap_or_else(|| (gauge.off(of(c)), gauge.back(c, &of, Worst::NONE)))
+    };
+    let gain = |m: &Move, own: &BTreeSet<usize>, touched: &BTreeSet<usize>| {
+        let mut old = Worst::NONE;
+        let mut new = Worst::NONE;
+        for &c in touched {
+            let (o, b) = errors_now(c);
+            old = old.max(o).max(b);
+            if !own.contains(&c) {
+                new = new.max(o);
             }
+        }
+        let view = Overlay {
+            base: field,
+            moves: m.clone(),
+        };
+        let changed: Surface = gauge.surface(&view, own.iter().copied());
+        let after = |c: usize| changed.get(&c).map_or_else(|| of(c), Vec::as_slice);
+        for &c in own {
+            new = new.max(gauge.off(after(c)));
+        }
+        // A try stops once it cannot gain enough.
+        for &c in touched {
+            if old.error - new.error < GAIN * h {
+                break;
+            }
+            new = gauge.back(c, &after, new);
+        }
+        old.error - new.error
+    };
+    let gains: Vec<f64> = (moves.par_iter().zip(&cells))
+        .map(|(m, (own, touched))| gain(m, own, touched))
+        .collect();
+    if let Some(k) = largest(&gains, GAIN * h) {
+        return Some(moves[k].clone());
+    }
+    if worst.error <= PAIRS_ABOVE * h {
+        return None;
+    }
+    // A sample moved onto a corner may cut the line it leaves until a
+    // second sample moves onto that line: try such pairs.
+    let pairs: Vec<Move> = (moves.iter())
+        .filter(|m| onto_corner(gauge.search, m))
+        .flat_map(|first| {
             let view = Overlay {
                 base: field,
-                moves: m.clone(),
+                moves: first.clone(),
             };
-            let changed: Surface = gauge.surface(&view, own.iter().copied());
-            let after = |c: usize| changed.get(&c).map_or_else(|| of(c), Vec::as_slice);
-            for &c in own {
-                new = new.max(gauge.off(after(c)));
-            }
-            // A try stops once it cannot gain enough.
-            for &c in touched {
-                if old.error - new.error < GAIN * h {
-                    break;
-                }
-                new = gauge.back(c, &after, new);
-            }
-            old.error - new.error
+            let moved = first.last().map(|m| m.0);
+            (samples.iter())
+                .filter(|&&n| Some(n) != moved)
+                .flat_map(|&n| tries(gauge, &view, n))
+                .map(|second| [first.clone(), second].concat())
+                .collect::<Vec<Move>>()
         })
         .collect();
-    // The largest gain, the first of equal ones.
-    let best =
-        (0..moves.len())
-            .filter(|&k| gains[k] >= GAIN * h)
-            .fold(None, |best: Option<usize>, k| match best {
-                Some(b) if gains[b] >= gains[k] => Some(b),
-                _ => Some(k),
-            });
-    best.map(|k| moves[k].clone())
+    let gains: Vec<f64> = pairs
+        .par_iter()
+        .map(|m| {
+            let (own, touched) = cells_of(m);
+            gain(m, &own, &touched)
+        })
+        .collect();
+    largest(&gains, GAIN * h).map(|k| pairs[k].clone())
+}
+
+/// The index of the largest of `gains` of at least `least`, the first of
+/// equal ones.
+fn largest(gains: &[f64], least: f64) -> Option<usize> {
+    (0..gains.len())
+        .filter(|&k| gains[k] >= least)
+        .fold(None, |best, k| match best {
+            Some(b) if gains[b] >= gains[k] => Some(b),
+            _ => Some(k),
+        })
+}
+
+/// Whether the last sample of `m` goes onto a corner or bend of a
+/// feature line in its cells.
+fn onto_corner(search: &Search, m: &Move) -> bool {
+    let Some(&(n, p, _)) = m.last() else {
+        return false;
+    };
+    (search.cells_around(n))
+        .filter_map(|c| search.cells.get(&c))
+        .any(|f| f.corners.iter().chain(&f.bends).any(|&q| q == p))
 }
 
 /// Samples to move, in order: (sample, position, value).
