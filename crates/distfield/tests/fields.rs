@@ -527,8 +527,8 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
         // directions and such cells chose the point that cuts both lines
         // least).
         assert!(name != "udf" || max < 0.25 * h, "udf max {} h", max / h);
-        // The offset field: 0.137 h (0.184 h before the error-driven
-        // repair; 0.43 h before the block energy, the convex side first
+        // The offset field: 0.135 h (0.137 h before the repair's pair
+        // moves, 0.184 h before it made room; 0.218 h before the repair; 0.43 h before the block energy, the convex side first
         // and the fit of the feature cells' neighbours; 0.78 h before
         // samples were aligned with the features and allowed to cross
         // where topology allows).
