@@ -76,10 +76,12 @@ fn main() {
         let t = Instant::now();
         let (out, _) = odf.extract();
         let stored = format!(
-        "{} samples moved ({} aligned with features, {} smoothed) of {} candidates; feature energy {:.1} -> {:.1}",
+        "{} samples moved ({} aligned with features, {} smoothed, {} repair moves at {} places) of {} candidates; feature energy {:.1} -> {:.1}",
         report.moved,
         report.aligned,
         report.smoothed,
+        report.repaired,
+        report.repair_places,
         report.candidates,
         report.energy_before,
         report.energy_after
@@ -145,8 +147,13 @@ fn row(
             .expect("write the mesh");
     }
     let back = MeshQuery::new(out).expect("index the output");
-    let there = deviation(out, exact, 16);
-    let back_dev = deviation(mesh, &back, 16);
+    // PER_TRIANGLE=N measures about N points per triangle (default 16).
+    let per_triangle = std::env::var("PER_TRIANGLE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(16);
+    let there = deviation(out, exact, per_triangle);
+    let back_dev = deviation(mesh, &back, per_triangle);
     let max = there.max.max(back_dev.max) / h;
     let mean = 0.5 * (there.mean + back_dev.mean) / h;
     println!("| {name} | {construct:.3} | {extract:.3} | {max:.3} | {mean:.4} | {stored} |");

@@ -38,7 +38,9 @@ use crate::refine::block;
 use crate::unified::BAND_CELLS;
 use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
-use std::collections::{BTreeMap, BTreeSet};
+
+mod repair;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::time::Instant;
 use surfrecon_geom::metrics::closest_point_on_triangle;
 use surfrecon_geom::{DVec3, TriMesh};
@@ -112,6 +114,10 @@ pub struct OdfReport {
     pub moved: usize,
     /// Samples moved by Laplacian smoothing away from the surface.
     pub smoothed: usize,
+    /// Places where the surface strayed from the mesh by more than
+    /// 0.1 h after the search, and moves the repair kept there.
+    pub repair_places: usize,
+    pub repaired: usize,
     /// Total E_dist (each cell's probes against its own triangles) of
     /// the fitted cells, the feature cells and their neighbours near the
     /// surface, before and after.
@@ -143,11 +149,7 @@ pub fn build_odf(
     let mut cells = cells_with_features(mesh, &features, &spec, |_| true);
     let feature_cells = cells.len();
     add_cells_beside(&mut cells, &spec, &values);
-    let mut field = OffsetField {
-        spec,
-        values,
-        moved: BTreeMap::new(),
-    };
+    let mut field = Dense::new(spec, values);
     let search = Search::new(mesh, &spec, &query, &cells, w);
     let aligned = search.align(&mut field, &feature_targets(mesh, &features, &spec));
     // Samples on features stay there; the search fits the rest around them.
@@ -179,6 +181,13 @@ pub fn build_odf(
             .collect();
         active.retain(|n| near.contains(n));
     }
+    let points = repair::MeshPoints::new(mesh, &spec);
+    let crease_angle = repair::CREASE_ANGLE_DEG.min(options.feature_angle_deg);
+    let creases = Features::detect(mesh, crease_angle);
+    let creases = cells_with_features(mesh, &creases, &spec, |_| true);
+    (report.repair_places, report.repaired) =
+        repair::repair(&search, &mut field, &points, &creases);
+    let mut field = field.into_field();
     report.smoothed = search.smooth_away_from_surface(&mut field);
     report.moved = field.moved.len();
     report.energy_after = search.total_energy(&field);
@@ -316,31 +325,41 @@ impl Boxed {
         best
     }
 
-    /// Sum over the corners and centres of `patch` of the squared
-    /// distances to the nearest triangle, each capped at `cap`. A corner
-    /// shared by several triangles counts once per triangle but is
-    /// measured once.
-    fn patch_distance2(&self, patch: &[[DVec3; 3]], cap: f64) -> f64 {
-        let mut measured: Vec<(DVec3, f64)> = Vec::with_capacity(3 * patch.len());
+    /// Sum over the corners and centres of `patch` (of feature cell
+    /// `cell`) of the squared distances to the nearest triangle, each
+    /// capped at `cap`. A corner shared by several triangles counts once
+    /// per triangle; every point is measured once per `memo`.
+    fn patch_distance2(
+        &self,
+        cell: usize,
+        patch: &[[DVec3; 3]],
+        cap: f64,
+        memo: &mut Measured,
+    ) -> f64 {
         let mut hint = 0;
         let mut sum = 0.0;
+        let mut measure = |x: DVec3| {
+            let key = (cell, x.to_array().map(f64::to_bits));
+            *memo
+                .0
+                .entry(key)
+                .or_insert_with(|| self.distance2_from(x, cap, &mut hint))
+        };
         for t in patch {
             for x in [t[0], t[1], t[2]] {
-                let d = match measured.iter().find(|(y, _)| *y == x) {
-                    Some(&(_, d)) => d,
-                    None => {
-                        let d = self.distance2_from(x, cap, &mut hint);
-                        measured.push((x, d));
-                        d
-                    }
-                };
-                sum += d;
+                sum += measure(x);
             }
-            sum += self.distance2_from((t[0] + t[1] + t[2]) / 3.0, cap, &mut hint);
+            sum += measure((t[0] + t[1] + t[2]) / 3.0);
         }
         sum
     }
 }
+
+/// Squared distances from patch points to their cell's true surface,
+/// kept over the tries of one sample: the crossings on the cell edges
+/// that do not end at the sample stay where they are.
+#[derive(Default)]
+struct Measured(HashMap<(usize, [u64; 3]), f64>);
 
 /// The source triangles within half a spacing of each feature cell (as
 /// far as a patch can reach).
@@ -504,6 +523,50 @@ pub(crate) trait Movable: Sync {
     fn set(&mut self, node: usize, position: DVec3, value: f64);
 }
 
+/// A field's samples with every position stored, for the search (which
+/// reads positions far more often than a map of the moved ones allows).
+struct Dense {
+    spec: GridSpec<3>,
+    values: Vec<f64>,
+    positions: Vec<DVec3>,
+}
+
+impl Dense {
+    fn new(spec: GridSpec<3>, values: Vec<f64>) -> Self {
+        let positions = (0..values.len()).map(|n| node_position(&spec, n)).collect();
+        Self {
+            spec,
+            values,
+            positions,
+        }
+    }
+
+    fn into_field(self) -> OffsetField {
+        let moved = (self.positions.iter().enumerate())
+            .filter(|&(n, p)| *p != node_position(&self.spec, n))
+            .map(|(n, p)| (n as u32, *p))
+            .collect();
+        OffsetField {
+            spec: self.spec,
+            values: self.values,
+            moved,
+        }
+    }
+}
+
+impl Movable for Dense {
+    fn value(&self, node: usize) -> f64 {
+        self.values[node]
+    }
+    fn position(&self, node: usize) -> DVec3 {
+        self.positions[node]
+    }
+    fn set(&mut self, node: usize, position: DVec3, value: f64) {
+        self.values[node] = value;
+        self.positions[node] = position;
+    }
+}
+
 impl Movable for OffsetField {
     fn value(&self, node: usize) -> f64 {
         self.values[node]
@@ -660,7 +723,8 @@ impl<'a> Search<'a> {
         moved
     }
 
-    /// The best legal move of sample `node` that lowers its energy.
+    /// The best legal move of sample `node` that lowers its energy (of
+    /// equal energies, the first try).
     fn best_move(
         &self,
         field: &impl Movable,
@@ -669,16 +733,38 @@ impl<'a> Search<'a> {
         pinned: bool,
     ) -> Option<(usize, DVec3, f64)> {
         let here = field.position(node);
-        let current = self.local_energy(field, node, here, field.value(node));
+        let mut memo = Measured::default();
+        let current = self
+            .local_energy(
+                field,
+                node,
+                here,
+                field.value(node),
+                f64::INFINITY,
+                &mut memo,
+            )
+            // Only an infinite energy (huge weights) reaches no bound.
+            .unwrap_or(f64::INFINITY);
+        // A try must come below `current` and below the best so far:
+        // its energy is abandoned once its partial sum reaches that.
+        let mut best: Option<(DVec3, f64, f64)> = None;
+        let mut consider = |p: DVec3, v: f64, memo: &mut Measured| {
+            let bound = best.map_or(current - 1e-12, |b| b.2.min(current - 1e-12));
+            if let Some(e) = self.local_energy(field, node, p, v, bound, memo) {
+                if e < bound {
+                    best = Some((p, v, e));
+                }
+            }
+        };
         if pinned {
-            return on_surface_values(field.value(node), self.spec.spacing)
-                .into_iter()
-                .filter(|&v| v != field.value(node))
-                .filter_map(|v| self.same_topology(field, node, v))
-                .map(|v| (v, self.local_energy(field, node, here, v)))
-                .filter(|&(_, e)| e < current - 1e-12)
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-                .map(|(v, _)| (node, here, v));
+            for v in on_surface_values(field.value(node), self.spec.spacing) {
+                if v != field.value(node) {
+                    if let Some(v) = self.same_topology(field, node, v) {
+                        consider(here, v, &mut memo);
+                    }
+                }
+            }
+            return best.map(|(_, v, _)| (node, here, v));
         }
         let mut tries: Vec<DVec3> = (0..6)
             .map(|k| {
@@ -693,20 +779,18 @@ impl<'a> Search<'a> {
         tries.extend(self.feature_points_near(node, here));
         let home = node_position(self.spec, node);
         let reach = 0.5 * self.spec.spacing * (1.0 - 1e-9);
-        tries
-            .into_iter()
-            .filter(|p| (*p - home).abs().max_element() <= reach)
-            .filter(|&p| self.stays_convex(field, node, p))
-            .flat_map(|p| {
-                let h = self.spec.spacing;
-                on_surface_values(self.query.signed_distance(p), h)
-                    .into_iter()
-                    .filter_map(move |v| Some((p, self.same_topology(field, node, v)?)))
-            })
-            .map(|(p, v)| (p, v, self.local_energy(field, node, p, v)))
-            .filter(|&(_, _, e)| e < current - 1e-12)
-            .min_by(|a, b| a.2.total_cmp(&b.2))
-            .map(|(p, v, _)| (node, p, v))
+        let h = self.spec.spacing;
+        for p in tries {
+            if (p - home).abs().max_element() > reach || !self.stays_convex(field, node, p) {
+                continue;
+            }
+            for v in on_surface_values(self.query.signed_distance(p), h) {
+                if let Some(v) = self.same_topology(field, node, v) {
+                    consider(p, v, &mut memo);
+                }
+            }
+        }
+        best.map(|(p, v, _)| (node, p, v))
     }
 
     /// The value `v` if sample `node` may take it: when the sample stays
@@ -751,8 +835,18 @@ impl<'a> Search<'a> {
         cells_around(self.spec, node)
     }
 
-    /// Energy terms that change when `node` moves to `p` with value `v`.
-    fn local_energy(&self, field: &impl Movable, node: usize, p: DVec3, v: f64) -> f64 {
+    /// Energy terms that change when `node` moves to `p` with value `v`,
+    /// or None once they reach `bound` (the distance term, summed last,
+    /// only grows).
+    fn local_energy(
+        &self,
+        field: &impl Movable,
+        node: usize,
+        p: DVec3,
+        v: f64,
+        bound: f64,
+        memo: &mut Measured,
+    ) -> Option<f64> {
         let at = |n: usize| {
             if n == node {
                 (p, v)
@@ -761,7 +855,6 @@ impl<'a> Search<'a> {
             }
         };
         let h = self.spec.spacing;
-        let distance = self.block_energy(node, &at);
         let neighbours = self.neighbours(node);
         let spring: f64 = neighbours
             .iter()
@@ -792,7 +885,13 @@ impl<'a> Search<'a> {
                 }
             }
         }
-        self.weights.distance * distance + self.weights.spring * spring + self.weights.ortho * ortho
+        let w = self.weights;
+        let total = |distance: f64| w.distance * distance + w.spring * spring + w.ortho * ortho;
+        if total(0.0) >= bound {
+            return None;
+        }
+        let distance = self.block_energy(node, &at, &|partial| total(partial) >= bound, memo)?;
+        Some(total(distance))
     }
 
     /// The six axis neighbours (−x, +x, −y, +y, −z, +z), where they exist.
@@ -860,7 +959,14 @@ impl<'a> Search<'a> {
     /// the next cell of the block, and still passes through the probe.
     /// The block's outer boundary does not move with the sample, so the
     /// block's surface stays comparable between tries.
-    fn block_energy(&self, node: usize, at: &impl Fn(usize) -> (DVec3, f64)) -> f64 {
+    /// Returns None as soon as `over` holds for the partial sum.
+    fn block_energy(
+        &self,
+        node: usize,
+        at: &impl Fn(usize) -> (DVec3, f64),
+        over: &dyn Fn(f64) -> bool,
+        memo: &mut Measured,
+    ) -> Option<f64> {
         let h2 = self.spec.spacing * self.spec.spacing;
         let patches: Vec<(usize, [DVec3; 8], Vec<[DVec3; 3]>)> = self
             .cells_around(node)
@@ -896,9 +1002,18 @@ impl<'a> Search<'a> {
                     UNREACHED + nearest / h2
                 };
             }
-            energy += target.surface.patch_distance2(patch, UNREACHED * h2) / h2;
+            if over(energy) {
+                return None;
+            }
+            energy += target
+                .surface
+                .patch_distance2(*c, patch, UNREACHED * h2, memo)
+                / h2;
+            if over(energy) {
+                return None;
+            }
         }
-        energy
+        Some(energy)
     }
 
     fn stays_convex(&self, field: &impl Movable, node: usize, p: DVec3) -> bool {

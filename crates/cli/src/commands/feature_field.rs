@@ -48,6 +48,8 @@ pub fn run(args: &Args, size: GridSize, ctx: &Context) -> anyhow::Result<()> {
             "samples_moved": r.moved,
             "samples_aligned": r.aligned,
             "smoothed": r.smoothed,
+            "repair_places": r.repair_places,
+            "repair_moves": r.repaired,
             "energy_before": r.energy_before,
             "energy_after": r.energy_after,
         });
