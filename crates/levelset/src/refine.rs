@@ -97,16 +97,21 @@ pub fn refine_surface(
     };
     // One index of the points for both snapping steps.
     let tree = KdTree::new(points);
+    let on_grid = mesh.vertices.clone();
     let projection = project_onto_points(&mut mesh.vertices, normals, points, &tree, &fit);
-    stats.snapped = projection.moved;
+    let beside_edges: Vec<bool> = (projection.supported.iter().zip(&projection.fitted))
+        .map(|(&supported, &fitted)| supported && !fitted && options.exact_points)
+        .collect();
     if options.exact_points {
-        let beside_edges: Vec<bool> = (projection.supported.iter().zip(&projection.fitted))
-            .map(|(&supported, &fitted)| supported && !fitted)
-            .collect();
-        let before = mesh.vertices.clone();
         project_onto_nearest_planes(&mut mesh.vertices, points, &tree, &beside_edges, spacing);
-        stats.snapped_to_planes = undo_degenerating_moves(mesh, &before);
     }
+    // Both steps can land two vertices on one point or fold a triangle
+    // (slices' flat interpolated stretches): those moves are undone.
+    let kept = undo_degenerating_moves(mesh, &on_grid);
+    stats.snapped_to_planes = (mesh.vertices.iter().zip(&on_grid).zip(&beside_edges))
+        .filter(|((v, g), &beside)| beside && v != g)
+        .count();
+    stats.snapped = kept - stats.snapped_to_planes;
     if !options.fair_gaps {
         return stats;
     }

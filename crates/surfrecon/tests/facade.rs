@@ -281,3 +281,37 @@ fn svm_smooths_noisy_points_along_their_normals_up_to_the_edges() {
     // quadrics of the nearest points, ignoring the normals, 0.0039.
     assert!(mean < 0.0032, "mean distance {mean} to the box");
 }
+
+#[test]
+fn svm_mesh_of_contour_slices_stays_manifold_after_welding() {
+    // The refinement snapped vertices between sparse slices onto the same
+    // points (146 shared positions, 987 triangles of no area on this
+    // input), which welding by position, as trimesh and MeshLab load
+    // meshes, turns non-manifold.
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/fandisk_slices.ply");
+    let input = surfrecon::io::read(path).unwrap();
+    let options = Options::with_method(Method::Svm(SvmOptions::default()));
+    let mesh = reconstruct(&input, &options).unwrap().mesh;
+    let t = topology(&mesh);
+    assert!(
+        t.watertight && t.edge_manifold && t.vertex_manifold,
+        "{t:?}"
+    );
+    let mut positions: Vec<[u64; 3]> = mesh
+        .vertices
+        .iter()
+        .map(|v| v.to_array().map(f64::to_bits))
+        .collect();
+    positions.sort_unstable();
+    positions.dedup();
+    assert_eq!(
+        positions.len(),
+        mesh.vertices.len(),
+        "vertices share a position"
+    );
+    let flat = mesh.triangles.iter().filter(|t| {
+        let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+        (b - a).cross(c - a).length_squared() == 0.0
+    });
+    assert_eq!(flat.count(), 0, "triangles of no area");
+}
