@@ -19,7 +19,7 @@ use super::{
 use crate::features::{cell_of, closest_on_segment, CellFeatures};
 use crate::refine::block;
 use rayon::prelude::*;
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use surfrecon_geom::metrics::closest_point_on_triangle;
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::GridSpec;
@@ -35,10 +35,16 @@ const MOVES_PER_PLACE: usize = 3;
 /// Error (in spacings) above which a place where no single move helps
 /// tries pairs of moves.
 const PAIRS_ABOVE: f64 = 0.125;
+/// Feature and crease points one sample tries at most.
+const MAX_FEATURE_TRIES: usize = 24;
+/// Pairs of moves tried at one place at most.
+const MAX_PAIRS: usize = 1000;
 /// Least gain (in spacings) for a move to be kept.
 const GAIN: f64 = 0.005;
 /// Samples within this many spacings of a place's worst point try moves.
 const REACH: f64 = 1.2;
+/// Measuring points per spacing at most, along each axis.
+const THINNED: f64 = 4.0;
 /// Distance (in spacings) counted for a mesh point with no surface near.
 const FAR: f64 = 2.0;
 
@@ -49,11 +55,20 @@ pub(crate) struct MeshPoints {
 }
 
 impl MeshPoints {
+    /// At most one point per [`THINNED`]-th of a cell along each axis,
+    /// vertices first: a mesh much finer than the grid would otherwise
+    /// give each measurement thousands of points (fandisk at 16 cells).
     pub(crate) fn new(mesh: &TriMesh, spec: &GridSpec<3>) -> Self {
         let mut by_cell: HashMap<usize, Vec<DVec3>> = HashMap::new();
+        let mut taken = HashSet::new();
+        let origin = DVec3::from_array(spec.origin);
         let inner = (0..mesh.triangles.len()).flat_map(|t| lattice(mesh.corners(t)));
         for p in mesh.vertices.iter().copied().chain(inner) {
-            if let Some(c) = cell_of(spec, p) {
+            let Some(c) = cell_of(spec, p) else { continue };
+            let sub = ((p - origin) * (THINNED / spec.spacing))
+                .floor()
+                .as_i64vec3();
+            if taken.insert(sub) {
                 by_cell.entry(c).or_default().push(p);
             }
         }
@@ -312,9 +327,17 @@ fn best_move(gauge: &Gauge, field: &impl Movable, place: usize) -> Option<Move> 
         return None;
     }
     // A sample moved onto a corner may cut the line it leaves until a
-    // second sample moves onto that line: try such pairs.
-    let pairs: Vec<Move> = (moves.iter())
-        .filter(|m| onto_corner(gauge.search, m))
+    // second sample moves onto that line: try such pairs, with the first
+    // moves of largest single gain, about [`MAX_PAIRS`] (coarse grids,
+    // whose cells hold many corners, offer tens of thousands).
+    let mut firsts: Vec<usize> = (0..moves.len())
+        .filter(|&k| onto_corner(gauge.search, &moves[k]))
+        .collect();
+    firsts.sort_by(|&a, &b| gains[b].total_cmp(&gains[a]).then(a.cmp(&b)));
+    let seconds_per_first = moves.len().max(1);
+    firsts.truncate(MAX_PAIRS.div_ceil(seconds_per_first));
+    firsts.sort_unstable();
+    let pairs: Vec<Move> = (firsts.iter().map(|&k| &moves[k]))
         .flat_map(|first| {
             let view = Overlay {
                 base: field,
@@ -402,24 +425,30 @@ fn tries(gauge: &Gauge, field: &impl Movable, n: usize) -> Vec<Move> {
             places.push(here + d);
         }
     }
-    places.extend(search.feature_points_near(n, here));
-    // Points on creases: their cells' corners and bends, and the
-    // points of their pieces nearest the sample.
+    let home = node_position(spec, n);
+    let reach = 0.5 * h * (1.0 - 1e-9);
+    let in_reach = |p: &DVec3| (*p - home).abs().max_element() <= reach;
+    // Points on features and creases: their cells' corners and bends, and
+    // the points of their pieces nearest the sample; the nearest
+    // [`MAX_FEATURE_TRIES`] of them (a coarse cell holds dozens).
+    let mut on_features = search.feature_points_near(n, here);
     for f in search.cells_around(n).filter_map(|c| gauge.creases.get(&c)) {
-        places.extend(f.corners.iter().chain(&f.bends));
-        places.extend(
+        on_features.extend(f.corners.iter().chain(&f.bends));
+        on_features.extend(
             f.pieces
                 .iter()
                 .map(|&[a, b]| closest_on_segment(here, a, b)),
         );
     }
-    let home = node_position(spec, n);
-    let reach = 0.5 * h * (1.0 - 1e-9);
+    on_features.retain(in_reach);
+    if on_features.len() > MAX_FEATURE_TRIES {
+        on_features.sort_by(|a, b| a.distance(here).total_cmp(&b.distance(here)));
+        on_features.dedup();
+        on_features.truncate(MAX_FEATURE_TRIES);
+    }
+    places.extend(on_features);
     let mut out = Vec::new();
-    for p in places {
-        if (p - home).abs().max_element() > reach {
-            continue;
-        }
+    for p in places.into_iter().filter(in_reach) {
         let first: Move = if search.stays_convex(field, n, p) {
             Vec::new()
         } else {
