@@ -32,12 +32,35 @@ pub use error::DistFieldError;
 use surfrecon_geom::TriMesh;
 use surfrecon_grid::{GridSize, GridSpec};
 
+/// Largest coordinate magnitude, and smallest extent, of a mesh the
+/// fields support (as `reconstruct` does): cell volumes and squared
+/// distances must stay normal f64 numbers (a sphere 5e-151 wide took
+/// 500 times as long, computing in subnormals).
+const MAX_COORDINATE: f64 = 1e100;
+const MIN_EXTENT: f64 = 1e-100;
+
 /// Refuse meshes a signed field cannot be built from: no triangles, bad
-/// indices, non-finite coordinates, or an open or non-manifold surface.
+/// indices, non-finite coordinates, coordinates too large or a mesh too
+/// small for f64 ([`MAX_COORDINATE`], [`MIN_EXTENT`]), or an open or
+/// non-manifold surface.
 pub fn check_mesh(mesh: &TriMesh) -> Result<(), DistFieldError> {
     if let Some(v) = mesh.vertices.iter().position(|v| !v.is_finite()) {
         return Err(DistFieldError::InvalidMesh(format!(
             "vertex {v} has a non-finite coordinate"
+        )));
+    }
+    let largest = (mesh.vertices.iter())
+        .map(|v| v.abs().max_element())
+        .fold(0.0, f64::max);
+    let extent = mesh.bounds().size().max_element();
+    if largest > MAX_COORDINATE {
+        return Err(DistFieldError::InvalidMesh(format!(
+            "the mesh reaches coordinate {largest:e}; at most {MAX_COORDINATE:e} is supported: rescale it"
+        )));
+    }
+    if extent > 0.0 && extent < MIN_EXTENT {
+        return Err(DistFieldError::InvalidMesh(format!(
+            "the mesh spans only {extent:e}; at least {MIN_EXTENT:e} is supported: rescale it"
         )));
     }
     let n = mesh.vertices.len() as u32;

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 use surfrecon_distfield::format::{read_odf, read_udf};
+use surfrecon_distfield::offset::{build_odf, OdfOptions};
 use surfrecon_distfield::unified::{build_udf, UdfOptions};
 use surfrecon_geom::metrics::topology;
 use surfrecon_geom::shapes::{cuboid, icosphere};
@@ -89,4 +90,33 @@ fn udf_grids_finer_than_the_coordinates_precision_are_refused() {
             "padding {padding}: {t:?}"
         );
     }
+}
+
+/// Found by the `feature_field` target: an icosphere 5e-151 wide (every
+/// edge a feature, resolution 7) took 72 s instead of milliseconds, its
+/// squared distances and cell volumes being subnormal numbers. Meshes
+/// that small are refused, as `reconstruct` refuses such data; the same
+/// sphere at unit size is built.
+#[test]
+fn meshes_too_small_for_f64_are_refused() {
+    let options = UdfOptions {
+        size: GridSize::Resolution(7),
+        padding: 0,
+        threshold: 0.0,
+        feature_angle_deg: 0.0,
+    };
+    let tiny = icosphere(DVec3::ZERO, 2.5e-151, 1);
+    let e = build_udf(&tiny, &options).unwrap_err().to_string();
+    assert!(e.contains("the mesh spans only 5e-151"), "{e}");
+    assert!(e.contains("rescale it"), "{e}");
+    let odf = OdfOptions {
+        size: GridSize::Resolution(7),
+        ..OdfOptions::default()
+    };
+    let e = build_odf(&tiny, &odf).unwrap_err().to_string();
+    assert!(e.contains("the mesh spans only 5e-151"), "{e}");
+    assert!(build_udf(&icosphere(DVec3::ZERO, 2.5, 1), &options).is_ok());
+    let huge = icosphere(DVec3::splat(3e100), 1.0, 1);
+    let e = build_udf(&huge, &options).unwrap_err().to_string();
+    assert!(e.contains("reaches coordinate 3"), "{e}");
 }
