@@ -54,6 +54,7 @@ pub mod decimate;
 pub mod dynamic;
 mod error;
 pub mod gabriel;
+pub mod holes;
 pub mod manifold;
 mod reconstruct;
 pub mod refine;

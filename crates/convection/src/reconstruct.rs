@@ -3,6 +3,7 @@
 use crate::decimate::{decimate, Brush, Decimation};
 use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
+use crate::holes::{open_sampling_holes, HoleRule};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::refine::{refine, Quality, RefineStats};
 use crate::surface::{Opening, OrientedFacet, PseudoSurface};
@@ -55,6 +56,11 @@ pub struct Params {
     pub refine_alpha: f64,
     /// ... and smallest ratio `γ` of the vertex radii in a triangle (0: off).
     pub refine_gamma: f64,
+    /// Leave open the holes in the sampling (patches of faces far larger
+    /// than their vertices' spacing, see [`crate::holes`]) instead of
+    /// covering them; they are reported as boundary edges. `None`: the
+    /// output is closed wherever the convection closes it.
+    pub open_holes: Option<HoleRule>,
 }
 
 impl Default for Params {
@@ -72,6 +78,7 @@ impl Default for Params {
             max_hole_edges: 24,
             refine_alpha: 0.0,
             refine_gamma: 0.0,
+            open_holes: None,
         }
     }
 }
@@ -136,6 +143,10 @@ pub struct Report {
     pub nonmanifold_faces_removed: usize,
     /// Short boundary loops closed by ear clipping.
     pub holes_filled: usize,
+    /// Holes in the sampling left open (`open_holes`), and the faces
+    /// that covered them.
+    pub sampling_holes_opened: usize,
+    pub sampling_hole_faces_removed: usize,
     /// Edges of the output with one face: where the sampling was too sparse
     /// to close the surface.
     pub boundary_edges: usize,
@@ -396,9 +407,11 @@ fn finish(
     } else if let Some(n) = normals {
         check_normals(points, n)?;
     }
-    if params.pockets || thin_parts {
+    let mut input_spacing = Vec::new();
+    if params.pockets || thin_parts || params.open_holes.is_some() {
         let clock = Instant::now();
-        spacing = vertex_spacing(tri, site);
+        input_spacing = point_spacing(points);
+        spacing = vertex_spacing(tri, site, &input_spacing);
         report.seconds.pockets = clock.elapsed().as_secs_f64();
     }
     if params.pockets {
@@ -427,7 +440,14 @@ fn finish(
         report.thin_tunnel_tets = thick.tunnels.kept;
         thick.restored
     };
-    let mesh = extract_mesh(&surface, tri, restore, site, params, report);
+    let mut mesh = extract_mesh(&surface, tri, restore, site, params, report);
+    if let Some(rule) = &params.open_holes {
+        let opened = open_sampling_holes(&mut mesh.triangles, points, &input_spacing, rule);
+        report.sampling_holes_opened = opened.holes;
+        report.sampling_hole_faces_removed = opened.faces;
+        report.facets = mesh.triangles.len();
+        report.boundary_edges = boundary_edges(&mesh.triangles);
+    }
     report.seconds.output = clock.elapsed().as_secs_f64();
     Ok(mesh)
 }
@@ -470,6 +490,9 @@ fn check_params(params: &Params) -> Result<()> {
             range: "0 (off) to 1",
         });
     }
+    if let Some(rule) = &params.open_holes {
+        check_hole_rule(rule)?;
+    }
     let c = params.pocket_cosine;
     if !(0.0..=1.0).contains(&c) {
         return Err(ConvectionError::BadParameter {
@@ -485,6 +508,20 @@ fn check_params(params: &Params) -> Result<()> {
             value: size,
             range: "0 or more",
         });
+    }
+    Ok(())
+}
+
+fn check_hole_rule(rule: &HoleRule) -> Result<()> {
+    let bad = |name, value, range| Err(ConvectionError::BadParameter { name, value, range });
+    if !(rule.large.is_finite() && rule.large > 0.0) {
+        return bad("open_holes large", rule.large, "more than 0 (spacings)");
+    }
+    if !(rule.grow.is_finite() && rule.grow > 0.0 && rule.grow <= rule.large) {
+        return bad("open_holes grow", rule.grow, "more than 0, at most large");
+    }
+    if rule.seeds == 0 {
+        return bad("open_holes seeds", 0.0, "1 or more");
     }
     Ok(())
 }
@@ -768,20 +805,23 @@ fn count_sheets(surface: &PseudoSurface, sheet: &[OrientedFacet]) -> usize {
         .count()
 }
 
-/// Mean distance from each vertex to its nearest neighbours: the local
+/// Mean distance from each point to its nearest neighbours: the local
 /// sampling spacing.
-fn vertex_spacing(tri: &Triangulation, site: &Sites) -> Vec<f64> {
-    let points = site.points;
+fn point_spacing(points: &[DVec3]) -> Vec<f64> {
     const NEIGHBOURS: usize = 6;
     let tree = surfrecon_geom::spatial::KdTree::new(points);
-    let by_input: Vec<f64> = points
+    points
         .iter()
         .map(|&p| {
             let near = tree.knn(p, NEIGHBOURS + 1);
             let sum: f64 = near.iter().map(|n| n.distance).sum();
             sum / (near.len().max(2) - 1) as f64
         })
-        .collect();
+        .collect()
+}
+
+/// [`point_spacing`] by vertex id (0 for vertices with no point).
+fn vertex_spacing(tri: &Triangulation, site: &Sites, by_input: &[f64]) -> Vec<f64> {
     (0..tri.points().len())
         .map(|v| (site.of_vertex)(VertexId(v as u32)).map_or(0.0, |i| by_input[i]))
         .collect()

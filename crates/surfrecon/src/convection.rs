@@ -4,6 +4,7 @@
 use crate::error::{Classify, Result};
 use crate::report::*;
 use crate::{check, data_fit_report, ConvectionOptions, Output};
+use surfrecon_convection::holes::HoleRule;
 use surfrecon_convection::{reconstruct, Params};
 use surfrecon_geom::progress::Hook;
 use surfrecon_geom::Geometry;
@@ -24,6 +25,7 @@ pub(crate) fn params(o: &ConvectionOptions) -> Params {
         rho_topo: o.rho_topo,
         refine_alpha: o.refine_alpha,
         refine_gamma: o.refine_gamma,
+        open_holes: o.open_holes.then(HoleRule::default),
         ..Params::default()
     }
 }

@@ -218,6 +218,9 @@ pub struct ConvectionOptions {
     pub refine_alpha: f64,
     /// ... and smallest ratio of the vertex radii in a triangle (0: off).
     pub refine_gamma: f64,
+    /// Leave holes in the sampling open (reported as boundary edges)
+    /// instead of covering them with faces far larger than the spacing.
+    pub open_holes: bool,
 }
 
 impl Default for ConvectionOptions {
@@ -234,6 +237,7 @@ impl Default for ConvectionOptions {
             brush: None,
             refine_alpha: p.refine_alpha,
             refine_gamma: p.refine_gamma,
+            open_holes: p.open_holes.is_some(),
         }
     }
 }

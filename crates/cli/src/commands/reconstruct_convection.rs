@@ -48,6 +48,12 @@ pub struct ConvectionArgs {
     /// the convection stay cut off).
     #[arg(long)]
     pub no_thin_parts: bool,
+    /// Leave holes in the sampling open instead of covering them: patches
+    /// of faces far longer than their vertices' sample spacing (several
+    /// longer than 3.5 spacings) are removed and reported as boundary
+    /// edges. For scans with unseen parts; the output is then not closed.
+    #[arg(long)]
+    pub open_holes: bool,
     /// Neighbours used to estimate normals (pocket test) when the input has none.
     #[arg(long = "convection-normal-k", default_value_t = 12)]
     pub normal_k: usize,
@@ -67,6 +73,7 @@ impl ConvectionArgs {
             brush: self.brush.as_deref().copied(),
             refine_alpha: self.refine_alpha,
             refine_gamma: self.refine_gamma,
+            open_holes: self.open_holes,
         }
     }
 }
