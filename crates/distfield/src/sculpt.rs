@@ -332,7 +332,7 @@ pub fn sculpt_udf(
     // surface. Their feature points are taken off them too (a changed
     // sample may move onto a new corner), but those the tool leaves on
     // the surface still mark an old edge: they go back to their cells
-    // once the corners are taken.
+    // once the new corners and edges have theirs.
     let mut unhoused: Vec<(usize, DVec3)> = Vec::new();
     for &n in &changed {
         match field.extras.get(&(n as u32)) {
@@ -375,14 +375,6 @@ pub fn sculpt_udf(
     cells.dedup();
     cells.retain(|&c| crosses(&spec, &field.values, c));
     report.snapped = snapped.len();
-    for (c, p) in unhoused {
-        match storage_for(field, c, p) {
-            Some(n) => {
-                field.extras.insert(n, Extra::FeaturePoint(p));
-            }
-            None => report.dropped += 1,
-        }
-    }
     // Exact crossings on the edges of the cells the tool changed.
     let mut edges: BTreeSet<(usize, usize)> = BTreeSet::new();
     for &c in &cells {
@@ -481,6 +473,17 @@ pub fn sculpt_udf(
         if let Some(n) = storage_for(field, c, p) {
             field.extras.insert(n, Extra::FeaturePoint(p));
             report.kept += 1;
+        }
+    }
+    // The old edges' points go back to cells the new edges and corners
+    // left without one (a cell's one point keeps the new corner first).
+    let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
+    for (c, p) in unhoused {
+        match storage_for(field, c, p).filter(|_| !taken.contains(&c)) {
+            Some(n) => {
+                field.extras.insert(n, Extra::FeaturePoint(p));
+            }
+            None => report.dropped += 1,
         }
     }
     report.turned = choose_sides(field, &combined, &snapped, &old_features, &corners);
