@@ -20,8 +20,8 @@ use crate::offset::{
 };
 use crate::query::MeshQuery;
 use crate::refine::{mesh_points, Exact, MeshSamples};
-use crate::sharp::clamp_near;
 use crate::sharp::Tangent;
+use crate::sharp::{clamp_near, owner_cell};
 use crate::unified::{
     farthest_from, repick_cell, sharp_point, snap_corners, storage_for, Extra, UnifiedField,
 };
@@ -328,11 +328,20 @@ pub fn sculpt_udf(
     let h = spec.spacing;
     let old_features = cells_with_features(&surface, &features, &spec, |_| true);
     let (changed, mut cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
-    // Old directed distances and feature points of changed samples no
-    // longer describe the surface.
+    // Old directed distances of changed samples no longer describe the
+    // surface. Their feature points are taken off them too (a changed
+    // sample may move onto a new corner), but those the tool leaves on
+    // the surface still mark an old edge: they go back to their cells
+    // once the new corners and edges have theirs.
+    let mut unhoused: Vec<(usize, DVec3)> = Vec::new();
     for &n in &changed {
-        if let Some(e) = field.extras.get(&(n as u32)) {
-            if !matches!(e, Extra::Position(_)) {
+        match field.extras.get(&(n as u32)) {
+            Some(Extra::Position(_)) | None => {}
+            Some(&Extra::FeaturePoint(p)) if !combined.changes(p, 1e-6 * h) => {
+                unhoused.extend(owner_cell(&spec, n, p).map(|c| (c, p)));
+                field.extras.remove(&(n as u32));
+            }
+            Some(_) => {
                 field.extras.remove(&(n as u32));
                 report.dropped += 1;
             }
@@ -464,6 +473,17 @@ pub fn sculpt_udf(
         if let Some(n) = storage_for(field, c, p) {
             field.extras.insert(n, Extra::FeaturePoint(p));
             report.kept += 1;
+        }
+    }
+    // The old edges' points go back to cells the new edges and corners
+    // left without one (a cell's one point keeps the new corner first).
+    let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
+    for (c, p) in unhoused {
+        match storage_for(field, c, p).filter(|_| !taken.contains(&c)) {
+            Some(n) => {
+                field.extras.insert(n, Extra::FeaturePoint(p));
+            }
+            None => report.dropped += 1,
         }
     }
     report.turned = choose_sides(field, &combined, &snapped, &old_features, &corners);
