@@ -1255,11 +1255,45 @@ mod tests {
                 .unwrap();
             pool.install(|| {
                 let mut field = unsigned.clone();
-                negate_inside(&mut field, &WindingTree::new(&data.triangles));
+                negate_inside(&mut field, &WindingTree::new(&data.triangles), None);
                 field.values.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
             })
         };
         assert_eq!(signed(1), signed(3));
+    }
+
+    /// A closed mesh's nodes signed by crossings along rows get the signs
+    /// of the winding numbers, also where the grid's rows pass through
+    /// the mesh's vertices and edges (a box whose faces and corners lie
+    /// on grid nodes, and a torus).
+    #[test]
+    fn row_crossings_sign_like_winding_numbers() {
+        let meshes = [
+            shapes::cuboid(DVec3::splat(-1.0), DVec3::splat(1.0)),
+            shapes::torus(1.0, 0.4, 40, 20),
+        ];
+        for mesh in meshes {
+            assert!(rows::closed_and_oriented(&mesh.triangles));
+            let spec =
+                GridSpec::from_bounds([-1.5; 3], [1.5; 3], crate::GridSize::Resolution(24), 0)
+                    .unwrap();
+            let data = DataSet::<3>::from_mesh(&mesh).unwrap();
+            let unsigned = unsigned_distance_with(&data, &spec, &DistanceOptions::default())
+                .unwrap()
+                .field;
+            let tree = WindingTree::new(&data.triangles);
+            let mut by_rows = unsigned.clone();
+            negate_inside(&mut by_rows, &tree, Some(&data.triangles));
+            let mut by_winding = unsigned.clone();
+            negate_inside(&mut by_winding, &tree, None);
+            let mut inside = 0;
+            for (r, w) in by_rows.values.iter().zip(&by_winding.values) {
+                // On the surface either side is right.
+                assert!(*r == 0.0 || (*r < 0.0) == (*w < 0.0), "{r} vs {w}");
+                inside += (*r < 0.0) as usize;
+            }
+            assert!(inside > 0);
+        }
     }
 
     #[test]

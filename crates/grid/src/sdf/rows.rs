@@ -22,10 +22,12 @@ use rayon::prelude::*;
 
 /// Whether every edge of `triangles` is used once in each direction: the
 /// surface is closed and consistently oriented, so its winding number is
-/// an integer and the crossing count is exact.
+/// an integer and the crossing count is exact. Triangles collapsed onto
+/// an edge or a point (a repeated vertex) cover nothing and are left out.
 pub(super) fn closed_and_oriented(triangles: &[[u32; 3]]) -> bool {
     let mut edges: Vec<(u32, u32)> = triangles
         .iter()
+        .filter(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0])
         .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
         .collect();
     edges.par_sort_unstable();
@@ -112,40 +114,42 @@ fn extent(tri: &[[f64; 3]; 3], axis: usize) -> (f64, f64) {
 /// x and +1 entering (the triangle faces −x), −1 leaving; `None` if it
 /// misses (ties decided as the module docs say).
 fn crossing(tri: &[[f64; 3]; 3], y: f64, z: f64) -> Option<(f64, i32)> {
-    let e: [f64; 3] = std::array::from_fn(|i| edge_side(tri[i], tri[(i + 1) % 3], y, z));
-    let positive = e.iter().all(|&v| v > 0.0);
-    if !(positive || e.iter().all(|&v| v < 0.0)) {
+    let e: [(f64, bool); 3] = std::array::from_fn(|i| edge_side(tri[i], tri[(i + 1) % 3], y, z));
+    let positive = e.iter().all(|v| v.1);
+    if !(positive || e.iter().all(|v| !v.1)) {
         return None;
     }
     // Barycentric weights: each edge's value belongs to the vertex
     // opposite it.
-    let sum = e[0] + e[1] + e[2];
+    let sum = e[0].0 + e[1].0 + e[2].0;
     if sum == 0.0 {
         return None; // rounding of a triangle flat in (y, z)
     }
-    let x = (e[1] * tri[0][0] + e[2] * tri[1][0] + e[0] * tri[2][0]) / sum;
+    let x = (e[1].0 * tri[0][0] + e[2].0 * tri[1][0] + e[0].0 * tri[2][0]) / sum;
     // Counter-clockwise in (y, z) means the normal's x is positive:
     // leaving.
     Some((x, if positive { -1 } else { 1 }))
 }
 
-/// Which side of the projected edge `a` → `b` the point (y, z) lies on
-/// (positive: left, in the (y, z) plane), computed with the endpoints in
-/// a fixed order so both triangles of an edge see the same value, and
-/// never 0 unless the edge projects to a point (see the module docs).
-fn edge_side(a: [f64; 3], b: [f64; 3], y: f64, z: f64) -> f64 {
+/// Which side of the projected edge `a` → `b` the point (y, z) lies on:
+/// twice the signed area of (a, b, point) in the (y, z) plane, and
+/// whether the point lies to the left (where the area is 0, as if moved
+/// by (ε, ε²): see the module docs). Computed with the endpoints in a
+/// fixed order, so both triangles of an edge see the same value.
+fn edge_side(a: [f64; 3], b: [f64; 3], y: f64, z: f64) -> (f64, bool) {
     let swapped = (a[1], a[2]) > (b[1], b[2]);
     let (a, b) = if swapped { (b, a) } else { (a, b) };
     let (dy, dz) = (b[1] - a[1], b[2] - a[2]);
-    let mut side = dy * (z - a[2]) - dz * (y - a[1]);
-    if side == 0.0 {
-        // The point moved by (ε, ε²).
-        side = if dz != 0.0 { -dz } else { dy };
-    }
+    let side = dy * (z - a[2]) - dz * (y - a[1]);
+    let left = match side {
+        0.0 if dz != 0.0 => dz < 0.0,
+        0.0 => dy > 0.0,
+        _ => side > 0.0,
+    };
     if swapped {
-        -side
+        (-side, !left)
     } else {
-        side
+        (side, left)
     }
 }
 
@@ -183,5 +187,38 @@ mod tests {
         let mut flipped = tetra;
         flipped[0] = [0, 1, 2];
         assert!(!closed_and_oriented(&flipped));
+    }
+}
+
+#[cfg(test)]
+mod torus_tests {
+    use super::*;
+    use surfrecon_geom::{shapes, DVec3};
+
+    /// Every node of a grid whose rows pass through the vertices and
+    /// edges of a torus (its vertices at angle 0 lie on y = 0) is on the
+    /// side its winding number gives.
+    #[test]
+    fn rows_through_vertices_sign_like_winding_numbers() {
+        let mesh = shapes::torus(1.0, 0.4, 40, 20);
+        let tris: Vec<[[f64; 3]; 3]> = mesh
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| mesh.vertices[i as usize].to_array()))
+            .collect();
+        let tree = crate::sdf::WindingTree::of_mesh(&mesh);
+        let spec =
+            GridSpec::from_bounds([-1.5; 3], [1.5; 3], crate::GridSize::Resolution(24), 0).unwrap();
+        let nodes: Vec<u32> = (0..spec.node_count() as u32).collect();
+        let sides = row_sides(&spec, &tris, &nodes);
+        let wrong: Vec<[f64; 3]> = nodes
+            .iter()
+            .zip(&sides)
+            .map(|(&l, &inside)| (spec.position(spec.unlinear(l as usize)), inside))
+            .filter(|&(p, inside)| (tree.winding_number(DVec3::from_array(p)) > 0.5) != inside)
+            .map(|(p, _)| p)
+            .collect();
+        assert!(wrong.is_empty(), "{wrong:?}");
+        assert!(sides.iter().any(|&s| s));
     }
 }
