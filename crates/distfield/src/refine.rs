@@ -160,7 +160,10 @@ pub(crate) fn repair(
                 let at = spec.unlinear(n);
                 local.spec.linear(std::array::from_fn(|a| at[a] - lo[a]))
             };
-            let now = block_error(&local, query, samples, centre, &spec);
+            let place = Place::new(&local, query, samples, centre, &spec);
+            let now = place
+                .error(&local, query, f64::INFINITY)
+                .unwrap_or(f64::INFINITY);
             if now <= target * h {
                 break;
             }
@@ -189,34 +192,38 @@ pub(crate) fn repair(
                 })
                 .collect();
             let tries = tried.len();
-            let evaluate = |list: Vec<(usize, Action)>| {
+            // Only a try below both `now` (less the margin a change must
+            // gain) and the target can change what is kept (see
+            // [`Bound`]): a try whose error already exceeds that, or the
+            // best one so far, is left unfinished.
+            let evaluate = |list: Vec<(usize, Action)>, bound: &Bound| {
                 list.into_par_iter()
                     .filter_map(|(n, action)| {
                         let mut trial = local.clone();
-                        apply(&mut trial, to_local(n), &action).then(|| {
-                            (
-                                block_error(&trial, query, samples, centre, &spec),
-                                n,
-                                action,
-                            )
-                        })
+                        if !apply(&mut trial, to_local(n), &action) {
+                            return None;
+                        }
+                        let error = place.error(&trial, query, bound.get())?;
+                        bound.lower(error);
+                        Some((error, n, action))
                     })
                     .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
             };
+            let bound = Bound::new((now - GAIN * h).max(target * h));
             // Moving samples is tried only where other points leave the
             // place above the target (most places need none, at half
             // the cost).
             let (moves, points): (Vec<_>, Vec<_>) = tried
                 .into_iter()
                 .partition(|(_, a)| matches!(a, Action::Turn(_) | Action::Snap { .. }));
-            let mut best = evaluate(points);
+            let mut best = evaluate(points, &bound);
             if best.is_none_or(|b| b.0 > target * h) {
                 best = best
                     .into_iter()
-                    .chain(evaluate(moves))
+                    .chain(evaluate(moves, &bound))
                     .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             }
-            match best.filter(|b| b.0 < now - 0.005 * h) {
+            match best.filter(|b| b.0 < now - GAIN * h) {
                 Some((_, n, action)) => {
                     apply(field, n, &action);
                     report.changed += 1;
@@ -231,6 +238,37 @@ pub(crate) fn repair(
         }
     }
     report
+}
+
+/// What a change must lower a place's error by (spacings) to be kept.
+const GAIN: f64 = 0.005;
+
+/// The error below which a try at a place can still matter, lowered to
+/// the best try's as tries finish (tries run in parallel). A try is only
+/// left unfinished once its error is known to exceed the bound, so the
+/// best try, and of equal ones the same, is found as if all were
+/// finished: the bound never drops below the best try's error. It starts
+/// at the larger of `now` less [`GAIN`] (what a kept change must beat)
+/// and the target (below which moves are not tried): a best try above it
+/// changes nothing either way.
+struct Bound(std::sync::atomic::AtomicU64);
+
+impl Bound {
+    fn new(start: f64) -> Self {
+        // Non-negative floats order as their bits do.
+        Self(std::sync::atomic::AtomicU64::new(start.max(0.0).to_bits()))
+    }
+
+    fn get(&self) -> f64 {
+        f64::from_bits(self.0.load(std::sync::atomic::Ordering::Relaxed))
+    }
+
+    fn lower(&self, error: f64) {
+        self.0.fetch_min(
+            error.max(0.0).to_bits(),
+            std::sync::atomic::Ordering::Relaxed,
+        );
+    }
 }
 
 /// One change to a cell's feature points.
@@ -509,53 +547,104 @@ const MARGIN: usize = 3;
 /// Samples along each side of that crop.
 const SIDE: usize = 2 * MARGIN + 2;
 
-/// The surface's error around `cell` of the crop `local`, both ways: the
-/// surface within a cell of `cell` to the mesh, and the mesh's samples
-/// within a cell of it to the surface within two cells. `spec` is the
-/// whole field's grid (the mesh samples are binned by its cells).
-fn block_error(
-    local: &UnifiedField,
-    query: &impl Exact,
-    samples: &MeshSamples,
+/// A place [`repair`] scores: the surface's error around cell `cell` of
+/// a crop, both ways: the surface within a cell of `cell` to the mesh,
+/// and the mesh's samples within a cell of it to the surface within two
+/// cells.
+struct Place {
     cell: usize,
-    spec: &GridSpec<3>,
-) -> f64 {
-    let h = spec.spacing;
-    let (mesh, _) = local.extract();
-    let triangles: Vec<[DVec3; 3]> = (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect();
-    let lo = local.spec.position(local.spec.unlinear(cell));
-    let lo = DVec3::from_array(lo);
-    let within = |t: &[DVec3; 3], reach: f64| {
-        let m = (t[0] + t[1] + t[2]) / 3.0;
-        m.cmpge(lo - DVec3::splat(reach * h)).all()
-            && m.cmple(lo + DVec3::splat((1.0 + reach) * h)).all()
-    };
-    let near: Vec<[DVec3; 3]> = triangles
-        .iter()
-        .filter(|t| within(t, 1.0))
-        .copied()
-        .collect();
-    let wide: Vec<[DVec3; 3]> = triangles
-        .iter()
-        .filter(|t| within(t, 2.0))
-        .copied()
-        .collect();
-    let off = sample_points(&near)
-        .chain(near.iter().flatten().copied())
-        .map(|p| query.signed_distance(p).abs())
-        .fold(0.0, f64::max);
-    let Some(whole) = cell_of(spec, lo + DVec3::splat(0.5 * h)) else {
-        return off;
-    };
-    let back = farthest_to(&samples.in_cells(block(spec, whole, 1)), &wide, off);
-    off.max(back)
+    /// The mesh's samples within a cell of the place.
+    samples: Vec<DVec3>,
+    /// Distances to the exact surface of the points measured on the
+    /// place's surface before any try: most triangles of a try's surface
+    /// are the same, and their points need no new query.
+    known: HashMap<[u64; 3], f64>,
+}
+
+impl Place {
+    /// The place around `cell` of the crop `local`; `spec` is the whole
+    /// field's grid (the mesh samples are binned by its cells).
+    fn new(
+        local: &UnifiedField,
+        query: &impl Exact,
+        samples: &MeshSamples,
+        cell: usize,
+        spec: &GridSpec<3>,
+    ) -> Self {
+        let h = spec.spacing;
+        let lo = DVec3::from_array(local.spec.position(local.spec.unlinear(cell)));
+        let samples = match cell_of(spec, lo + DVec3::splat(0.5 * h)) {
+            Some(whole) => samples.in_cells(block(spec, whole, 1)),
+            None => Vec::new(),
+        };
+        let mut place = Place {
+            cell,
+            samples,
+            known: HashMap::new(),
+        };
+        let (near, _) = place.surface(local);
+        let points: Vec<DVec3> = measured_points(&near).collect();
+        place.known = points
+            .into_par_iter()
+            .map(|p| (key(p), query.signed_distance(p).abs()))
+            .collect();
+        place
+    }
+
+    /// The surface of `local` within one and within two cells of the
+    /// place (by the triangles' centroids).
+    fn surface(&self, local: &UnifiedField) -> (Vec<[DVec3; 3]>, Vec<[DVec3; 3]>) {
+        let h = local.spec.spacing;
+        let (mesh, _) = local.extract();
+        let lo = DVec3::from_array(local.spec.position(local.spec.unlinear(self.cell)));
+        let within = |t: &[DVec3; 3], reach: f64| {
+            let m = (t[0] + t[1] + t[2]) / 3.0;
+            m.cmpge(lo - DVec3::splat(reach * h)).all()
+                && m.cmple(lo + DVec3::splat((1.0 + reach) * h)).all()
+        };
+        let wide: Vec<[DVec3; 3]> = (0..mesh.triangles.len())
+            .map(|t| mesh.corners(t))
+            .filter(|t| within(t, 2.0))
+            .collect();
+        let near = wide.iter().filter(|t| within(t, 1.0)).copied().collect();
+        (near, wide)
+    }
+
+    /// The error of `local`'s surface at the place; `None` as soon as it
+    /// is known to exceed `bound`.
+    fn error(&self, local: &UnifiedField, query: &impl Exact, bound: f64) -> Option<f64> {
+        let (near, wide) = self.surface(local);
+        let mut off = 0.0f64;
+        for p in measured_points(&near) {
+            let d = match self.known.get(&key(p)) {
+                Some(&d) => d,
+                None => query.signed_distance(p).abs(),
+            };
+            off = off.max(d);
+            if off > bound {
+                return None;
+            }
+        }
+        farthest_to(&self.samples, &wide, off, bound)
+    }
+}
+
+/// The points at which the surface is measured against the mesh: each
+/// triangle's [`sample_points`] and corners.
+fn measured_points(triangles: &[[DVec3; 3]]) -> impl Iterator<Item = DVec3> + '_ {
+    sample_points(triangles).chain(triangles.iter().flatten().copied())
+}
+
+fn key(p: DVec3) -> [u64; 3] {
+    p.to_array().map(f64::to_bits)
 }
 
 /// The largest distance from `points` to the triangles, or `floor` if
 /// that is larger (points nearer than the largest so far are left as
 /// soon as a triangle that near is found; triangles whose bounding
-/// sphere lies farther than the nearest so far are skipped).
-fn farthest_to(points: &[DVec3], triangles: &[[DVec3; 3]], floor: f64) -> f64 {
+/// sphere lies farther than the nearest so far are skipped). `None` as
+/// soon as it is known to exceed `cap`.
+fn farthest_to(points: &[DVec3], triangles: &[[DVec3; 3]], floor: f64, cap: f64) -> Option<f64> {
     let spheres: Vec<(DVec3, f64)> = triangles
         .iter()
         .map(|t| {
@@ -576,8 +665,11 @@ fn farthest_to(points: &[DVec3], triangles: &[[DVec3; 3]], floor: f64) -> f64 {
             }
         }
         worst = worst.max(nearest);
+        if worst > cap {
+            return None;
+        }
     }
-    worst
+    Some(worst)
 }
 
 /// Cells near features whose surface (from the whole field) strays from
@@ -618,7 +710,13 @@ fn places_above(
                 .flatten()
                 .copied()
                 .collect();
-            let e = farthest_to(&samples.in_cells(std::iter::once(c)), &around, off);
+            // Below the limit the error need not be known exactly.
+            let e = farthest_to(
+                &samples.in_cells(std::iter::once(c)),
+                &around,
+                off.max(limit),
+                f64::INFINITY,
+            )?;
             (e > limit).then_some((e, c))
         })
         .collect();
