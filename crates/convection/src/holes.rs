@@ -368,20 +368,17 @@ mod tests {
         (points, triangles)
     }
 
-    fn unit_spacing(points: &[DVec3]) -> Vec<f64> {
-        vec![1.0; points.len()]
+    /// The default rule on a sample whose spacing is 1 everywhere.
+    fn open_with_defaults(triangles: &mut Vec<[u32; 3]>, points: &[DVec3]) -> OpenedHoles {
+        let spacing = vec![1.0; points.len()];
+        open_sampling_holes(triangles, points, &spacing, &HoleRule::default())
     }
 
     #[test]
     fn a_fan_over_an_unsampled_square_is_removed() {
         let (points, mut triangles) = sheet_with_hole(20, 6..14);
         let before = triangles.len();
-        let opened = open_sampling_holes(
-            &mut triangles,
-            &points,
-            &unit_spacing(&points),
-            &HoleRule::default(),
-        );
+        let opened = open_with_defaults(&mut triangles, &points);
         assert_eq!(opened.holes, 1);
         // The fan has 30 faces; the two at its apex lie along the rim
         // (nearly flat, two spacings long) and may stay.
@@ -423,12 +420,7 @@ mod tests {
             triangles.push([centre, a, rim[(i + 1) % rim.len()]]);
         }
         let before = triangles.clone();
-        let opened = open_sampling_holes(
-            &mut triangles,
-            &points,
-            &unit_spacing(&points),
-            &HoleRule::default(),
-        );
+        let opened = open_with_defaults(&mut triangles, &points);
         assert_eq!(opened, OpenedHoles::default());
         assert_eq!(triangles, before);
     }
@@ -437,12 +429,7 @@ mod tests {
     fn a_dense_sheet_keeps_every_face() {
         let (points, mut triangles) = sheet_with_hole(12, 0..0);
         let before = triangles.clone();
-        let opened = open_sampling_holes(
-            &mut triangles,
-            &points,
-            &unit_spacing(&points),
-            &HoleRule::default(),
-        );
+        let opened = open_with_defaults(&mut triangles, &points);
         assert_eq!(opened, OpenedHoles::default());
         assert_eq!(triangles, before);
     }
@@ -452,12 +439,7 @@ mod tests {
         // Its cover has fewer large faces than a patch needs.
         let (points, mut triangles) = sheet_with_hole(12, 5..7);
         let before = triangles.len();
-        let opened = open_sampling_holes(
-            &mut triangles,
-            &points,
-            &unit_spacing(&points),
-            &HoleRule::default(),
-        );
+        let opened = open_with_defaults(&mut triangles, &points);
         assert_eq!(opened.holes, 0);
         assert_eq!(triangles.len(), before);
     }
@@ -485,12 +467,7 @@ mod tests {
         for w in rim[1..].windows(2) {
             triangles.push([rim[0], w[0], w[1]]);
         }
-        let opened = open_sampling_holes(
-            &mut triangles,
-            &points,
-            &unit_spacing(&points),
-            &HoleRule::default(),
-        );
+        let opened = open_with_defaults(&mut triangles, &points);
         assert!(opened.holes >= 1, "{opened:?}");
         assert_one_fan_everywhere(&triangles);
         assert!(triangles.iter().any(|t| t.contains(&id(10, 10))));
