@@ -84,6 +84,22 @@ fn reconstruct_svm_saves_reloads_and_meshes_a_closed_surface() {
     assert!(!run.status.success());
     let err = String::from_utf8_lossy(&run.stderr);
     assert!(err.contains("m.svm") && err.contains("truncated"), "{err}");
+
+    // A missing model is named once, its cause once.
+    let missing = dir.path().join("missing.svm");
+    let run = surfrecon(&[
+        "reconstruct",
+        s(&input),
+        "-o",
+        s(&again),
+        "--method",
+        "svm",
+        "--model-in",
+        s(&missing),
+    ]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert_eq!(err.matches("os error 2").count(), 1, "{err}");
 }
 
 #[test]

@@ -10,10 +10,12 @@ pub enum SvmError {
     /// A parameter outside its valid range.
     #[error("invalid parameter {name}: {message}")]
     InvalidParameter { name: &'static str, message: String },
-    #[error("{}: {source}", path.display())]
+    /// Not named `source`: the message already holds it, and a source
+    /// would be printed again after it.
+    #[error("{}: {error}", path.display())]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A model file that is not in the documented format.
     #[error("{}: byte {byte}: {message}", path.display())]

@@ -348,9 +348,9 @@ impl SvmModel {
     /// Load a model saved by [`SvmModel::save`]; malformed files give
     /// [`SvmError::Format`] naming the byte offset of the problem.
     pub fn load(path: &Path) -> Result<SvmModel> {
-        let bytes = std::fs::read(path).map_err(|source| SvmError::Io {
+        let bytes = std::fs::read(path).map_err(|error| SvmError::Io {
             path: path.to_path_buf(),
-            source,
+            error,
         })?;
         Self::from_bytes(&bytes).map_err(|(byte, message)| SvmError::Format {
             path: path.to_path_buf(),
