@@ -71,33 +71,25 @@ fn reconstruct_svm_saves_reloads_and_meshes_a_closed_surface() {
 
     // A malformed model is one clear error line naming the file.
     std::fs::write(&model, b"SRSVMMDL\x01\x00").unwrap();
-    let run = surfrecon(&[
-        "reconstruct",
-        s(&input),
-        "-o",
-        s(&again),
-        "--method",
-        "svm",
-        "--model-in",
-        s(&model),
-    ]);
-    assert!(!run.status.success());
-    let err = String::from_utf8_lossy(&run.stderr);
+    let refused = |model: &Path| {
+        let run = surfrecon(&[
+            "reconstruct",
+            s(&input),
+            "-o",
+            s(&again),
+            "--method",
+            "svm",
+            "--model-in",
+            s(model),
+        ]);
+        assert!(!run.status.success());
+        String::from_utf8_lossy(&run.stderr).into_owned()
+    };
+    let err = refused(&model);
     assert!(err.contains("m.svm") && err.contains("truncated"), "{err}");
 
     // A missing model is named once, its cause once.
-    let missing = dir.path().join("missing.svm");
-    let run = surfrecon(&[
-        "reconstruct",
-        s(&input),
-        "-o",
-        s(&again),
-        "--method",
-        "svm",
-        "--model-in",
-        s(&missing),
-    ]);
-    let err = String::from_utf8_lossy(&run.stderr);
+    let err = refused(&dir.path().join("missing.svm"));
     assert_eq!(err.lines().count(), 1, "{err}");
     assert_eq!(err.matches("os error 2").count(), 1, "{err}");
 }
