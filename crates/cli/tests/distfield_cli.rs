@@ -330,5 +330,44 @@ fn bad_fields_tools_and_meshes_get_one_clear_error() {
         ]),
         ".udf",
     );
-    assert!(!out.exists(), "no output after a failure");
+    // A damaged .udf is refused as one; an unknown extension names all four kinds.
+    let empty = dir.path().join("empty.udf");
+    std::fs::write(&empty, b"").unwrap();
+    let mesh_out = dir.path().join("m.ply");
+    assert_fails_with(
+        &run(&["extract", path_str(&empty), "-o", path_str(&mesh_out)]),
+        "truncated: 0 bytes, shorter than the 8-byte magic",
+    );
+    assert_fails_with(
+        &run(&["extract", path_str(&input), "-o", path_str(&mesh_out)]),
+        "(supported: nrrd, vtk, odf, udf)",
+    );
+    // Energy weights: the distance term must be on, the others ≥ 0.
+    let odf = dir.path().join("out.odf");
+    for (flag, needle) in [
+        (
+            "--lambda-distance=0",
+            "the distance weight must be a positive number, not 0",
+        ),
+        (
+            "--lambda-spring=-1",
+            "the spring weight must be a number ≥ 0, not -1",
+        ),
+        (
+            "--lambda-ortho=NaN",
+            "the ortho weight must be a number ≥ 0, not NaN",
+        ),
+    ] {
+        let args = [
+            "distance",
+            path_str(&input),
+            "-o",
+            path_str(&odf),
+            "--kind",
+            "odf",
+            flag,
+        ];
+        assert_fails_with(&run(&args), needle);
+    }
+    assert!(!out.exists() && !odf.exists(), "no output after a failure");
 }

@@ -198,3 +198,37 @@ fn morph_writes_frames_from_source_to_target() {
     assert!(!run.status.success());
     assert!(String::from_utf8_lossy(&run.stderr).contains("line 1"));
 }
+
+#[test]
+fn morph_refuses_absurd_options_before_fitting() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path().join("src.ply");
+    io::write(&src, &Geometry::from_mesh(icosphere(DVec3::ZERO, 1.0, 2))).unwrap();
+    let prefix = dir.path().join("m");
+    for (flag, message) in [
+        ("--frames=100000000", "--frames must be between 2"),
+        ("--warp-levels=0", "levels: must be between 1 and 16, got 0"),
+        (
+            "--warp-levels=99",
+            "levels: must be between 1 and 16, got 99",
+        ),
+        (
+            "--c-corr=-1",
+            "c_corr: must be a non-negative finite number",
+        ),
+        (
+            "--c-dist=NaN",
+            "c_dist: must be a non-negative finite number",
+        ),
+    ] {
+        let run = surfrecon(&["morph", s(&src), s(&src), "-o", s(&prefix), flag]);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !run.status.success() && err.contains(message),
+            "{flag}: {err}"
+        );
+        assert_eq!(err.lines().count(), 1, "{flag}: {err}");
+    }
+    let written = std::fs::read_dir(dir.path()).unwrap().count();
+    assert_eq!(written, 1, "only the source file is left");
+}

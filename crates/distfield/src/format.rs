@@ -42,15 +42,38 @@ pub enum FieldKind {
     Unified,
 }
 
-/// The kind a file's magic bytes announce, if it is one of ours.
+/// The kind a file's magic bytes announce, or else its extension (so that
+/// a damaged .udf is read, and refused, as one), if it is one of ours.
 pub fn sniff(path: &Path) -> Result<Option<FieldKind>, DistFieldError> {
     let mut magic = [0u8; 8];
     let mut f = std::fs::File::open(path).map_err(|error| io_error(path, error))?;
-    match std::io::Read::read_exact(&mut f, &mut magic) {
-        Ok(()) if &magic == ODF_MAGIC => Ok(Some(FieldKind::Offset)),
-        Ok(()) if &magic == UDF_MAGIC => Ok(Some(FieldKind::Unified)),
-        _ => Ok(None),
+    Ok(match std::io::Read::read_exact(&mut f, &mut magic) {
+        Ok(()) if &magic == ODF_MAGIC => Some(FieldKind::Offset),
+        Ok(()) if &magic == UDF_MAGIC => Some(FieldKind::Unified),
+        _ => match extension(path).as_str() {
+            "odf" => Some(FieldKind::Offset),
+            "udf" => Some(FieldKind::Unified),
+            _ => None,
+        },
+    })
+}
+
+/// Error unless `path` names a field file of a kind we read.
+pub fn check_field_extension(path: &Path) -> Result<(), DistFieldError> {
+    match extension(path).as_str() {
+        "nrrd" | "vtk" | "odf" | "udf" => Ok(()),
+        ext => Err(DistFieldError::BadFile {
+            path: path.to_path_buf(),
+            message: format!("unknown field format {ext:?} (supported: nrrd, vtk, odf, udf)"),
+        }),
     }
+}
+
+fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
 }
 
 pub fn write_odf(path: &Path, field: &OffsetField) -> Result<(), DistFieldError> {
@@ -306,7 +329,13 @@ impl Reader<'_> {
         magic: &[u8; 8],
         kind: &str,
     ) -> Result<(GridSpec<3>, Vec<f64>), DistFieldError> {
-        if self.bytes.len() < 8 || &self.bytes[..8] != magic {
+        if self.bytes.len() < 8 {
+            return Err(self.bad(format!(
+                "truncated: {} bytes, shorter than the 8-byte magic of a {kind} file",
+                self.bytes.len()
+            )));
+        }
+        if &self.bytes[..8] != magic {
             return Err(self.bad(format!("not a surfrecon {kind} file (wrong magic bytes)")));
         }
         self.at = 8;
@@ -374,25 +403,25 @@ impl AnyField {
         match sniff(path)? {
             Some(FieldKind::Offset) => Ok(AnyField::Offset(read_odf(path)?)),
             Some(FieldKind::Unified) => Ok(AnyField::Unified(read_udf(path)?)),
-            None => match surfrecon_grid::field_io::read_field(path)? {
-                surfrecon_grid::field_io::AnyField::D3(f) => Ok(AnyField::Regular(f)),
-                surfrecon_grid::field_io::AnyField::D2(_) => Err(DistFieldError::BadFile {
-                    path: path.to_path_buf(),
-                    message: "a 2D field has no surface to sculpt or compare; a 3D field is needed"
-                        .into(),
-                }),
-            },
+            None => {
+                check_field_extension(path)?;
+                match surfrecon_grid::field_io::read_field(path)? {
+                    surfrecon_grid::field_io::AnyField::D3(f) => Ok(AnyField::Regular(f)),
+                    surfrecon_grid::field_io::AnyField::D2(_) => Err(DistFieldError::BadFile {
+                        path: path.to_path_buf(),
+                        message:
+                            "a 2D field has no surface to sculpt or compare; a 3D field is needed"
+                                .into(),
+                    }),
+                }
+            }
         }
     }
 
     /// Write in the file's own kind; `.odf`/`.udf` kinds must be written
     /// to files with those extensions, regular ones to .nrrd or .vtk.
     pub fn write(&self, path: &Path) -> Result<(), DistFieldError> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .unwrap_or("")
-            .to_ascii_lowercase();
+        let ext = extension(path);
         let expected = match self {
             AnyField::Regular(_) => "nrrd or .vtk",
             AnyField::Offset(_) => "odf",

@@ -69,6 +69,25 @@ impl Default for Weights {
     }
 }
 
+impl Weights {
+    /// Error unless every weight is finite and not negative, and the
+    /// distance term (the one that draws samples to the surface) is on.
+    pub fn validate(&self) -> Result<(), DistFieldError> {
+        let invalid = |name: &str, value: f64, range: &str| {
+            DistFieldError::InvalidOption(format!("the {name} weight must be {range}, not {value}"))
+        };
+        if !(self.distance.is_finite() && self.distance > 0.0) {
+            return Err(invalid("distance", self.distance, "a positive number"));
+        }
+        for (name, value) in [("spring", self.spring), ("ortho", self.ortho)] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(invalid(name, value, "a number ≥ 0"));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// How to build an offset field.
 #[derive(Debug, Clone, Copy)]
 pub struct OdfOptions {
@@ -134,14 +153,7 @@ pub fn build_odf(
     let start = Instant::now();
     check_mesh(mesh)?;
     let w = options.weights;
-    if ![w.distance, w.spring, w.ortho]
-        .iter()
-        .all(|x| x.is_finite() && *x >= 0.0)
-    {
-        return Err(DistFieldError::InvalidOption(format!(
-            "energy weights must be finite and at least 0: {w:?}"
-        )));
-    }
+    w.validate()?;
     let spec = grid_for(mesh, options.size, options.padding)?;
     let values = signed_distance(mesh, &spec, Some(BAND_CELLS * spec.spacing))?.values;
     let query = MeshQuery::new(mesh)?;

@@ -244,7 +244,7 @@ fn sculpting_keeps_the_corners_where_a_tool_cuts_an_edge() {
 
 #[test]
 fn field_files_round_trip_exactly_and_refuse_truncation() {
-    use surfrecon_distfield::format::{read_odf, read_udf, write_odf, write_udf};
+    use surfrecon_distfield::format::{read_odf, read_udf, write_odf, write_udf, AnyField};
     use surfrecon_distfield::offset::{build_odf, OdfOptions};
     let shape = rotated_cube();
     let size = GridSize::Resolution(12);
@@ -288,6 +288,17 @@ fn field_files_round_trip_exactly_and_refuse_truncation() {
             };
             let message = err.expect("a truncated file is refused").to_string();
             assert!(message.contains("cut:"), "{message}");
+            // Read by kind, a cut file is still taken for what its name says.
+            let named = dir.path().join(format!(
+                "cut.{}",
+                if path == &udf_path { "udf" } else { "odf" }
+            ));
+            std::fs::write(&named, &bytes[..len]).unwrap();
+            let message = AnyField::read(&named).unwrap_err().to_string();
+            assert!(
+                message.contains("truncated") || message.contains(" follow"),
+                "{len}: {message}"
+            );
         }
     }
 }

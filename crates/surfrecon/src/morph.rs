@@ -82,6 +82,10 @@ pub fn morph(
             "the source has no triangles; morph warps a mesh",
         ));
     }
+    let warp_options = options.warp_options();
+    warp_options
+        .validate()
+        .map_err(|e| e.within("invalid morph options"))?;
     let source_points = oriented_points(&Geometry::from_mesh(source.clone()));
     let target_points = oriented_points(target);
     check(hook, "fit source")?;
@@ -90,15 +94,8 @@ pub fn morph(
     let (f2, _) = fit_shape(&target_points).map_err(|e| e.within("fitting the target"))?;
     let samples = warp_samples(&source_points, r1.diameter);
     check(hook, "warp")?;
-    let (warp, reports) = fit_warp(
-        &f1,
-        &f2,
-        &samples,
-        pairs,
-        r1.diameter,
-        &options.warp_options(),
-    )
-    .map_err(|e| e.within("warp fit failed"))?;
+    let (warp, reports) = fit_warp(&f1, &f2, &samples, pairs, r1.diameter, &warp_options)
+        .map_err(|e| e.within("warp fit failed"))?;
     let levels = reports.iter().map(|r| WarpLevel {
         width: r.width,
         centres: r.centres,

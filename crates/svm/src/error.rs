@@ -46,3 +46,15 @@ pub(crate) fn require_positive(name: &'static str, value: f64) -> Result<()> {
         })
     }
 }
+
+/// Error unless `value` is finite and not negative.
+pub(crate) fn require_non_negative(name: &'static str, value: f64) -> Result<()> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(SvmError::InvalidParameter {
+            name,
+            message: format!("must be a non-negative finite number, got {value}"),
+        })
+    }
+}

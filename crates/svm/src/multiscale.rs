@@ -12,7 +12,7 @@
 //! of the training set, each counted in the [`FitReport`].
 
 use crate::cells::CellIndex;
-use crate::error::{require_positive, Result, SvmError};
+use crate::error::{require_non_negative, require_positive, Result, SvmError};
 use crate::kernel::KernelMatrix;
 use crate::model::{Level, SvmModel};
 use crate::noise::estimate_noise;
@@ -143,21 +143,8 @@ impl FitOptions {
         require_positive("min_width_spacings", self.min_width_spacings)?;
         require_positive_or_infinite("consistency_ratio", self.consistency_ratio)?;
         require_positive_or_infinite("isolation_ratio", self.isolation_ratio)?;
-        if !(self.noise_floor.is_finite() && self.noise_floor >= 0.0) {
-            return Err(SvmError::InvalidParameter {
-                name: "noise_floor",
-                message: format!(
-                    "must be a non-negative finite number, got {}",
-                    self.noise_floor
-                ),
-            });
-        }
-        if !(self.epsilon.is_finite() && self.epsilon >= 0.0) {
-            return Err(SvmError::InvalidParameter {
-                name: "epsilon",
-                message: format!("must be a non-negative finite number, got {}", self.epsilon),
-            });
-        }
+        require_non_negative("noise_floor", self.noise_floor)?;
+        require_non_negative("epsilon", self.epsilon)?;
         if self.max_levels == 0 || self.max_sweeps == 0 {
             return Err(SvmError::InvalidParameter {
                 name: "max_levels/max_sweeps",

@@ -13,7 +13,7 @@
 //! adds to the displacement of the coarser ones.
 
 use crate::cells::CellIndex;
-use crate::error::{require_positive, Result, SvmError};
+use crate::error::{require_non_negative, require_positive, Result, SvmError};
 use crate::kernel::wu;
 use crate::model::SvmModel;
 use crate::training::box_representatives;
@@ -34,6 +34,31 @@ pub struct WarpOptions {
     pub ridge: f64,
     pub gauss_newton_steps: usize,
     pub cg_iterations: usize,
+}
+
+/// More levels than this make kernels narrower than any sampling reaches
+/// (the 16th is 2^-16 of the diameter wide) and only cost time.
+pub const MAX_WARP_LEVELS: usize = 16;
+
+impl WarpOptions {
+    /// Error unless every parameter lies in its range.
+    pub fn validate(&self) -> Result<()> {
+        require_positive("coarsest", self.coarsest)?;
+        require_positive("cell_ratio", self.cell_ratio)?;
+        require_non_negative("c_corr", self.c_corr)?;
+        require_non_negative("c_dist", self.c_dist)?;
+        require_non_negative("ridge", self.ridge)?;
+        if !(1..=MAX_WARP_LEVELS).contains(&self.levels) {
+            return Err(SvmError::InvalidParameter {
+                name: "levels",
+                message: format!(
+                    "must be between 1 and {MAX_WARP_LEVELS}, got {}",
+                    self.levels
+                ),
+            });
+        }
+        Ok(())
+    }
 }
 
 impl Default for WarpOptions {
@@ -113,8 +138,7 @@ pub fn fit_warp(
     opts: &WarpOptions,
 ) -> Result<(WarpField, Vec<WarpLevelReport>)> {
     require_positive("diameter", diameter)?;
-    require_positive("coarsest", opts.coarsest)?;
-    require_positive("cell_ratio", opts.cell_ratio)?;
+    opts.validate()?;
     if samples.is_empty() && pairs.is_empty() {
         return Err(SvmError::InvalidInput(
             "a warp needs sample points or correspondences".into(),

@@ -30,6 +30,7 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
     if surfrecon_distfield::format::sniff(&args.input)?.is_some() {
         return feature_surface(&args, ctx);
     }
+    surfrecon_distfield::format::check_field_extension(&args.input)?;
     let field = read_field(&args.input)?;
     check_crosses(&field, args.iso, &args)?;
     let spinner = ctx.spinner("extracting");

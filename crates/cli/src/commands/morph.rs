@@ -11,6 +11,9 @@ use surfrecon::morph::{fit_shape, oriented_points, warp_samples};
 use surfrecon::{io, DVec3, Geometry, MorphOptions, TriMesh};
 use surfrecon_svm::warp::{fit_warp, WarpField};
 
+/// Each frame is a file; more than this is a mistake, not an animation.
+const MAX_FRAMES: usize = 10_000;
+
 #[derive(clap::Args)]
 pub struct Args {
     /// Source mesh (its vertices are warped).
@@ -42,9 +45,19 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
-    if args.frames < 2 {
-        anyhow::bail!("--frames must be at least 2 (the source and the result)");
+    if !(2..=MAX_FRAMES).contains(&args.frames) {
+        anyhow::bail!(
+            "--frames must be between 2 (the source and the result) and {MAX_FRAMES} (one file each), not {}",
+            args.frames
+        );
     }
+    let opts = MorphOptions {
+        c_corr: args.c_corr,
+        c_dist: args.c_dist,
+        warp_levels: args.warp_levels,
+    }
+    .warp_options();
+    opts.validate().context("invalid warp options")?;
     let source = read_mesh(&args.source)?;
     let target = io::read(&args.target)?;
     let carried: Vec<TriMesh> = args
@@ -65,12 +78,6 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         fit_shape(&target_points).with_context(|| format!("fitting {}", args.target.display()))?;
     spinner.finish_and_clear();
     let samples = warp_samples(&source_points, r1.diameter);
-    let opts = MorphOptions {
-        c_corr: args.c_corr,
-        c_dist: args.c_dist,
-        warp_levels: args.warp_levels,
-    }
-    .warp_options();
     let spinner = ctx.spinner("fitting the warp field");
     let (warp, reports) =
         fit_warp(&f1, &f2, &samples, &pairs, r1.diameter, &opts).context("warp fit failed")?;
