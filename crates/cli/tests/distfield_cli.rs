@@ -357,6 +357,7 @@ fn bad_fields_tools_and_meshes_get_one_clear_error() {
             "--lambda-ortho=NaN",
             "the ortho weight must be a number ≥ 0, not NaN",
         ),
+        ("--iterations=21", "at most 20 search rounds, not 21"),
     ] {
         let args = [
             "distance",

@@ -99,6 +99,15 @@ pub struct OdfOptions {
     pub iterations: usize,
 }
 
+/// Rounds of the search by default. Steps below h/32 only nudge
+/// thousands of samples (fandisk at 64 cells: 8 rounds moved 14,108
+/// samples for the same maximum and mean error as 4 rounds' 9,967, in
+/// twice the search time).
+pub const DEFAULT_ITERATIONS: usize = 4;
+
+/// More rounds would step by less than h/10⁶, far below any error.
+pub const MAX_ITERATIONS: usize = 20;
+
 impl Default for OdfOptions {
     fn default() -> Self {
         Self {
@@ -106,7 +115,7 @@ impl Default for OdfOptions {
             padding: 2,
             feature_angle_deg: crate::features::DEFAULT_FEATURE_ANGLE_DEG,
             weights: Weights::default(),
-            iterations: 8,
+            iterations: DEFAULT_ITERATIONS,
         }
     }
 }
@@ -154,6 +163,12 @@ pub fn build_odf(
     check_mesh(mesh)?;
     let w = options.weights;
     w.validate()?;
+    if options.iterations > MAX_ITERATIONS {
+        return Err(DistFieldError::InvalidOption(format!(
+            "at most {MAX_ITERATIONS} search rounds, not {}",
+            options.iterations
+        )));
+    }
     let spec = grid_for(mesh, options.size, options.padding)?;
     let values = signed_distance(mesh, &spec, Some(BAND_CELLS * spec.spacing))?.values;
     let query = MeshQuery::new(mesh)?;

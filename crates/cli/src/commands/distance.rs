@@ -78,7 +78,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0.1)]
     pub lambda_ortho: f64,
     /// odf: rounds of the sample search; the step halves every round.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = surfrecon_distfield::offset::DEFAULT_ITERATIONS)]
     pub iterations: usize,
 }
 
