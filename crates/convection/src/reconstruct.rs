@@ -806,12 +806,13 @@ fn count_sheets(surface: &PseudoSurface, sheet: &[OrientedFacet]) -> usize {
 }
 
 /// Mean distance from each point to its nearest neighbours: the local
-/// sampling spacing.
+/// sampling spacing. In parallel (each point on its own: same result).
 fn point_spacing(points: &[DVec3]) -> Vec<f64> {
+    use rayon::prelude::*;
     const NEIGHBOURS: usize = 6;
     let tree = surfrecon_geom::spatial::KdTree::new(points);
     points
-        .iter()
+        .par_iter()
         .map(|&p| {
             let near = tree.knn(p, NEIGHBOURS + 1);
             let sum: f64 = near.iter().map(|n| n.distance).sum();
