@@ -563,9 +563,10 @@ fn result_cell_features(
         })
         .filter(|[a, b]| a.distance(*b) > 1e-6 * h)
         .collect();
-    pieces.extend(chain_points(&new_edge_points(spec, combined, cell), h));
+    let edge = new_edge_points(spec, combined, cell);
+    pieces.extend(chain_points(&edge, h));
     CellFeatures {
-        bends: result_features(spec, combined, cell, old, corners),
+        bends: features_with_edge(spec, combined, cell, old, corners, edge),
         pieces,
         ..Default::default()
     }
@@ -767,6 +768,19 @@ fn result_features(
     old: Option<&CellFeatures>,
     corners: &[DVec3],
 ) -> Vec<DVec3> {
+    let edge = new_edge_points(spec, combined, cell);
+    features_with_edge(spec, combined, cell, old, corners, edge)
+}
+
+/// [`result_features`] given the new edge's points in the cell.
+fn features_with_edge(
+    spec: &GridSpec<3>,
+    combined: &Combined,
+    cell: usize,
+    old: Option<&CellFeatures>,
+    corners: &[DVec3],
+    edge: Vec<DVec3>,
+) -> Vec<DVec3> {
     let h = spec.spacing;
     let lo = node_position(spec, cell);
     let inside = |p: DVec3| (p - lo).min_element() >= 0.0 && (p - lo).max_element() <= h;
@@ -777,7 +791,7 @@ fn result_features(
         .filter(|&p| combined.signed_distance(p).abs() < 1e-6 * h)
         .collect();
     probes.extend(corners.iter().copied().filter(|&p| inside(p)));
-    probes.extend(new_edge_points(spec, combined, cell));
+    probes.extend(edge);
     probes
 }
 
