@@ -512,14 +512,8 @@ fn repair(
     let features: BTreeMap<usize, CellFeatures> = cells
         .par_iter()
         .filter_map(|&c| {
-            let bends = result_features(&spec, combined, c, old_features.get(&c), corners);
-            (!bends.is_empty()).then(|| {
-                let f = CellFeatures {
-                    bends,
-                    ..Default::default()
-                };
-                (c, f)
-            })
+            let f = result_cell_features(&spec, combined, c, old_features.get(&c), corners);
+            (!f.bends.is_empty()).then_some((c, f))
         })
         .collect();
     let region: BTreeSet<usize> = cells
@@ -539,6 +533,76 @@ fn repair(
         crate::refine::TARGET,
     )
     .changed
+}
+
+/// The result's features in `cell` for the repair: every point of
+/// [`result_features`] as a candidate, and the lines as pieces — the
+/// object's old feature pieces where the tool leaves them (cut where it
+/// takes them), and the new edge's points chained along it. A cell that
+/// both cross (a new edge running beside an old ridge into the corner
+/// where it pierces it) then counts two lines, and the repair may move a
+/// sample onto the line its one point does not keep.
+fn result_cell_features(
+    spec: &GridSpec<3>,
+    combined: &Combined,
+    cell: usize,
+    old: Option<&CellFeatures>,
+    corners: &[DVec3],
+) -> CellFeatures {
+    let h = spec.spacing;
+    let kept = |p: DVec3| combined.signed_distance(p).abs() < 1e-6 * h;
+    let mut pieces: Vec<[DVec3; 2]> = old
+        .map(|f| f.pieces.as_slice())
+        .unwrap_or_default()
+        .iter()
+        .filter_map(|&[a, b]| match (kept(a), kept(b)) {
+            (true, true) => Some([a, b]),
+            (true, false) => Some([a, last_kept(a, b, kept)]),
+            (false, true) => Some([last_kept(b, a, kept), b]),
+            (false, false) => None,
+        })
+        .filter(|[a, b]| a.distance(*b) > 1e-6 * h)
+        .collect();
+    let edge = new_edge_points(spec, combined, cell);
+    pieces.extend(chain_points(&edge, h));
+    CellFeatures {
+        bends: features_with_edge(spec, combined, cell, old, corners, edge),
+        pieces,
+        ..Default::default()
+    }
+}
+
+/// The last point of segment `a`-`b` from `a` on which `kept` holds
+/// (`kept(a)`, not `kept(b)`; bisection).
+fn last_kept(a: DVec3, b: DVec3, kept: impl Fn(DVec3) -> bool) -> DVec3 {
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if kept(a.lerp(b, mid)) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    a.lerp(b, lo)
+}
+
+/// Points on one line, joined in order along it (their widest spread;
+/// within a cell a new edge is nearly straight) into pieces sharing
+/// their ends, near duplicates left out.
+fn chain_points(points: &[DVec3], h: f64) -> Vec<[DVec3; 2]> {
+    let Some((a, b)) = points
+        .iter()
+        .flat_map(|&p| points.iter().map(move |&q| (p, q)))
+        .max_by(|x, y| x.0.distance(x.1).total_cmp(&y.0.distance(y.1)))
+    else {
+        return Vec::new();
+    };
+    let along = b - a;
+    let mut sorted = points.to_vec();
+    sorted.sort_by(|p, q| (*p - a).dot(along).total_cmp(&(*q - a).dot(along)));
+    sorted.dedup_by(|p, q| p.distance(*q) < 1e-3 * h);
+    sorted.windows(2).map(|w| [w[0], w[1]]).collect()
 }
 
 /// Lattice points per axis and cell projected onto the tool for
@@ -704,6 +768,19 @@ fn result_features(
     old: Option<&CellFeatures>,
     corners: &[DVec3],
 ) -> Vec<DVec3> {
+    let edge = new_edge_points(spec, combined, cell);
+    features_with_edge(spec, combined, cell, old, corners, edge)
+}
+
+/// [`result_features`] given the new edge's points in the cell.
+fn features_with_edge(
+    spec: &GridSpec<3>,
+    combined: &Combined,
+    cell: usize,
+    old: Option<&CellFeatures>,
+    corners: &[DVec3],
+    edge: Vec<DVec3>,
+) -> Vec<DVec3> {
     let h = spec.spacing;
     let lo = node_position(spec, cell);
     let inside = |p: DVec3| (p - lo).min_element() >= 0.0 && (p - lo).max_element() <= h;
@@ -714,23 +791,29 @@ fn result_features(
         .filter(|&p| combined.signed_distance(p).abs() < 1e-6 * h)
         .collect();
     probes.extend(corners.iter().copied().filter(|&p| inside(p)));
+    probes.extend(edge);
+    probes
+}
+
+/// Points on the new edge (where object and tool meet) in `cell`.
+fn new_edge_points(spec: &GridSpec<3>, combined: &Combined, cell: usize) -> Vec<DVec3> {
+    let h = spec.spacing;
+    let lo = node_position(spec, cell);
+    let inside = |p: DVec3| (p - lo).min_element() >= 0.0 && (p - lo).max_element() <= h;
     // A new edge lies on both surfaces: both pass within half a diagonal
     // of the cell's centre (a cheap test before searching for it).
     let centre = lo + DVec3::splat(0.5 * h);
     let reach = 0.5 * 3f64.sqrt() * h;
-    if combined.tool.signed_distance(centre).abs() <= reach
-        && combined.object.signed_distance(centre).abs() <= reach
+    if combined.tool.signed_distance(centre).abs() > reach
+        || combined.object.signed_distance(centre).abs() > reach
     {
-        let starts = (0..27).map(|k| {
-            lo + DVec3::new((k % 3) as f64, ((k / 3) % 3) as f64, (k / 9) as f64) * (0.5 * h)
-        });
-        probes.extend(
-            starts
-                .filter_map(|s| combined.edge_point(s, 1e-6 * h))
-                .filter(|&p| inside(p) && combined.tool.signed_distance(p).abs() < 1e-6 * h),
-        );
+        return Vec::new();
     }
-    probes
+    (0..27)
+        .map(|k| lo + DVec3::new((k % 3) as f64, ((k / 3) % 3) as f64, (k / 9) as f64) * (0.5 * h))
+        .filter_map(|s| combined.edge_point(s, 1e-6 * h))
+        .filter(|&p| inside(p) && combined.tool.signed_distance(p).abs() < 1e-6 * h)
+        .collect()
 }
 
 /// The largest distance of triangles (sampled at their corners, edge

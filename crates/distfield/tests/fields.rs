@@ -643,6 +643,39 @@ fn udf_keeps_a_crease_below_the_feature_angle() {
 /// it crosses a cell with an old feature edge and ends in a corner on it.
 #[test]
 fn sculpting_fandisk_keeps_the_new_edge_beside_old_ones() {
+    let (worst, off) = sculpted_fandisk_errors(DVec3::new(2.5, 15.5, -1.3), 1.0);
+    // 0.083 h and 0.096 h since the repair knows the result's feature
+    // lines (old ridges and the new edge as pieces, so a cell crossed by
+    // both may move a sample onto the second; 0.13 h before); 0.13 h and
+    // 0.10 h since changed samples hand their feature points back to
+    // their cells (a sample moved onto a new corner had taken fandisk's
+    // ridge point next to it away: 0.155 h dense); 0.18 h and 0.32 h
+    // before the changed cells were repaired against the exact result;
+    // 0.52 h and 0.36 h before samples were moved onto the new corners
+    // (on the side that fans nearer the result; 0.27 h with that alone)
+    // and the changed cells re-picked their points by the surface
+    // extracted around them.
+    assert!(worst < 0.11, "the new edge is cut by {worst} h");
+    assert!(off < 0.125, "the surface leaves the result by {off} h");
+}
+
+/// A small sphere centred on one of fandisk's 90° edges (a tool the
+/// sculpting was not tuned on): its new edge meets the old one in two
+/// corners, with the old edge's two faces cut between them. Session 22:
+/// the surface left the result by 0.205 h (the new edge 0.058 h off it)
+/// before the repair knew the result's feature lines, 0.089 h (0.043 h)
+/// after.
+#[test]
+fn sculpting_fandisk_keeps_a_sphere_cut_into_an_edge() {
+    let (worst, off) = sculpted_fandisk_errors(DVec3::new(3.3, 14.08, -2.48), 0.45);
+    assert!(worst < 0.15, "the new edge is cut by {worst} h");
+    assert!(off < 0.15, "the surface leaves the result by {off} h");
+}
+
+/// Fandisk's UDF (64 cells, padding 4) minus a sphere, against the exact
+/// result: the largest distance of points on the new edge to the
+/// surface, and of the surface (densely) to the result, in spacings.
+fn sculpted_fandisk_errors(centre: DVec3, radius: f64) -> (f64, f64) {
     use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
     let shape = fandisk();
     let (mut udf, _) = build_udf(
@@ -655,7 +688,6 @@ fn sculpting_fandisk_keeps_the_new_edge_beside_old_ones() {
     )
     .unwrap();
     let h = udf.spec.spacing;
-    let (centre, radius) = (DVec3::new(2.5, 15.5, -1.3), 1.0);
     let tool = Tool::Sphere { centre, radius };
     sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
     let (mesh, _) = udf.extract();
@@ -677,7 +709,7 @@ fn sculpting_fandisk_keeps_the_new_edge_beside_old_ones() {
         })
         .filter(|&p| exact.signed_distance(p).abs() < 1e-6 * h)
         .collect();
-    assert!(edge.len() > 500, "{} points on the new edge", edge.len());
+    assert!(edge.len() > 200, "{} points on the new edge", edge.len());
     let surface = MeshQuery::new(&mesh).unwrap();
     let worst = edge
         .iter()
@@ -695,17 +727,8 @@ fn sculpting_fandisk_keeps_the_new_edge_beside_old_ones() {
                 / h
         })
         .fold(0.0, f64::max);
-    // 0.13 h and 0.10 h since changed samples hand their feature points
-    // back to their cells (a sample moved onto a new corner had taken
-    // fandisk's ridge point next to it away: 0.155 h dense); 0.18 h and
-    // 0.32 h before the changed cells were repaired against the exact
-    // result; 0.52 h and 0.36 h before
-    // samples were moved onto the new corners (on the side that fans
-    // nearer the result; 0.27 h with that alone) and the changed cells
-    // re-picked their points by the surface extracted around them.
     eprintln!("new edge off the surface by {worst} h; surface off the result by {off} h");
-    assert!(worst < 0.15, "the new edge is cut by {worst} h");
-    assert!(off < 0.125, "the surface leaves the result by {off} h");
+    (worst, off)
 }
 
 /// A mesh's vertices and 10 points inside each triangle (a 4-step
