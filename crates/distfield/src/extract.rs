@@ -516,16 +516,24 @@ fn flip_to_join(mesh: &mut TriMesh, feature: &HashSet<u32>) -> usize {
         return 0;
     }
     let undirected = |a: u32, b: u32| (a.min(b), a.max(b));
+    let mut is_feature = vec![false; mesh.vertices.len()];
+    for &v in feature {
+        is_feature[v as usize] = true;
+    }
+    // Only edges between two feature vertices are ever looked up (a
+    // flip's new edge joins two), so only those are kept.
     let mut edges: HashSet<(u32, u32)> = mesh
         .triangles
         .iter()
-        .flat_map(|t| (0..3).map(move |k| undirected(t[k], t[(k + 1) % 3])))
+        .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+        .filter(|&(a, b)| is_feature[a as usize] && is_feature[b as usize])
+        .map(|(a, b)| undirected(a, b))
         .collect();
     // Triangles with a feature vertex, by the edge opposite it.
     let mut opposite: BTreeMap<(u32, u32), Vec<usize>> = BTreeMap::new();
     for (i, t) in mesh.triangles.iter().enumerate() {
         for k in 0..3 {
-            if feature.contains(&t[k]) {
+            if is_feature[t[k] as usize] {
                 opposite
                     .entry(undirected(t[(k + 1) % 3], t[(k + 2) % 3]))
                     .or_default()
