@@ -13,7 +13,7 @@
 
 use crate::features::cell_of;
 use rayon::prelude::*;
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{BTreeMap, HashSet};
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::tables::{cube_table, EDGE_CORNERS};
 use surfrecon_grid::marching::{cell_case, crossing_fraction};
@@ -409,14 +409,16 @@ impl Patch {
     /// The directed edges of the patch that no other of its triangles
     /// shares (its crossing loops).
     fn boundary(&self) -> Vec<(Vertex, Vertex)> {
-        let directed: HashSet<(Vertex, Vertex)> = self
+        // A cell's patch has a dozen triangles at most: a linear search
+        // beats hashing its edges (this runs for every try of the repair).
+        let directed: Vec<(Vertex, Vertex)> = self
             .triangles
             .iter()
             .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
             .collect();
-        self.triangles
+        directed
             .iter()
-            .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+            .copied()
             .filter(|&(a, b)| !directed.contains(&(b, a)))
             .collect()
     }
@@ -489,15 +491,17 @@ fn triangle_normal([a, b, c]: [DVec3; 3]) -> DVec3 {
 }
 
 fn is_one_loop(boundary: &[(Vertex, Vertex)]) -> bool {
-    let next: HashMap<Vertex, Vertex> = boundary.iter().copied().collect();
-    if boundary.is_empty() || next.len() != boundary.len() {
+    // Loops are short (a cell's crossings, or two cells' when merged):
+    // linear searches rather than a map.
+    let starts_once = |k: usize| boundary[..k].iter().all(|e| e.0 != boundary[k].0);
+    if boundary.is_empty() || !(0..boundary.len()).all(starts_once) {
         return false;
     }
     let start = boundary[0].0;
     let mut v = start;
     for steps in 1..=boundary.len() {
-        v = match next.get(&v) {
-            Some(&n) => n,
+        v = match boundary.iter().find(|e| e.0 == v) {
+            Some(&(_, n)) => n,
             None => return false,
         };
         if v == start {
@@ -516,16 +520,24 @@ fn flip_to_join(mesh: &mut TriMesh, feature: &HashSet<u32>) -> usize {
         return 0;
     }
     let undirected = |a: u32, b: u32| (a.min(b), a.max(b));
+    let mut is_feature = vec![false; mesh.vertices.len()];
+    for &v in feature {
+        is_feature[v as usize] = true;
+    }
+    // Only edges between two feature vertices are ever looked up (a
+    // flip's new edge joins two), so only those are kept.
     let mut edges: HashSet<(u32, u32)> = mesh
         .triangles
         .iter()
-        .flat_map(|t| (0..3).map(move |k| undirected(t[k], t[(k + 1) % 3])))
+        .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+        .filter(|&(a, b)| is_feature[a as usize] && is_feature[b as usize])
+        .map(|(a, b)| undirected(a, b))
         .collect();
     // Triangles with a feature vertex, by the edge opposite it.
     let mut opposite: BTreeMap<(u32, u32), Vec<usize>> = BTreeMap::new();
     for (i, t) in mesh.triangles.iter().enumerate() {
         for k in 0..3 {
-            if feature.contains(&t[k]) {
+            if is_feature[t[k] as usize] {
                 opposite
                     .entry(undirected(t[(k + 1) % 3], t[(k + 2) % 3]))
                     .or_default()

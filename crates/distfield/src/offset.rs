@@ -40,6 +40,7 @@ use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
 
 mod repair;
+pub(crate) use repair::THINNED;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::time::Instant;
 use surfrecon_geom::metrics::closest_point_on_triangle;

@@ -20,7 +20,8 @@
 
 use crate::extract::corner_nodes;
 use crate::extract::SampledField;
-use crate::features::{cell_of, nudge_into, CellFeatures};
+use crate::features::{cell_of, nudge_into, thinned_by_cell, CellFeatures};
+use crate::offset::THINNED;
 use crate::offset::{may_take, node_position, stays_convex};
 use crate::query::MeshQuery;
 use crate::sharp::{clamp_near, is_sharp, owner_cell, Tangent};
@@ -32,8 +33,8 @@ use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_grid::GridSpec;
 
-/// Points on the mesh (its vertices and six points inside each triangle)
-/// by the cell containing them.
+/// Points on the mesh (its vertices and six points inside each triangle,
+/// thinned on coarse grids) by the cell containing them.
 pub(crate) struct MeshSamples {
     by_cell: HashMap<usize, Vec<DVec3>>,
 }
@@ -57,8 +58,13 @@ impl Exact for MeshQuery {
 }
 
 impl MeshSamples {
+    /// In cells holding more than [`DENSE_CELL`] points, at most one per
+    /// [`THINNED`]-th of a cell along each axis, vertices first (as the
+    /// offset field's repair measures everywhere).
     pub(crate) fn new(mesh: &TriMesh, spec: &GridSpec<3>) -> Self {
-        Self::from_points(spec, mesh_points(mesh))
+        Self {
+            by_cell: thinned_by_cell(spec, mesh_points(mesh), THINNED, DENSE_CELL),
+        }
     }
 
     /// `points` on the surface, binned by cell.
@@ -82,7 +88,7 @@ impl MeshSamples {
 }
 
 /// A mesh's vertices and six points inside each of its triangles.
-pub(crate) fn mesh_points(mesh: &TriMesh) -> impl Iterator<Item = DVec3> + '_ {
+pub(crate) fn mesh_points(mesh: &TriMesh) -> impl Iterator<Item = DVec3> + Clone + '_ {
     let inner = (0..mesh.triangles.len()).flat_map(|t| {
         let [a, b, c] = mesh.corners(t);
         (0..3).flat_map(move |i| {
@@ -94,6 +100,12 @@ pub(crate) fn mesh_points(mesh: &TriMesh) -> impl Iterator<Item = DVec3> + '_ {
     });
     mesh.vertices.iter().copied().chain(inner)
 }
+
+/// Points a cell keeps unthinned (see [`MeshSamples::new`]): as many as
+/// a surface crossing it leaves in its [`THINNED`]³ sub-cells at most,
+/// about: fandisk at 64 cells keeps every point (its field is the same
+/// as unthinned), at 8 and 16 cells it is thinned.
+const DENSE_CELL: usize = 64;
 
 /// What [`repair`] changed.
 #[derive(Debug, Clone, Copy, Default)]

@@ -16,10 +16,10 @@
 use super::{
     cell_triangles, corner_nodes, node_position, on_outer_layer, on_surface_values, Movable, Search,
 };
-use crate::features::{cell_of, closest_on_segment, CellFeatures};
+use crate::features::{closest_on_segment, thinned_by_cell, CellFeatures};
 use crate::refine::block;
 use rayon::prelude::*;
-use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use surfrecon_geom::metrics::closest_point_on_triangle;
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::GridSpec;
@@ -44,7 +44,7 @@ const GAIN: f64 = 0.005;
 /// Samples within this many spacings of a place's worst point try moves.
 const REACH: f64 = 1.2;
 /// Measuring points per spacing at most, along each axis.
-const THINNED: f64 = 4.0;
+pub(crate) const THINNED: f64 = 4.0;
 /// Distance (in spacings) counted for a mesh point with no surface near.
 const FAR: f64 = 2.0;
 
@@ -59,20 +59,11 @@ impl MeshPoints {
     /// vertices first: a mesh much finer than the grid would otherwise
     /// give each measurement thousands of points (fandisk at 16 cells).
     pub(crate) fn new(mesh: &TriMesh, spec: &GridSpec<3>) -> Self {
-        let mut by_cell: HashMap<usize, Vec<DVec3>> = HashMap::new();
-        let mut taken = HashSet::new();
-        let origin = DVec3::from_array(spec.origin);
         let inner = (0..mesh.triangles.len()).flat_map(|t| lattice(mesh.corners(t)));
-        for p in mesh.vertices.iter().copied().chain(inner) {
-            let Some(c) = cell_of(spec, p) else { continue };
-            let sub = ((p - origin) * (THINNED / spec.spacing))
-                .floor()
-                .as_i64vec3();
-            if taken.insert(sub) {
-                by_cell.entry(c).or_default().push(p);
-            }
+        let points = mesh.vertices.iter().copied().chain(inner);
+        Self {
+            by_cell: thinned_by_cell(spec, points, THINNED, 0),
         }
-        Self { by_cell }
     }
 
     fn in_cell(&self, cell: usize) -> &[DVec3] {
@@ -81,7 +72,7 @@ impl MeshPoints {
 }
 
 /// Ten points spread inside a triangle.
-fn lattice([a, b, c]: [DVec3; 3]) -> impl Iterator<Item = DVec3> {
+fn lattice([a, b, c]: [DVec3; 3]) -> impl Iterator<Item = DVec3> + Clone {
     (0..4).flat_map(move |i| {
         (0..4 - i).map(move |j| {
             let (u, v) = ((i as f64 + 1.0 / 3.0) / 4.0, (j as f64 + 1.0 / 3.0) / 4.0);
