@@ -150,106 +150,214 @@ pub(crate) fn repair(
     target: f64,
 ) -> Repaired {
     let spec = field.spec;
-    let h = spec.spacing;
     let mut report = Repaired::default();
+    // A crop must fit in the grid.
+    if spec.dims.iter().any(|&d| d < SIDE) {
+        return report;
+    }
     // Places next to one where many tries (crowded features) helped
     // nothing would repeat most of them, at a cost.
     let mut hopeless: Vec<[usize; 3]> = Vec::new();
-    for c in places_above(field, query, samples, cells, creased, target * h) {
-        let idx = spec.unlinear(c);
-        let beside = |o: &[usize; 3]| (0..3).all(|a| idx[a].abs_diff(o[a]) <= 1);
-        if spec.dims.iter().any(|&d| d < SIDE) || hopeless.iter().any(beside) {
-            continue;
-        }
-        // The crop stays inside the grid: beside its border there is
-        // nothing the crop leaves out.
-        let lo: [usize; 3] =
-            std::array::from_fn(|a| idx[a].saturating_sub(MARGIN).min(spec.dims[a] - SIDE));
-        for round in 0..ROUNDS {
-            let local = crop(field, lo, SIDE);
-            let centre = local.spec.linear(std::array::from_fn(|a| idx[a] - lo[a]));
-            let to_local = |n: usize| {
-                let at = spec.unlinear(n);
-                local.spec.linear(std::array::from_fn(|a| at[a] - lo[a]))
-            };
-            let place = Place::new(&local, query, samples, centre, &spec);
-            let now = place
-                .error(&local, query, f64::INFINITY)
-                .unwrap_or(f64::INFINITY);
-            if now <= target * h {
-                break;
+    let places = places_above(field, query, samples, cells, creased, target * spec.spacing);
+    for wave in waves(&spec, &places) {
+        let todo: Vec<usize> = wave
+            .into_iter()
+            .filter(|&c| {
+                let idx = spec.unlinear(c);
+                !hopeless
+                    .iter()
+                    .any(|o| (0..3).all(|a| idx[a].abs_diff(o[a]) <= 1))
+            })
+            .collect();
+        let outcomes: Vec<Outcome> = todo
+            .par_iter()
+            .map(|&c| repair_place(field, query, samples, cells, c, target))
+            .collect();
+        for (&c, outcome) in todo.iter().zip(outcomes) {
+            for (n, action) in &outcome.changes {
+                apply(field, *n, action);
             }
-            report.places += (round == 0) as usize;
-            // A sample is a corner of up to eight cells of the block:
-            // it is turned or moved once.
-            let mut moved = std::collections::HashSet::new();
-            let tried: Vec<(usize, Action)> = block(&spec, c, 1)
-                .filter(|&n| field.crosses(n))
-                .flat_map(|n| {
-                    actions(field, query, cells, n)
-                        .into_iter()
-                        .map(move |a| (n, a))
-                })
-                .filter(|&(n, a)| match a {
-                    Action::Turn(k) => moved.insert((corner_nodes(&spec, n)[k], None)),
-                    Action::Snap {
-                        corner,
-                        point,
-                        inside,
-                    } => {
-                        let key = Some((point.to_array().map(f64::to_bits), inside));
-                        moved.insert((corner_nodes(&spec, n)[corner], key))
-                    }
-                    _ => true,
-                })
-                .collect();
-            let tries = tried.len();
-            // Only a try below both `now` (less the margin a change must
-            // gain) and the target can change what is kept (see
-            // [`Bound`]): a try whose error already exceeds that, or the
-            // best one so far, is left unfinished.
-            let evaluate = |list: Vec<(usize, Action)>, bound: &Bound| {
-                list.into_par_iter()
-                    .filter_map(|(n, action)| {
-                        let mut trial = local.clone();
-                        if !apply(&mut trial, to_local(n), &action) {
-                            return None;
-                        }
-                        let error = place.error(&trial, query, bound.get())?;
-                        bound.lower(error);
-                        Some((error, n, action))
-                    })
-                    .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
-            };
-            let bound = Bound::new((now - GAIN * h).max(target * h));
-            // Moving samples is tried only where other points leave the
-            // place above the target (most places need none, at half
-            // the cost).
-            let (moves, points): (Vec<_>, Vec<_>) = tried
-                .into_iter()
-                .partition(|(_, a)| matches!(a, Action::Turn(_) | Action::Snap { .. }));
-            let mut best = evaluate(points, &bound);
-            if best.is_none_or(|b| b.0 > target * h) {
-                best = best
-                    .into_iter()
-                    .chain(evaluate(moves, &bound))
-                    .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            }
-            match best.filter(|b| b.0 < now - GAIN * h) {
-                Some((_, n, action)) => {
-                    apply(field, n, &action);
-                    report.changed += 1;
-                }
-                None => {
-                    if tries > CROWDED && round == 0 {
-                        hopeless.push(idx);
-                    }
-                    break;
-                }
+            report.places += outcome.measured as usize;
+            report.changed += outcome.changes.len();
+            if outcome.hopeless {
+                hopeless.push(spec.unlinear(c));
             }
         }
     }
     report
+}
+
+/// `places` in waves: each place comes one wave after the last earlier
+/// place whose repair may touch what its own reads or changes, so the
+/// places of a wave may be repaired together and each sees every change
+/// it would see were they repaired one after another, in order.
+fn waves(spec: &GridSpec<3>, places: &[usize]) -> Vec<Vec<usize>> {
+    let reach: Vec<Reach> = places.iter().map(|&c| Reach::of(spec, c)).collect();
+    let mut wave_of: Vec<usize> = Vec::with_capacity(places.len());
+    let mut waves: Vec<Vec<usize>> = Vec::new();
+    for (i, &c) in places.iter().enumerate() {
+        let wave = (0..i)
+            .filter(|&j| reach[i].touches(&reach[j]))
+            .map(|j| wave_of[j] + 1)
+            .max()
+            .unwrap_or(0);
+        wave_of.push(wave);
+        if wave == waves.len() {
+            waves.push(Vec::new());
+        }
+        waves[wave].push(c);
+    }
+    waves
+}
+
+/// The samples (inclusive index ranges per axis) the repair of a place
+/// may read and change.
+struct Reach {
+    reads: [[usize; 2]; 3],
+    changes: [[usize; 2]; 3],
+}
+
+impl Reach {
+    fn of(spec: &GridSpec<3>, c: usize) -> Self {
+        let idx = spec.unlinear(c);
+        let lo = crop_origin(spec, idx);
+        // Changes: the corners of the block's cells; reads: the crop and
+        // the checks of a change (one sample around them).
+        Self {
+            reads: std::array::from_fn(|a| {
+                [
+                    lo[a].min(idx[a].saturating_sub(2)),
+                    (lo[a] + SIDE - 1).max(idx[a] + 3),
+                ]
+            }),
+            changes: std::array::from_fn(|a| [idx[a].saturating_sub(1), idx[a] + 2]),
+        }
+    }
+
+    /// Whether either may change what the other reads.
+    fn touches(&self, other: &Reach) -> bool {
+        let meet = |x: &[[usize; 2]; 3], y: &[[usize; 2]; 3]| {
+            (0..3).all(|a| x[a][0] <= y[a][1] && y[a][0] <= x[a][1])
+        };
+        meet(&self.changes, &other.reads) || meet(&self.reads, &other.changes)
+    }
+}
+
+/// The first sample of the crop around the cell at `idx`: the crop stays
+/// inside the grid (beside its border there is nothing it leaves out).
+fn crop_origin(spec: &GridSpec<3>, idx: [usize; 3]) -> [usize; 3] {
+    std::array::from_fn(|a| idx[a].saturating_sub(MARGIN).min(spec.dims[a] - SIDE))
+}
+
+/// What [`repair_place`] did at a place.
+#[derive(Default)]
+struct Outcome {
+    /// Its block was measured above the target.
+    measured: bool,
+    /// The changes kept, in order.
+    changes: Vec<(usize, Action)>,
+    /// Many tries, none helped.
+    hopeless: bool,
+}
+
+/// Repair the place at cell `c` of `field` (up to [`ROUNDS`] changes, on
+/// a copy made at the first), and say what to apply.
+fn repair_place(
+    field: &UnifiedField,
+    query: &impl Exact,
+    samples: &MeshSamples,
+    cells: &BTreeMap<usize, CellFeatures>,
+    c: usize,
+    target: f64,
+) -> Outcome {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let mut view = std::borrow::Cow::Borrowed(field);
+    let mut outcome = Outcome::default();
+    let idx = spec.unlinear(c);
+    let lo = crop_origin(&spec, idx);
+    for round in 0..ROUNDS {
+        let local = crop(&view, lo, SIDE);
+        let centre = local.spec.linear(std::array::from_fn(|a| idx[a] - lo[a]));
+        let to_local = |n: usize| {
+            let at = spec.unlinear(n);
+            local.spec.linear(std::array::from_fn(|a| at[a] - lo[a]))
+        };
+        let place = Place::new(&local, query, samples, centre, &spec);
+        let now = place
+            .error(&local, query, f64::INFINITY)
+            .unwrap_or(f64::INFINITY);
+        if now <= target * h {
+            break;
+        }
+        outcome.measured |= round == 0;
+        // A sample is a corner of up to eight cells of the block:
+        // it is turned or moved once.
+        let mut moved = std::collections::HashSet::new();
+        let tried: Vec<(usize, Action)> = block(&spec, c, 1)
+            .filter(|&n| view.crosses(n))
+            .flat_map(|n| {
+                actions(&view, query, cells, n)
+                    .into_iter()
+                    .map(move |a| (n, a))
+            })
+            .filter(|&(n, a)| match a {
+                Action::Turn(k) => moved.insert((corner_nodes(&spec, n)[k], None)),
+                Action::Snap {
+                    corner,
+                    point,
+                    inside,
+                } => {
+                    let key = Some((point.to_array().map(f64::to_bits), inside));
+                    moved.insert((corner_nodes(&spec, n)[corner], key))
+                }
+                _ => true,
+            })
+            .collect();
+        let tries = tried.len();
+        // Only a try below both `now` (less the margin a change must
+        // gain) and the target can change what is kept (see
+        // [`Bound`]): a try whose error already exceeds that, or the
+        // best one so far, is left unfinished.
+        let evaluate = |list: Vec<(usize, Action)>, bound: &Bound| {
+            list.into_par_iter()
+                .filter_map(|(n, action)| {
+                    let mut trial = local.clone();
+                    if !apply(&mut trial, to_local(n), &action) {
+                        return None;
+                    }
+                    let error = place.error(&trial, query, bound.get())?;
+                    bound.lower(error);
+                    Some((error, n, action))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+        };
+        let bound = Bound::new((now - GAIN * h).max(target * h));
+        // Moving samples is tried only where other points leave the
+        // place above the target (most places need none, at half
+        // the cost).
+        let (moves, points): (Vec<_>, Vec<_>) = tried
+            .into_iter()
+            .partition(|(_, a)| matches!(a, Action::Turn(_) | Action::Snap { .. }));
+        let mut best = evaluate(points, &bound);
+        if best.is_none_or(|b| b.0 > target * h) {
+            best = best
+                .into_iter()
+                .chain(evaluate(moves, &bound))
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        }
+        match best.filter(|b| b.0 < now - GAIN * h) {
+            Some((_, n, action)) => {
+                apply(view.to_mut(), n, &action);
+                outcome.changes.push((n, action));
+            }
+            None => {
+                outcome.hopeless = tries > CROWDED && round == 0;
+                break;
+            }
+        }
+    }
+    outcome
 }
 
 /// What a change must lower a place's error by (spacings) to be kept.
@@ -734,4 +842,52 @@ fn places_above(
         .collect();
     errors.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
     errors.into_iter().map(|(_, c)| c).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Places of one wave never touch; a place touching an earlier one
+    /// comes in a later wave (so its repair sees that one's changes).
+    #[test]
+    fn waves_keep_the_order_of_places_that_touch() {
+        let spec = GridSpec {
+            origin: [0.0; 3],
+            spacing: 1.0,
+            dims: [40, 30, 20],
+        };
+        // A fixed scatter of cells, clusters and the grid's borders included.
+        let mut state = 12345u64;
+        let mut next = |n: usize| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as usize % n
+        };
+        let places: Vec<usize> = (0..200)
+            .map(|_| spec.linear([next(39), next(29), next(19)]))
+            .collect();
+        let waves = waves(&spec, &places);
+        assert_eq!(waves.iter().map(Vec::len).sum::<usize>(), places.len());
+        assert!(waves.len() > 1 && waves.len() < places.len());
+        let wave_of = |c: usize| waves.iter().position(|w| w.contains(&c)).unwrap();
+        for (i, &a) in places.iter().enumerate() {
+            for &b in &places[..i] {
+                if a != b && Reach::of(&spec, a).touches(&Reach::of(&spec, b)) {
+                    assert!(
+                        wave_of(b) < wave_of(a),
+                        "{b} touches {a} and comes no earlier"
+                    );
+                }
+            }
+        }
+        for wave in &waves {
+            for (i, &a) in wave.iter().enumerate() {
+                for &b in &wave[..i] {
+                    assert!(!Reach::of(&spec, a).touches(&Reach::of(&spec, b)));
+                }
+            }
+        }
+    }
 }

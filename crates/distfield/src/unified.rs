@@ -138,8 +138,23 @@ pub fn build_udf(
         )));
     }
     let spec = grid_for(mesh, options.size, options.padding)?;
-    let values = signed_distance(mesh, &spec, Some(BAND_CELLS * spec.spacing))?.values;
-    let query = MeshQuery::new(mesh)?;
+    // The mesh's index, features and samples need no field: they are
+    // made while the distances are (which leave a core idle at times).
+    let (values, (query, (features, samples))) = rayon::join(
+        || signed_distance(mesh, &spec, Some(BAND_CELLS * spec.spacing)),
+        || {
+            rayon::join(
+                || MeshQuery::new(mesh),
+                || {
+                    rayon::join(
+                        || Features::detect(mesh, options.feature_angle_deg),
+                        || crate::refine::MeshSamples::new(mesh, &spec),
+                    )
+                },
+            )
+        },
+    );
+    let (values, query) = (values?.values, query?);
     let mut field = UnifiedField {
         spec,
         values,
@@ -153,7 +168,6 @@ pub fn build_udf(
         field.extras.insert(node, Extra::Directed(directed));
         report.directed += 1;
     }
-    let features = Features::detect(mesh, options.feature_angle_deg);
     let corners: Vec<DVec3> = features
         .corners
         .iter()
@@ -246,7 +260,6 @@ pub fn build_udf(
     report.repicked = repick_multi_line(&mut field, &query, &cells);
     let near = options.threshold.min(NEAR_FEATURE_THRESHOLD);
     report.directed += directed_near_features(&mut field, &query, near);
-    let samples = crate::refine::MeshSamples::new(mesh, &field.spec);
     let repaired = crate::refine::repair(
         &mut field,
         &query,
