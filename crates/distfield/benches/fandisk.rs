@@ -7,7 +7,7 @@
 use std::time::Instant;
 use surfrecon_distfield::grid_for;
 use surfrecon_distfield::offset::{build_odf, OdfOptions};
-use surfrecon_distfield::query::{deviation, MeshQuery};
+use surfrecon_distfield::query::{deviation, lattice_points, MeshQuery};
 use surfrecon_distfield::unified::{build_udf, UdfOptions};
 use surfrecon_geom::{io, TriMesh};
 use surfrecon_grid::{marching::marching_cubes, sdf::signed_distance, GridSize};
@@ -191,15 +191,10 @@ fn row(
 fn worst_places(from: &TriMesh, to: &MeshQuery, h: f64) -> Vec<(f64, surfrecon_geom::DVec3)> {
     let mut out = Vec::new();
     for t in 0..from.triangles.len() {
-        let [a, b, c] = from.corners(t);
-        for i in 0..4 {
-            for j in 0..4 - i {
-                let (u, v) = ((i as f64 + 1.0 / 3.0) / 4.0, (j as f64 + 1.0 / 3.0) / 4.0);
-                let p = a + (b - a) * u + (c - a) * v;
-                let d = to.signed_distance(p).abs() / h;
-                if d > 0.1 {
-                    out.push((d, p));
-                }
+        for p in lattice_points(from.corners(t), 4) {
+            let d = to.signed_distance(p).abs() / h;
+            if d > 0.1 {
+                out.push((d, p));
             }
         }
     }

@@ -2,7 +2,7 @@
 //! most, both ways (exact point-to-triangle distances, 16 points per
 //! triangle and every vertex), in units of `H`.
 //! cargo run --release -p surfrecon-distfield --example worst -- OUT REF H [PLACES]
-use surfrecon_distfield::query::{deviation, MeshQuery};
+use surfrecon_distfield::query::{deviation, lattice_points, MeshQuery};
 use surfrecon_geom::{io, DVec3, TriMesh};
 
 fn main() {
@@ -50,13 +50,7 @@ fn far_points<'a>(
 ) -> Vec<(f64, DVec3, &'a str)> {
     let mut points: Vec<DVec3> = from.vertices.clone();
     for t in 0..from.triangles.len() {
-        let [a, b, c] = from.corners(t);
-        for i in 0..4 {
-            for j in 0..4 - i {
-                let (u, v) = ((i as f64 + 1.0 / 3.0) / 4.0, (j as f64 + 1.0 / 3.0) / 4.0);
-                points.push(a + (b - a) * u + (c - a) * v);
-            }
-        }
+        points.extend(lattice_points(from.corners(t), 4));
     }
     points
         .into_iter()

@@ -69,6 +69,19 @@ impl MeshQuery {
     }
 }
 
+/// The `side (side + 1) / 2` points of a fixed barycentric lattice inside
+/// a triangle (the same for every triangle, none on its edges): where
+/// surfaces are measured against each other.
+pub fn lattice_points([a, b, c]: [DVec3; 3], side: usize) -> impl Iterator<Item = DVec3> + Clone {
+    let n = side as f64;
+    (0..side).flat_map(move |i| {
+        (0..side - i).map(move |j| {
+            let (u, v) = ((i as f64 + 1.0 / 3.0) / n, (j as f64 + 1.0 / 3.0) / n);
+            a + (b - a) * u + (c - a) * v
+        })
+    })
+}
+
 /// How far one surface strays from another, sampled at its vertices and
 /// at interior points of every triangle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -84,22 +97,10 @@ pub struct Deviation {
 /// distances.
 pub fn deviation(from: &TriMesh, to: &MeshQuery, per_triangle: usize) -> Deviation {
     use rayon::prelude::*;
-    // A fixed lattice of barycentric points, the same for every triangle.
     let side = (per_triangle as f64).sqrt().ceil().max(1.0) as usize;
     let inner = (0..from.triangles.len())
         .into_par_iter()
-        .flat_map_iter(|t| {
-            let [a, b, c] = from.corners(t);
-            (0..side).flat_map(move |i| {
-                (0..side - i).map(move |j| {
-                    let (u, v) = (
-                        (i as f64 + 1.0 / 3.0) / side as f64,
-                        (j as f64 + 1.0 / 3.0) / side as f64,
-                    );
-                    a + (b - a) * u + (c - a) * v
-                })
-            })
-        });
+        .flat_map_iter(|t| lattice_points(from.corners(t), side));
     let (max, worst, sum, n) = from
         .vertices
         .par_iter()

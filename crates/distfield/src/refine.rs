@@ -23,7 +23,7 @@ use crate::extract::SampledField;
 use crate::features::{cell_of, nudge_into, thinned_by_cell, CellFeatures};
 use crate::offset::THINNED;
 use crate::offset::{may_take, node_position, stays_convex};
-use crate::query::MeshQuery;
+use crate::query::{lattice_points, MeshQuery};
 use crate::sharp::{clamp_near, is_sharp, owner_cell, Tangent};
 use crate::unified::{crop, sample_points, storage_for, Extra, UnifiedField};
 use rayon::prelude::*;
@@ -89,15 +89,7 @@ impl MeshSamples {
 
 /// A mesh's vertices and six points inside each of its triangles.
 pub(crate) fn mesh_points(mesh: &TriMesh) -> impl Iterator<Item = DVec3> + Clone + '_ {
-    let inner = (0..mesh.triangles.len()).flat_map(|t| {
-        let [a, b, c] = mesh.corners(t);
-        (0..3).flat_map(move |i| {
-            (0..3 - i).map(move |j| {
-                let (u, v) = ((i as f64 + 1.0 / 3.0) / 3.0, (j as f64 + 1.0 / 3.0) / 3.0);
-                a + (b - a) * u + (c - a) * v
-            })
-        })
-    });
+    let inner = (0..mesh.triangles.len()).flat_map(|t| lattice_points(mesh.corners(t), 3));
     mesh.vertices.iter().copied().chain(inner)
 }
 

@@ -2,7 +2,7 @@
 //! regular field, closed manifold output, file round trips.
 
 use surfrecon_distfield::grid_for;
-use surfrecon_distfield::query::{deviation, MeshQuery};
+use surfrecon_distfield::query::{deviation, lattice_points, MeshQuery};
 use surfrecon_distfield::unified::{build_udf, UdfOptions};
 use surfrecon_geom::metrics::topology;
 use surfrecon_geom::shapes::cuboid;
@@ -734,15 +734,7 @@ fn sculpted_fandisk_errors(centre: DVec3, radius: f64) -> (f64, f64) {
 /// A mesh's vertices and 10 points inside each triangle (a 4-step
 /// lattice; `examples/worst.rs` takes the same ones).
 fn dense_points(mesh: &TriMesh) -> impl Iterator<Item = DVec3> + '_ {
-    let inner = (0..mesh.triangles.len()).flat_map(|t| {
-        let [a, b, c] = mesh.corners(t);
-        (0..4).flat_map(move |i| {
-            (0..4 - i).map(move |j| {
-                let (u, v) = ((i as f64 + 1.0 / 3.0) / 4.0, (j as f64 + 1.0 / 3.0) / 4.0);
-                a + (b - a) * u + (c - a) * v
-            })
-        })
-    });
+    let inner = (0..mesh.triangles.len()).flat_map(|t| lattice_points(mesh.corners(t), 4));
     mesh.vertices.iter().copied().chain(inner)
 }
 

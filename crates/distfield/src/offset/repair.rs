@@ -17,6 +17,7 @@ use super::{
     cell_triangles, corner_nodes, node_position, on_outer_layer, on_surface_values, Movable, Search,
 };
 use crate::features::{closest_on_segment, thinned_by_cell, CellFeatures};
+use crate::query::lattice_points;
 use crate::refine::block;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -59,7 +60,7 @@ impl MeshPoints {
     /// vertices first: a mesh much finer than the grid would otherwise
     /// give each measurement thousands of points (fandisk at 16 cells).
     pub(crate) fn new(mesh: &TriMesh, spec: &GridSpec<3>) -> Self {
-        let inner = (0..mesh.triangles.len()).flat_map(|t| lattice(mesh.corners(t)));
+        let inner = (0..mesh.triangles.len()).flat_map(|t| lattice_points(mesh.corners(t), 4));
         let points = mesh.vertices.iter().copied().chain(inner);
         Self {
             by_cell: thinned_by_cell(spec, points, THINNED, 0),
@@ -69,16 +70,6 @@ impl MeshPoints {
     fn in_cell(&self, cell: usize) -> &[DVec3] {
         self.by_cell.get(&cell).map(Vec::as_slice).unwrap_or(&[])
     }
-}
-
-/// Ten points spread inside a triangle.
-fn lattice([a, b, c]: [DVec3; 3]) -> impl Iterator<Item = DVec3> + Clone {
-    (0..4).flat_map(move |i| {
-        (0..4 - i).map(move |j| {
-            let (u, v) = ((i as f64 + 1.0 / 3.0) / 4.0, (j as f64 + 1.0 / 3.0) / 4.0);
-            a + (b - a) * u + (c - a) * v
-        })
-    })
 }
 
 /// An error and where it is.
@@ -136,7 +127,7 @@ impl Gauge<'_, '_> {
         let mut worst = Worst::NONE;
         for p in triangles
             .iter()
-            .flat_map(|&t| t.into_iter().chain(lattice(t)))
+            .flat_map(|&t| t.into_iter().chain(lattice_points(t, 4)))
         {
             let d = self.search.query.signed_distance(p).abs();
             if d > worst.error {
