@@ -46,19 +46,38 @@ impl DirectedEdges {
         self.offsets.len().saturating_sub(1) as u32
     }
 
-    /// The directed edges from `a` with no face running the other way,
-    /// each once (however many faces run along it).
-    fn unpaired_from(&self, a: u32) -> impl Iterator<Item = (u32, u32)> + '_ {
-        let row = self.row(a);
-        row.iter()
-            .enumerate()
-            .filter(move |&(i, e)| !row[..i].contains(e) && !self.row(*e).contains(&a))
-            .map(move |(_, &b)| (a, b))
-    }
-
     /// Whether some face has the edge {a, b} in either direction.
     fn has_edge(&self, a: u32, b: u32) -> bool {
         self.row(a).contains(&b) || self.row(b).contains(&a)
+    }
+}
+
+/// [`DirectedEdges`] and the same edges in rows by end vertex: whether
+/// `b → a` exists is read from `a`'s own incoming row, next to its
+/// outgoing one, rather than from `b`'s row elsewhere in memory (that
+/// lookup per edge was a cache miss, 14% of a Dragon-scale run).
+struct PairedEdges {
+    out: DirectedEdges,
+    incoming: DirectedEdges,
+}
+
+impl PairedEdges {
+    fn new(triangles: &[[u32; 3]]) -> Self {
+        let (offsets, ends) = rows(triangles, |_, t| directed_edges(t).map(|(a, b)| (b, a)));
+        PairedEdges {
+            out: DirectedEdges::new(triangles),
+            incoming: DirectedEdges { offsets, ends },
+        }
+    }
+
+    /// The directed edges from `a` with no face running the other way,
+    /// each once (however many faces run along it).
+    fn unpaired_from(&self, a: u32) -> impl Iterator<Item = (u32, u32)> + '_ {
+        let (row, into) = (self.out.row(a), self.incoming.row(a));
+        row.iter()
+            .enumerate()
+            .filter(move |&(i, e)| !row[..i].contains(e) && !into.contains(e))
+            .map(move |(_, &b)| (a, b))
     }
 }
 
@@ -218,8 +237,8 @@ fn minor_fans(v: u32, around: &[u32], triangles: &[[u32; 3]]) -> Vec<u32> {
 
 /// Edges with exactly one face.
 pub fn boundary_edges(triangles: &[[u32; 3]]) -> usize {
-    let counts = DirectedEdges::new(triangles);
-    (0..counts.starts())
+    let counts = PairedEdges::new(triangles);
+    (0..counts.out.starts())
         .into_par_iter()
         .with_min_len(1024)
         .map(|a| counts.unpaired_from(a).count())
@@ -237,15 +256,15 @@ pub fn fill_small_holes(
     if max_edges < 3 {
         return 0;
     }
-    let counts = DirectedEdges::new(triangles);
+    let counts = PairedEdges::new(triangles);
     // Edges the ear clipping adds (the mesh's own are in `counts`).
     let mut edges = NewEdges {
-        mesh: &counts,
+        mesh: &counts.out,
         added: HashSet::new(),
     };
     // A hole runs against its rim faces: rim edge a → b gives hole edge b → a.
     // Found in parallel, entered in vertex order as before.
-    let rim: Vec<(u32, u32)> = (0..counts.starts())
+    let rim: Vec<(u32, u32)> = (0..counts.out.starts())
         .into_par_iter()
         .with_min_len(1024)
         .flat_map_iter(|a| counts.unpaired_from(a))
