@@ -37,7 +37,7 @@ impl DirectedEdges {
         &self.ends[self.offsets[a]..self.offsets[a + 1]]
     }
 
-    /// How many faces run along `a → b`.
+    /// How many faces run along `a → b` (in rows by end vertex: `b → a`).
     fn count(&self, a: u32, b: u32) -> u32 {
         self.row(a).iter().filter(|&&e| e == b).count() as u32
     }
@@ -138,9 +138,11 @@ pub fn make_manifold(triangles: &mut Vec<[u32; 3]>) -> usize {
 }
 
 fn remove_bad_edge_faces(triangles: &mut Vec<[u32; 3]>) -> usize {
-    let counts = DirectedEdges::new(triangles);
-    let uses = |a, b| counts.count(a, b);
-    let bad = |&(a, b): &(u32, u32)| uses(a, b) > 1 || uses(a, b) + uses(b, a) > 2;
+    let counts = PairedEdges::new(triangles);
+    let bad = |&(a, b): &(u32, u32)| {
+        let forth = counts.out.count(a, b);
+        forth > 1 || forth + counts.incoming.count(a, b) > 2
+    };
     let before = triangles.len();
     // Decided in parallel (each face on its own), removed in order.
     let keep: Vec<bool> = triangles
