@@ -92,8 +92,13 @@ pub struct Timings {
     /// of the decimated points, then the insertions).
     pub refine: f64,
     pub delaunay: f64,
+    /// Normals estimated or checked, and the point spacing when it shares
+    /// their neighbour search. Through every point this runs beside the
+    /// Delaunay build (on the other threads), so the stages' seconds add
+    /// up to more than the run's.
     pub normals: f64,
     pub convection: f64,
+    /// The spacing (when not with the normals) and the pocket convection.
     pub pockets: f64,
     pub output: f64,
 }
