@@ -8,11 +8,12 @@ use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::refine::{refine, Quality, RefineStats};
 use crate::surface::{Opening, OrientedFacet, PseudoSurface};
 use crate::thin::thicken;
+use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::HashMap;
 use std::time::Instant;
-use surfrecon_delaunay::{Triangulation, VertexId};
-use surfrecon_geom::normals::estimate_normals;
+use surfrecon_delaunay::{TetId, Triangulation, VertexId};
+use surfrecon_geom::normals::{estimate_normals, estimate_normals_and_spacing};
 use surfrecon_geom::{DVec3, TriMesh};
 
 /// Settings of [`reconstruct`].
@@ -91,8 +92,13 @@ pub struct Timings {
     /// of the decimated points, then the insertions).
     pub refine: f64,
     pub delaunay: f64,
+    /// Normals estimated or checked, and the point spacing when it shares
+    /// their neighbour search. Through every point this runs beside the
+    /// Delaunay build (on the other threads), so the stages' seconds add
+    /// up to more than the run's.
     pub normals: f64,
     pub convection: f64,
+    /// The spacing (when not with the normals) and the pocket convection.
     pub pockets: f64,
     pub output: f64,
 }
@@ -314,7 +320,8 @@ impl Refined {
             points: sites,
             of_vertex: &|v| site_of_vertex.get(v.index()).copied().flatten(),
         };
-        let mesh = finish(tri, surface, &site, Some(normals), params, &mut report)?;
+        let data = PointData::new(sites, Some(normals), params)?;
+        let mesh = finish(tri, surface, &site, &data, params, &mut report);
         Ok(Reconstruction { mesh, report })
     }
 }
@@ -343,7 +350,8 @@ impl DynamicSurface {
             points: &sites,
             of_vertex: &|v| site_of_vertex.get(v.index()).copied().flatten(),
         };
-        let mesh = finish(tri, surface, &site, None, params, &mut report)?;
+        let data = PointData::new(&sites, None, params)?;
+        let mesh = finish(tri, surface, &site, &data, params, &mut report);
         Ok(Reconstruction { mesh, report })
     }
 }
@@ -364,10 +372,23 @@ fn reconstruct_all(
         points: points.len(),
         ..Default::default()
     };
-    let clock = Instant::now();
-    let tri = Triangulation::bulk_load(points)?;
+    let delaunay = || {
+        let clock = Instant::now();
+        Triangulation::bulk_load(points).map(|tri| (tri, clock.elapsed().as_secs_f64()))
+    };
+    // The triangulation is sequential: the neighbour searches of the
+    // per-point data (the costliest part of the rest, and independent of
+    // it) run beside it. Only on points the triangulation accepts, as
+    // the searches need finite coordinates.
+    let ((tri, seconds), data) = if points.len() >= 4 && points.iter().all(|p| p.is_finite()) {
+        let (tri, data) = rayon::join(delaunay, || PointData::new(points, normals, params));
+        // The triangulation's error first, as when the stages ran in turn.
+        (tri?, data?)
+    } else {
+        (delaunay()?, PointData::new(points, normals, params)?)
+    };
     report.duplicates = tri.merged_duplicates();
-    report.seconds.delaunay = clock.elapsed().as_secs_f64();
+    report.seconds.delaunay = seconds;
 
     let mut surface = PseudoSurface::from_hull(&tri);
     let clock = Instant::now();
@@ -377,48 +398,84 @@ fn reconstruct_all(
         points,
         of_vertex: &|v| tri.input_of_vertex(v),
     };
-    let mesh = finish(&tri, surface, &site, normals, params, &mut report)?;
+    let mesh = finish(&tri, surface, &site, &data, params, &mut report);
     Ok(Reconstruction { mesh, report })
+}
+
+/// What the stages after the convection need of each input point: its
+/// unit normal (pocket test; empty without pockets) and its sampling
+/// spacing (empty when no stage needs it), and the seconds they took.
+struct PointData {
+    normals: Vec<DVec3>,
+    spacing: Vec<f64>,
+    normal_seconds: f64,
+    spacing_seconds: f64,
+}
+
+impl PointData {
+    /// Checks given `normals` (normalised), or estimates them when the
+    /// pocket test needs them; the spacing shares the estimate's
+    /// neighbour search when it can (the same values either way).
+    fn new(points: &[DVec3], normals: Option<&[DVec3]>, params: &Params) -> Result<PointData> {
+        if let Some(n) = normals {
+            check_normals(points, n)?;
+        }
+        let needs_spacing = params.pockets || params.thin_size > 0.0 || params.open_holes.is_some();
+        let clock = Instant::now();
+        let (normals, shared_spacing) = match (params.pockets, normals) {
+            (false, _) => (Vec::new(), None),
+            (true, Some(n)) => (n.iter().map(|v| v.normalize()).collect(), None),
+            (true, None) if needs_spacing => {
+                let (n, s) =
+                    estimate_normals_and_spacing(points, params.normal_k, SPACING_NEIGHBOURS);
+                (n, Some(s))
+            }
+            (true, None) => (estimate_normals(points, params.normal_k), None),
+        };
+        let normal_seconds = clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
+        let spacing = match (shared_spacing, needs_spacing) {
+            (Some(s), _) => s,
+            (None, true) => point_spacing(points),
+            (None, false) => Vec::new(),
+        };
+        Ok(PointData {
+            normals,
+            spacing,
+            normal_seconds,
+            spacing_seconds: clock.elapsed().as_secs_f64(),
+        })
+    }
 }
 
 /// The triangulated points and the point of each vertex (`None` for none).
 struct Sites<'a> {
     points: &'a [DVec3],
-    of_vertex: &'a dyn Fn(VertexId) -> Option<usize>,
+    of_vertex: &'a (dyn Fn(VertexId) -> Option<usize> + Sync),
 }
 
 /// Pockets, thin parts and the manifold mesh over a converged Gabriel
-/// surface; the mesh's vertices are `site.points`.
+/// surface; the mesh's vertices are `site.points`, whose normals and
+/// spacing are in `data`.
 fn finish(
     tri: &Triangulation,
     mut surface: PseudoSurface,
     site: &Sites,
-    normals: Option<&[DVec3]>,
+    data: &PointData,
     params: &Params,
     report: &mut Report,
-) -> Result<TriMesh> {
+) -> TriMesh {
     let points = site.points;
     let thin_parts = params.thin_size > 0.0;
-    let (mut unit_normals, mut spacing) = (Vec::new(), Vec::new());
+    report.seconds.normals = data.normal_seconds;
+    report.seconds.pockets = data.spacing_seconds;
+    let clock = Instant::now();
+    let spacing = by_vertex(tri, site, &data.spacing, 0.0);
     if params.pockets {
-        let clock = Instant::now();
-        unit_normals = vertex_normals(tri, site, normals, params.normal_k)?;
-        report.seconds.normals = clock.elapsed().as_secs_f64();
-    } else if let Some(n) = normals {
-        check_normals(points, n)?;
-    }
-    let mut input_spacing = Vec::new();
-    if params.pockets || thin_parts || params.open_holes.is_some() {
-        let clock = Instant::now();
-        input_spacing = point_spacing(points);
-        spacing = vertex_spacing(tri, site, &input_spacing);
-        report.seconds.pockets = clock.elapsed().as_secs_f64();
-    }
-    if params.pockets {
-        let clock = Instant::now();
+        let unit_normals = by_vertex(tri, site, &data.normals, DVec3::ZERO);
         open_pockets(&mut surface, &unit_normals, &spacing, params);
-        report.seconds.pockets += clock.elapsed().as_secs_f64();
     }
+    report.seconds.pockets += clock.elapsed().as_secs_f64();
     report.tets_opened = surface.tets_opened;
     report.collapses = surface.collapses;
     report.pockets_opened = surface.pockets_opened;
@@ -442,14 +499,14 @@ fn finish(
     };
     let mut mesh = extract_mesh(&surface, tri, restore, site, params, report);
     if let Some(rule) = &params.open_holes {
-        let opened = open_sampling_holes(&mut mesh.triangles, points, &input_spacing, rule);
+        let opened = open_sampling_holes(&mut mesh.triangles, points, &data.spacing, rule);
         report.sampling_holes_opened = opened.holes;
         report.sampling_hole_faces_removed = opened.faces;
         report.facets = mesh.triangles.len();
         report.boundary_edges = boundary_edges(&mesh.triangles);
     }
     report.seconds.output = clock.elapsed().as_secs_f64();
-    Ok(mesh)
+    mesh
 }
 
 fn check_params(params: &Params) -> Result<()> {
@@ -561,26 +618,6 @@ fn check_normals(points: &[DVec3], normals: &[DVec3]) -> Result<()> {
         Some(index) => Err(ConvectionError::BadNormal { index }),
         None => Ok(()),
     }
-}
-
-/// Unit normal of every vertex id (given or estimated on the input).
-fn vertex_normals(
-    tri: &Triangulation,
-    site: &Sites,
-    normals: Option<&[DVec3]>,
-    k: usize,
-) -> Result<Vec<DVec3>> {
-    let points = site.points;
-    let by_input = match normals {
-        Some(n) => {
-            check_normals(points, n)?;
-            n.iter().map(|v| v.normalize()).collect()
-        }
-        None => estimate_normals(points, k),
-    };
-    Ok((0..tri.points().len())
-        .map(|v| (site.of_vertex)(VertexId(v as u32)).map_or(DVec3::ZERO, |i| by_input[i]))
-        .collect())
 }
 
 /// Continue the convection through pockets: a facet that meets the Gabriel
@@ -698,27 +735,34 @@ fn closed_boundary(
     params: &Params,
 ) -> Boundary {
     let points = site.points;
-    let solid = |t: surfrecon_delaunay::TetId| {
-        !surface.is_external(t) || restored.get(t.index()).copied().unwrap_or(false)
+    let solid =
+        |t: TetId| !surface.is_external(t) || restored.get(t.index()).copied().unwrap_or(false);
+    let boundary_faces = |t: TetId| {
+        tri.neighbors(t)
+            .into_iter()
+            .enumerate()
+            .filter(|&(_, u)| !solid(u) || tri.is_ghost(u))
+            .filter_map(move |(slot, _)| {
+                match tri.facet(t, slot).map(|v| (site.of_vertex)(v)) {
+                    // Facets face inward: swap two corners to face out.
+                    [Some(a), Some(b), Some(c)] => Some([a as u32, c as u32, b as u32]),
+                    _ => None,
+                }
+            })
     };
-    let mut triangles = Vec::with_capacity(surface.num_facets());
-    for t in tri.finite_tets().filter(|&t| solid(t)) {
-        for (slot, u) in tri.neighbors(t).into_iter().enumerate() {
-            if solid(u) && !tri.is_ghost(u) {
-                continue;
-            }
-            let input = tri.facet(t, slot).map(|v| (site.of_vertex)(v));
-            if let [Some(a), Some(b), Some(c)] = input {
-                // Facets face inward: swap two corners to face out.
-                triangles.push([a as u32, c as u32, b as u32]);
-            }
-        }
-    }
+    // In parallel: the faces are sorted next, so the order they are found
+    // in does not matter.
+    let mut triangles: Vec<[u32; 3]> = (0..tri.tet_slots() as u32)
+        .into_par_iter()
+        .map(TetId)
+        .filter(|&t| tri.is_live(t) && !tri.is_ghost(t) && solid(t))
+        .flat_map_iter(boundary_faces)
+        .collect();
     // The clean-up breaks ties (which fan of a pinched vertex stays, which
     // face goes at a pinched edge) in face order; in an order of their own
     // the faces give the same mesh however the triangulation numbers its
-    // tetrahedra.
-    triangles.sort_unstable_by_key(|&t| rotated_to_smallest(t));
+    // tetrahedra. Faces are distinct, so any sort gives that order.
+    triangles.par_sort_unstable_by_key(|&t| rotated_to_smallest(t));
     let removed = make_manifold(&mut triangles);
     let filled = fill_small_holes(&mut triangles, points, params.max_hole_edges);
     Boundary {
@@ -805,26 +849,31 @@ fn count_sheets(surface: &PseudoSurface, sheet: &[OrientedFacet]) -> usize {
         .count()
 }
 
+/// Neighbours whose mean distance is a point's sampling spacing.
+const SPACING_NEIGHBOURS: usize = 6;
+
 /// Mean distance from each point to its nearest neighbours: the local
 /// sampling spacing. In parallel (each point on its own: same result).
 fn point_spacing(points: &[DVec3]) -> Vec<f64> {
-    use rayon::prelude::*;
-    const NEIGHBOURS: usize = 6;
     let tree = surfrecon_geom::spatial::KdTree::new(points);
     points
         .par_iter()
         .map(|&p| {
-            let near = tree.knn(p, NEIGHBOURS + 1);
+            let near = tree.knn(p, SPACING_NEIGHBOURS + 1);
             let sum: f64 = near.iter().map(|n| n.distance).sum();
             sum / (near.len().max(2) - 1) as f64
         })
         .collect()
 }
 
-/// [`point_spacing`] by vertex id (0 for vertices with no point).
-fn vertex_spacing(tri: &Triangulation, site: &Sites, by_input: &[f64]) -> Vec<f64> {
+/// Per-point values by vertex id (`none` for vertices with no point, and
+/// for all when `by_input` is empty: the stage is off).
+fn by_vertex<T: Copy>(tri: &Triangulation, site: &Sites, by_input: &[T], none: T) -> Vec<T> {
+    if by_input.is_empty() {
+        return Vec::new();
+    }
     (0..tri.points().len())
-        .map(|v| (site.of_vertex)(VertexId(v as u32)).map_or(0.0, |i| by_input[i]))
+        .map(|v| (site.of_vertex)(VertexId(v as u32)).map_or(none, |i| by_input[i]))
         .collect()
 }
 

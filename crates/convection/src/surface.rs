@@ -17,6 +17,7 @@
 //! allocated per facet.
 
 use crate::gabriel::in_diametral_ball;
+use rayon::prelude::*;
 use std::collections::VecDeque;
 use surfrecon_delaunay::{TetId, Triangulation, VertexId};
 use surfrecon_geom::DVec3;
@@ -44,6 +45,49 @@ impl OrientedFacet {
     }
 }
 
+/// The oriented Gabriel test of every oriented facet, decided for all of
+/// them up front, in parallel: four bits per tetrahedron slot. A facet's
+/// test reads only its own tetrahedron (three corners and the apex), so a
+/// pass over the cells in storage order is cheap, while the convection's
+/// own order reaches cells and points at random (a cache miss each: the
+/// tests took 10% of an all-points Dragon-scale run).
+struct GabrielTable {
+    violations: Vec<u8>,
+}
+
+impl GabrielTable {
+    fn new(tri: &Triangulation) -> Self {
+        let violations = (0..tri.tet_slots() as u32)
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|t| Self::tet_violations(tri, TetId(t)))
+            .collect();
+        GabrielTable { violations }
+    }
+
+    /// Bit `slot` set when facet `slot` of `t`, facing into `t`, violates
+    /// the property (see [`PseudoSurface::violates_gabriel`]); none for
+    /// ghosts and free slots.
+    fn tet_violations(tri: &Triangulation, t: TetId) -> u8 {
+        if !tri.is_live(t) || tri.is_ghost(t) {
+            return 0;
+        }
+        let apexes = tri.tet_points(t);
+        let mut bits = 0;
+        for (slot, &apex) in apexes.iter().enumerate() {
+            let [a, b, c] = tri.facet(t, slot).map(|v| tri.point(v));
+            if in_diametral_ball(a, b, c, apex) {
+                bits |= 1 << slot;
+            }
+        }
+        bits
+    }
+
+    fn violates(&self, f: OrientedFacet) -> bool {
+        self.violations[f.tet().index()] >> f.slot() & 1 != 0
+    }
+}
+
 /// Why a facet is opened.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Opening {
@@ -56,6 +100,7 @@ pub(crate) enum Opening {
 /// The pseudo-surface over one triangulation.
 pub(crate) struct PseudoSurface<'a> {
     tri: &'a Triangulation,
+    gabriel: GabrielTable,
     on_surface: Vec<bool>,
     external: Vec<bool>,
     queue: VecDeque<OrientedFacet>,
@@ -72,6 +117,7 @@ impl<'a> PseudoSurface<'a> {
     fn empty(tri: &'a Triangulation, external: Vec<bool>) -> Self {
         PseudoSurface {
             tri,
+            gabriel: GabrielTable::new(tri),
             on_surface: vec![false; 4 * tri.tet_slots()],
             external,
             queue: VecDeque::new(),
@@ -188,12 +234,7 @@ impl<'a> PseudoSurface<'a> {
     /// the tetrahedron it faces lies inside its diametral ball (see
     /// [`crate::gabriel`]). Facets facing the outside of the hull never do.
     pub fn violates_gabriel(&self, f: OrientedFacet) -> bool {
-        if self.tri.is_ghost(f.tet()) {
-            return false;
-        }
-        let [a, b, c] = self.corners(f);
-        let apex = self.tri.tet_vertices(f.tet())[f.slot()];
-        in_diametral_ball(a, b, c, self.tri.point(apex))
+        self.gabriel.violates(f)
     }
 
     /// Queue every surface facet again (a new test applies).

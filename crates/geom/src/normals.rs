@@ -38,6 +38,52 @@ pub fn estimate_normals(points: &[DVec3], k: usize) -> Vec<DVec3> {
     sorted.restore(&normals_from_table(&sorted.points, &table, k))
 }
 
+/// [`estimate_normals`] and each point's mean distance to its
+/// `spacing_neighbours` nearest other points (the local sampling spacing;
+/// duplicates count at distance 0): the values of `estimate_normals(points,
+/// k)` and of the mean over [`KdTree::knn`]`(p, spacing_neighbours + 1)`
+/// less the point itself, bit for bit. When `spacing_neighbours` is below
+/// `k` (raised to 3) one neighbour search serves both.
+pub fn estimate_normals_and_spacing(
+    points: &[DVec3],
+    k: usize,
+    spacing_neighbours: usize,
+) -> (Vec<DVec3>, Vec<f64>) {
+    let k = k.max(3);
+    let with_self = spacing_neighbours + 1;
+    let sorted = SpatialOrder::new(points);
+    let table = KnnTable::build(&sorted.points, k);
+    let normals = normals_from_table(&sorted.points, &table, k);
+    let spacing = if with_self <= k {
+        spacing_from_table(&sorted.points, &table, with_self)
+    } else {
+        // A wider search could break ties among the k nearest otherwise.
+        let wide = KnnTable::build(&sorted.points, with_self);
+        spacing_from_table(&sorted.points, &wide, with_self)
+    };
+    (sorted.restore(&normals), sorted.restore(&spacing))
+}
+
+/// Mean distance to the first `with_self` entries of each table row but
+/// one (the point itself).
+fn spacing_from_table(points: &[DVec3], table: &KnnTable, with_self: usize) -> Vec<f64> {
+    (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            let row = table.row(i);
+            let nearest = &row[..with_self.min(row.len())];
+            // Each distance as the k-d tree measures it (squared
+            // differences summed x, y, z, then the root), so the sums
+            // match a separate search's.
+            let sum: f64 = nearest
+                .iter()
+                .map(|&j| points[j as usize].distance(points[i]))
+                .sum();
+            sum / (nearest.len().max(2) - 1) as f64
+        })
+        .collect()
+}
+
 /// Unit normal (any sign) of `points[i]` that stays true to its face up to
 /// a sharp edge: the plane fit of the flattest `k`-neighbourhood among the
 /// point's own and those of its neighbours that contain it (`tree` indexes
@@ -323,8 +369,8 @@ impl SpatialOrder {
     }
 
     /// Values computed for the reordered points, back in input order.
-    fn restore(&self, values: &[DVec3]) -> Vec<DVec3> {
-        let mut out = vec![DVec3::ZERO; values.len()];
+    fn restore<T: Copy + Default>(&self, values: &[T]) -> Vec<T> {
+        let mut out = vec![T::default(); values.len()];
         for (v, &i) in values.iter().zip(&self.order) {
             out[i as usize] = *v;
         }
@@ -770,6 +816,27 @@ mod tests {
     fn apply(m: &[[f64; 3]; 3], v: DVec3) -> DVec3 {
         let r = |i: usize| m[i][0] * v.x + m[i][1] * v.y + m[i][2] * v.z;
         DVec3::new(r(0), r(1), r(2))
+    }
+
+    /// The shared search gives bit for bit what the two separate ones
+    /// give, duplicates and a wider spacing than `k` included.
+    #[test]
+    fn normals_and_spacing_equal_separate_searches() {
+        let mut points = sample_surface(&torus(1.0, 0.3, 48, 24), 3000, 5).positions;
+        let copies: Vec<DVec3> = points.iter().step_by(97).copied().collect();
+        points.extend(copies);
+        let tree = KdTree::new(&points);
+        for (k, spacing_neighbours) in [(12, 6), (4, 6), (3, 2)] {
+            let (normals, spacing) = estimate_normals_and_spacing(&points, k, spacing_neighbours);
+            assert_eq!(normals, estimate_normals(&points, k));
+            for (i, &p) in points.iter().enumerate() {
+                let near = tree.knn(p, spacing_neighbours + 1);
+                let sum: f64 = near.iter().map(|n| n.distance).sum();
+                let expected = sum / (near.len() - 1) as f64;
+                assert_eq!(spacing[i].to_bits(), expected.to_bits(), "point {i}");
+            }
+            assert!(spacing.iter().filter(|&&s| s == 0.0).count() < points.len() / 10);
+        }
     }
 
     #[test]
