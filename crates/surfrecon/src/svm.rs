@@ -4,6 +4,7 @@
 
 use crate::error::{Classify, Error, ErrorKind, Result};
 use crate::report::*;
+use crate::stack::with_stack_samples;
 use crate::{check, data_fit_report, Loss, Output, SvmC, SvmOptions};
 use std::time::Instant;
 use surfrecon_geom::aabb::offset_to_origin;
@@ -51,6 +52,11 @@ pub(crate) fn run(
     // keeps the raw points' noise as the floor of its finest width
     // (without it 1% noise gave handles or pieces on 4 of the 7 harness
     // shapes).
+    // Contour slices: the fit also gets the surface the contours'
+    // normals describe between and past them (see `stack`).
+    let stacked = o.model_in.is_none().then(|| with_stack_samples(points)).flatten();
+    let given = points;
+    let points = stacked.as_ref().unwrap_or(points);
     let noise_floor = match cleaning {
         Some(_) => {
             let raw = &input_points.positions;
@@ -107,7 +113,8 @@ pub(crate) fn run(
             fair_gaps: false,
             exact_points: true,
         };
-        refine_surface(&mut mesh, &points.positions, m.spacing, options)
+        let snap_to = if std::env::var_os("REFINE_GIVEN").is_some() { given } else { points };
+        refine_surface(&mut mesh, &snap_to.positions, m.spacing, options)
     });
     mesh.vertices.iter_mut().for_each(|v| *v += by);
     let svm = SvmSummary {
