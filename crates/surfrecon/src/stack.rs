@@ -29,6 +29,14 @@ const CAP_HEIGHT: f64 = 0.5;
 /// Samples nearer than this many contour spacings to one kept before are
 /// dropped (the arcs of a cap meet over its middle).
 const THINNING: f64 = 0.7;
+/// A part that ends between two slices closes within this share of the
+/// gap (short of the next slice, which does not show it).
+const INNER_CAP_HEIGHT: f64 = 0.9;
+/// Contour points without a partner on the next slice are closed over
+/// only if their normal rises at least this many degrees towards it (a
+/// steeper surface there is more likely to go on into a part the next
+/// slice shows joined to another: a cone rising from a ball).
+const CLOSING_ELEVATION: f64 = 20.0;
 /// Most half-spacing steps inward from a contour point to the middle of
 /// its section.
 const MAX_MARCH: usize = 2000;
@@ -52,12 +60,22 @@ pub(crate) fn with_stack_samples(points: &PointCloud) -> Option<PointCloud> {
         .map(|(s, &level)| Slice::new(s, level))
         .collect();
     let mut samples = Vec::new();
-    for pair in slices.windows(2) {
+    for pair in slices.windows(2).filter(|_| std::env::var_os("NOBETWEEN").is_none()) {
         between(&pair[0], &pair[1], &mut samples);
+        if std::env::var_os("NOINNER").is_none() {
+            let gap = pair[1].level - pair[0].level;
+            let height = INNER_CAP_HEIGHT * gap;
+            cap(&pair[0], &closing_towards(&pair[0], &pair[1]), 1.0, height, &mut samples);
+            cap(&pair[1], &closing_towards(&pair[1], &pair[0]), -1.0, height, &mut samples);
+        }
     }
     let gap = stack.gap();
-    cap(&slices[0], -1.0, gap, &mut samples);
-    cap(&slices[slices.len() - 1], 1.0, gap, &mut samples);
+    if std::env::var_os("NOCAPS").is_none() {
+        let (first, last) = (&slices[0], &slices[slices.len() - 1]);
+        let all = |s: &Slice| (0..s.points.len()).collect::<Vec<_>>();
+        cap(first, &all(first), -1.0, CAP_HEIGHT * gap, &mut samples);
+        cap(last, &all(last), 1.0, CAP_HEIGHT * gap, &mut samples);
+    }
     let spacing = slices.iter().map(|s| s.spacing).fold(f64::INFINITY, f64::min);
     let samples = thinned(samples, THINNING * spacing);
     let mut joined = points.clone();
@@ -145,31 +163,44 @@ fn split_normal(n: DVec3) -> (DVec3, f64) {
     (flat / across, n.z / across)
 }
 
-/// Samples of the Hermite curves joining contour points of `a` to the
-/// points of `b` their tilts lead to (and back), at about the contours'
-/// spacing along the axis.
+/// The point of `b` that contour point `i` of `a` leads to (following its
+/// tilt across the gap), if that point leads back near `i`.
+fn partner(a: &Slice, i: usize, b: &Slice) -> Option<usize> {
+    let gap = b.level - a.level;
+    let tolerance = MATCH_TOLERANCE * gap.abs();
+    let ahead = a.led_to(i, gap);
+    let j = b.tree.nearest(ahead)?.index;
+    let back = b.led_to(j, -gap);
+    let agree = a.outward[i].dot(b.outward[j]) >= MATCH_COSINE;
+    (agree && b.points[j].distance(ahead) <= tolerance && a.points[i].distance(back) <= tolerance)
+        .then_some(j)
+}
+
+/// Samples of the Hermite curves joining contour points of `a` to their
+/// partners on `b`, at about the contours' spacing along the axis.
 fn between(a: &Slice, b: &Slice, out: &mut Vec<Sample>) {
     let gap = b.level - a.level;
-    let tolerance = MATCH_TOLERANCE * gap;
-    let steps = steps_over(gap, a.spacing.max(b.spacing));
+    let steps = std::env::var("STEPS").ok().and_then(|v| v.parse().ok()).unwrap_or_else(|| steps_over(gap, a.spacing.max(b.spacing)));
     for i in 0..a.points.len() {
-        let ahead = a.led_to(i, gap);
-        let Some(j) = b.tree.nearest(ahead).map(|n| n.index) else {
-            return;
-        };
-        let back = b.led_to(j, -gap);
-        let agree = a.outward[i].dot(b.outward[j]) >= MATCH_COSINE;
-        if !agree
-            || b.points[j].distance(ahead) > tolerance
-            || a.points[i].distance(back) > tolerance
-        {
+        let Some(j) = partner(a, i, b) else {
             continue;
-        }
+        };
         for k in 1..steps {
             let t = k as f64 / steps as f64;
             out.push(hermite(a, i, b, j, t));
         }
     }
+}
+
+/// Points of `a` without a partner on `b` where the surface closes
+/// towards `b` (normal at least [`CLOSING_ELEVATION`] towards it): a
+/// part ending between the two slices.
+fn closing_towards(a: &Slice, b: &Slice) -> Vec<usize> {
+    let side = (b.level - a.level).signum();
+    let min_tilt = CLOSING_ELEVATION.to_radians().tan();
+    (0..a.points.len())
+        .filter(|&i| side * a.tilt[i] >= min_tilt && partner(a, i, b).is_none())
+        .collect()
 }
 
 /// Number of steps of about `spacing` over `length`, at least 2.
@@ -207,13 +238,12 @@ fn hermite(a: &Slice, i: usize, b: &Slice, j: usize, t: f64) -> Sample {
 }
 
 /// Samples of a dome past slice `end` (`side` +1 above it, −1 below):
-/// from each contour point a circular arc that leaves it at its tilt and
+/// from each of its contour points `which` a circular arc that leaves it at its tilt and
 /// ends level over the middle of its section,
-/// squashed to close within [`CAP_HEIGHT`] gaps. A sphere's or a round
+/// squashed to close within `max_height`. A sphere's or a round
 /// tube's end is closed exactly.
-fn cap(end: &Slice, side: f64, gap: f64, out: &mut Vec<Sample>) {
-    let max_height = CAP_HEIGHT * gap;
-    for i in 0..end.points.len() {
+fn cap(end: &Slice, which: &[usize], side: f64, max_height: f64, out: &mut Vec<Sample>) {
+    for &i in which {
         let Some(radius) = half_width(end, i) else {
             continue;
         };
@@ -262,10 +292,13 @@ fn half_width(slice: &Slice, i: usize) -> Option<f64> {
         if depth > best.0 {
             best = (depth, along);
         } else if depth < best.0 - 2.0 * step {
-            break;
+            // A ridge much shallower than it is far lies outside.
+            return (best.0 >= 0.5 * best.1).then_some(best.1);
         }
     }
-    (best.1 > 0.0).then_some(best.1)
+    // No ridge: the ray left the section (through a gap, or from a
+    // point whose normal lies nearly along the axis).
+    None
 }
 
 /// `samples` without those nearer than `radius` to one kept before.
