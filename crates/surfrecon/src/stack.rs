@@ -2,9 +2,9 @@
 //! along a contour, four to twenty times less than the gap between
 //! slices: alone, the fit sags between slices and ends flat at the last
 //! ones. The fit is given, besides the contours, samples of the surface
-//! the contours' own normals describe: between two slices a Hermite
-//! curve from each contour point to the point its tilt leads to on the
-//! next slice, and past each end slice a dome that leaves the contour at
+//! the contours' own normals describe: between two slices the middle of
+//! a Hermite curve from each contour point to the point its tilt leads
+//! to on the next slice, and past each end slice a dome that leaves the contour at
 //! its tilt and closes over its section.
 
 use surfrecon_geom::spatial::KdTree;
@@ -29,18 +29,10 @@ const CAP_HEIGHT: f64 = 0.5;
 /// Samples nearer than this many contour spacings to one kept before are
 /// dropped (the arcs of a cap meet over its middle).
 const THINNING: f64 = 0.7;
-/// A part that ends between two slices closes within this share of the
-/// gap (short of the next slice, which does not show it).
-const INNER_CAP_HEIGHT: f64 = 0.9;
-/// Contour points without a partner on the next slice are closed over
-/// only if their normal rises at least this many degrees towards it (a
-/// steeper surface there is more likely to go on into a part the next
-/// slice shows joined to another: a cone rising from a ball).
-const CLOSING_ELEVATION: f64 = 20.0;
 /// Most half-spacing steps inward from a contour point to the middle of
 /// its section.
 const MAX_MARCH: usize = 2000;
-/// Most samples on one Hermite curve or one cap profile.
+/// Most samples on one cap profile.
 const MAX_STEPS: usize = 12;
 
 /// `points` (oriented) with samples between and past its slices added, if
@@ -60,40 +52,30 @@ pub(crate) fn with_stack_samples(points: &PointCloud) -> Option<PointCloud> {
         .map(|(s, &level)| Slice::new(s, level))
         .collect();
     let mut samples = Vec::new();
-    for pair in slices.windows(2).filter(|_| std::env::var_os("NOBETWEEN").is_none()) {
+    for pair in slices.windows(2) {
         between(&pair[0], &pair[1], &mut samples);
-        if std::env::var_os("NOINNER").is_none() {
-            let gap = pair[1].level - pair[0].level;
-            let height = INNER_CAP_HEIGHT * gap;
-            cap(&pair[0], &closing_towards(&pair[0], &pair[1]), 1.0, height, &mut samples);
-            cap(&pair[1], &closing_towards(&pair[1], &pair[0]), -1.0, height, &mut samples);
-        }
     }
     let gap = stack.gap();
-    if std::env::var_os("NOCAPS").is_none() {
-        let (first, last) = (&slices[0], &slices[slices.len() - 1]);
-        let all = |s: &Slice| (0..s.points.len()).collect::<Vec<_>>();
-        cap(first, &all(first), -1.0, CAP_HEIGHT * gap, &mut samples);
-        cap(last, &all(last), 1.0, CAP_HEIGHT * gap, &mut samples);
-    }
-    let spacing = slices.iter().map(|s| s.spacing).fold(f64::INFINITY, f64::min);
+    let (first, last) = (&slices[0], &slices[slices.len() - 1]);
+    cap(first, -1.0, CAP_HEIGHT * gap, &mut samples);
+    cap(last, 1.0, CAP_HEIGHT * gap, &mut samples);
+    let spacing = slices
+        .iter()
+        .map(|s| s.spacing)
+        .fold(f64::INFINITY, f64::min);
     let samples = thinned(samples, THINNING * spacing);
     let mut joined = points.clone();
     for (p, n) in samples {
+        let n = unflat(&stack, n).normalize_or_zero();
+        if n == DVec3::ZERO || !p.is_finite() {
+            continue;
+        }
         joined.positions.push(unflat(&stack, p));
         if let Some(normals) = &mut joined.normals {
-            normals.push(unflat(&stack, n).normalize());
+            normals.push(n);
         }
     }
     joined.scalars = None;
-    if let Some(path) = std::env::var_os("DUMP_STACK") {
-        use std::io::Write;
-        let mut f = std::fs::File::create(path).unwrap();
-        let n = joined.normals.as_ref().unwrap();
-        for (p, q) in joined.positions.iter().zip(n) {
-            writeln!(f, "{} {} {} {} {} {}", p.x, p.y, p.z, q.x, q.y, q.z).unwrap();
-        }
-    }
     Some(joined)
 }
 
@@ -157,7 +139,11 @@ fn split_normal(n: DVec3) -> (DVec3, f64) {
     let flat = DVec3::new(n.x, n.y, 0.0);
     let across = flat.length();
     if across * MAX_TILT <= n.z.abs() {
-        let outward = if across > 0.0 { flat / across } else { DVec3::X };
+        let outward = if across > 0.0 {
+            flat / across
+        } else {
+            DVec3::X
+        };
         return (outward, MAX_TILT.copysign(n.z));
     }
     (flat / across, n.z / across)
@@ -177,30 +163,17 @@ fn partner(a: &Slice, i: usize, b: &Slice) -> Option<usize> {
 }
 
 /// Samples of the Hermite curves joining contour points of `a` to their
-/// partners on `b`, at about the contours' spacing along the axis.
+/// partners on `b`, one mid-gap per curve. (Samples at the contours'
+/// spacing along the axis, up to 12 a curve, held the fit so close to
+/// them that where a part ends between two slices, with no partners to
+/// join, it closed flat: spikes 1.64 → 2.60 × the best peer, fandisk
+/// with a contour point 9% of the diagonal off.)
 fn between(a: &Slice, b: &Slice, out: &mut Vec<Sample>) {
-    let gap = b.level - a.level;
-    let steps = std::env::var("STEPS").ok().and_then(|v| v.parse().ok()).unwrap_or_else(|| steps_over(gap, a.spacing.max(b.spacing)));
     for i in 0..a.points.len() {
-        let Some(j) = partner(a, i, b) else {
-            continue;
-        };
-        for k in 1..steps {
-            let t = k as f64 / steps as f64;
-            out.push(hermite(a, i, b, j, t));
+        if let Some(j) = partner(a, i, b) {
+            out.push(hermite(a, i, b, j, 0.5));
         }
     }
-}
-
-/// Points of `a` without a partner on `b` where the surface closes
-/// towards `b` (normal at least [`CLOSING_ELEVATION`] towards it): a
-/// part ending between the two slices.
-fn closing_towards(a: &Slice, b: &Slice) -> Vec<usize> {
-    let side = (b.level - a.level).signum();
-    let min_tilt = CLOSING_ELEVATION.to_radians().tan();
-    (0..a.points.len())
-        .filter(|&i| side * a.tilt[i] >= min_tilt && partner(a, i, b).is_none())
-        .collect()
 }
 
 /// Number of steps of about `spacing` over `length`, at least 2.
@@ -238,12 +211,12 @@ fn hermite(a: &Slice, i: usize, b: &Slice, j: usize, t: f64) -> Sample {
 }
 
 /// Samples of a dome past slice `end` (`side` +1 above it, −1 below):
-/// from each of its contour points `which` a circular arc that leaves it at its tilt and
+/// from each of its contour points a circular arc that leaves it at its tilt and
 /// ends level over the middle of its section,
 /// squashed to close within `max_height`. A sphere's or a round
 /// tube's end is closed exactly.
-fn cap(end: &Slice, which: &[usize], side: f64, max_height: f64, out: &mut Vec<Sample>) {
-    for &i in which {
+fn cap(end: &Slice, side: f64, max_height: f64, out: &mut Vec<Sample>) {
+    for i in 0..end.points.len() {
         let Some(radius) = half_width(end, i) else {
             continue;
         };

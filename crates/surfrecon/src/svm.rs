@@ -54,8 +54,11 @@ pub(crate) fn run(
     // shapes).
     // Contour slices: the fit also gets the surface the contours'
     // normals describe between and past them (see `stack`).
-    let stacked = o.model_in.is_none().then(|| with_stack_samples(points)).flatten();
-    let given = points;
+    let stacked = o
+        .model_in
+        .is_none()
+        .then(|| with_stack_samples(points))
+        .flatten();
     let points = stacked.as_ref().unwrap_or(points);
     let noise_floor = match cleaning {
         Some(_) => {
@@ -113,8 +116,7 @@ pub(crate) fn run(
             fair_gaps: false,
             exact_points: true,
         };
-        let snap_to = if std::env::var_os("REFINE_GIVEN").is_some() { given } else { points };
-        refine_surface(&mut mesh, &snap_to.positions, m.spacing, options)
+        refine_surface(&mut mesh, &points.positions, m.spacing, options)
     });
     mesh.vertices.iter_mut().for_each(|v| *v += by);
     let svm = SvmSummary {
