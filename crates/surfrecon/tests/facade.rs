@@ -315,3 +315,61 @@ fn svm_mesh_of_contour_slices_stays_manifold_after_welding() {
     });
     assert_eq!(flat.count(), 0, "triangles of no area");
 }
+
+/// Ten horizontal contour slices of a torus (radii `big` and `small`),
+/// with normals, the outer ones half a gap short of its top and bottom
+/// (as the harness slices a shape: at the middles of ten equal bins).
+fn torus_slices(big: f64, small: f64) -> Geometry {
+    let gap = 2.0 * small / 10.0;
+    let mut cloud = surfrecon::PointCloud::default();
+    let mut normals = Vec::new();
+    for k in 0..10 {
+        let z = -small + gap * (k as f64 + 0.5);
+        let reach = (small * small - z * z).sqrt();
+        for radius in [big - reach, big + reach] {
+            let count = (150.0 * radius).ceil() as usize;
+            for i in 0..count {
+                let a = i as f64 / count as f64 * std::f64::consts::TAU;
+                let p = DVec3::new(radius * a.cos(), radius * a.sin(), z);
+                let centre = DVec3::new(big * a.cos(), big * a.sin(), 0.0);
+                cloud.positions.push(p);
+                normals.push((p - centre).normalize());
+            }
+        }
+    }
+    cloud.normals = Some(normals);
+    Geometry::from_points(cloud)
+}
+
+#[test]
+fn svm_closes_contour_slices_past_the_end_ones_at_their_tilt() {
+    let (big, small) = (1.0, 0.35);
+    let options = Options {
+        resolution: Some(100),
+        ..Options::with_method(Method::Svm(SvmOptions::default()))
+    };
+    let out = reconstruct(&torus_slices(big, small), &options).unwrap();
+    let t = topology(&out.mesh);
+    assert!(
+        t.watertight && t.edge_manifold && t.vertex_manifold,
+        "{t:?}"
+    );
+    assert_eq!((t.components, t.euler), (1, 0), "{t:?}");
+    let off = |v: &DVec3| {
+        let ring = DVec3::new(v.x, v.y, 0.0).normalize() * big;
+        ((*v - ring).length() - small).abs()
+    };
+    let offs: Vec<f64> = out.mesh.vertices.iter().map(off).collect();
+    let mean = offs.iter().sum::<f64>() / offs.len() as f64;
+    // The top and bottom: the fit alone ended flat at the outer slices,
+    // up to half a gap (0.035) short of the torus.
+    let highest = out
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| v.z.abs())
+        .fold(0.0, f64::max);
+    eprintln!("mean {mean}, highest {highest}");
+    assert!(highest > small - 0.01, "highest |z| {highest} of {small}");
+    assert!(mean < 0.003, "mean distance {mean} to the torus");
+}
