@@ -48,10 +48,6 @@ pub(crate) fn run(
     let points = cleaning
         .as_ref()
         .map_or(input_points, |(cleaned, _)| cleaned);
-    // Smoothed points look less noisy than they were measured: the fit
-    // keeps the raw points' noise as the floor of its finest width
-    // (without it 1% noise gave handles or pieces on 4 of the 7 harness
-    // shapes).
     // Contour slices: the fit also gets the surface the contours'
     // normals describe between and past them (see `stack`).
     let stacked = o
@@ -60,6 +56,10 @@ pub(crate) fn run(
         .then(|| with_stack_samples(points))
         .flatten();
     let points = stacked.as_ref().unwrap_or(points);
+    // Smoothed points look less noisy than they were measured: the fit
+    // keeps the raw points' noise as the floor of its finest width
+    // (without it 1% noise gave handles or pieces on 4 of the 7 harness
+    // shapes).
     let noise_floor = match cleaning {
         Some(_) => {
             let raw = &input_points.positions;
