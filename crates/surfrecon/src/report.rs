@@ -196,7 +196,10 @@ pub struct SvmSummary {
     pub contour_stack: Option<ContourStack>,
     pub centres: usize,
     pub levels_used: usize,
+    /// Wall time besides meshing: preparing the points and fitting (both
+    /// fits, with and without a contour stack's samples).
     pub fit_seconds: f64,
+    /// Wall time meshing and refining (both meshes for a contour stack).
     pub mesh_seconds: f64,
     pub mesh: SvmMeshReport,
 }
