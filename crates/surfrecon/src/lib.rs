@@ -28,6 +28,7 @@ mod levelset;
 pub mod morph;
 mod options;
 mod report;
+mod stack;
 mod svm;
 
 pub use curves::detect as detect_curve_network;

@@ -191,11 +191,30 @@ pub struct SvmReport {
 pub struct SvmSummary {
     pub method: &'static str,
     pub fit: SvmFit,
+    /// For contour slices: whether the surface fitted with the stack's
+    /// added samples was kept (`None`: the input is no contour stack).
+    pub contour_stack: Option<ContourStack>,
     pub centres: usize,
     pub levels_used: usize,
+    /// Wall time besides meshing: preparing the points and fitting (both
+    /// fits, with and without a contour stack's samples).
     pub fit_seconds: f64,
+    /// Wall time meshing and refining (both meshes for a contour stack).
     pub mesh_seconds: f64,
     pub mesh: SvmMeshReport,
+}
+
+/// What became of the surface fitted with a contour stack's added samples
+/// (mid-gap and end-cap samples, guesses beside the contours).
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ContourStack {
+    /// Kept: no more pieces and no more handles than without the samples.
+    Used,
+    /// The surface fitted to the contours alone kept: the samples added pieces.
+    DroppedMorePieces,
+    /// The surface fitted to the contours alone kept: the samples added handles.
+    DroppedMoreHandles,
 }
 
 /// A fitted model, or one loaded from a file.

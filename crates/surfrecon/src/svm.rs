@@ -4,16 +4,18 @@
 
 use crate::error::{Classify, Error, ErrorKind, Result};
 use crate::report::*;
+use crate::stack::with_stack_samples;
 use crate::{check, data_fit_report, Loss, Output, SvmC, SvmOptions};
 use std::time::Instant;
 use surfrecon_geom::aabb::offset_to_origin;
+use surfrecon_geom::metrics::{topology, Topology};
 use surfrecon_geom::normals::estimate_oriented_sheet_normals;
 use surfrecon_geom::progress::Hook;
 use surfrecon_geom::spatial::KdTree;
-use surfrecon_geom::{DVec3, Geometry, PointCloud};
+use surfrecon_geom::{DVec3, Geometry, PointCloud, TriMesh};
 use surfrecon_levelset::cleaning::clean_points_with_normals;
-use surfrecon_levelset::refine::{refine_surface, RefineOptions};
-use surfrecon_svm::mesh::{mesh_model, MeshOptions};
+use surfrecon_levelset::refine::{refine_surface, RefineOptions, RefineStats};
+use surfrecon_svm::mesh::{mesh_model, MeshOptions, MeshReport};
 use surfrecon_svm::noise::estimate_noise_unoriented;
 use surfrecon_svm::selection::{select_parameters, SelectionOptions};
 use surfrecon_svm::{FitOptions, SvmModel};
@@ -58,65 +60,73 @@ pub(crate) fn run(
         }
         None => 0.0,
     };
-    let mut normals_estimated = None;
-    let (model, fit) = match &o.model_in {
-        Some(path) => (
-            SvmModel::load(path)
-                .map_err(|e| e.within(&format!("cannot load model {}", path.display())))?
-                .translated(-by),
-            SvmFit::Loaded {
-                loaded: path.display().to_string(),
-            },
-        ),
-        None => {
-            if points.normals.is_none() {
-                normals_estimated = Some(o.normal_k);
-            }
-            let (model, mut fit) = fit_model(points, o, noise_floor, hook)?;
-            if let Some(path) = &o.model_out {
-                model
-                    .translated(by)
-                    .save(path)
-                    .map_err(|e| e.within(&format!("cannot write model {}", path.display())))?;
-            }
-            fit.cleaning = cleaning.as_ref().map(|(_, report)| *report);
-            (model, SvmFit::Fitted(Box::new(fit)))
-        }
-    };
-    let fit_seconds = started.elapsed().as_secs_f64();
-    let model = if o.drop_levels > 0 {
-        model.without_finest(o.drop_levels)
-    } else {
-        model
-    };
-    check(hook, "mesh")?;
-    let opts = MeshOptions {
-        resolution: resolution.unwrap_or(DEFAULT_RESOLUTION),
-        ..Default::default()
-    };
-    let (mut mesh, m) = mesh_model(&model, &points.positions, points.bounds(), &opts)
-        .map_err(|e| e.within("meshing the SVM implicit surface failed"))?;
     // Points the cleaning found clean are exact samples: the mesh goes onto
     // them as the level set's does (between samples, and up to sharp
     // edges), instead of staying on the smooth kernel sum. Not for smoothed
     // points (0.25% noise: 4% worse), points not checked (`--no-cleaning`)
     // nor a loaded model's mesh.
     let exact = o.cleaning && o.model_in.is_none() && cleaning.is_none();
-    let refined = exact.then(|| {
-        let options = RefineOptions {
-            fair_gaps: false,
-            exact_points: true,
-        };
-        refine_surface(&mut mesh, &points.positions, m.spacing, options)
-    });
+    let settings = SurfaceSettings {
+        o,
+        by,
+        noise_floor,
+        resolution: resolution.unwrap_or(DEFAULT_RESOLUTION),
+        exact,
+    };
+    let plain = surface(points, &settings, hook)?;
+    let mut mesh_seconds = plain.mesh_seconds;
+    // Contour slices: the fit also gets the surface the contours'
+    // normals describe between and past them (see `stack`). Those samples
+    // are guesses (mid-gap curves, end caps), not data: a surface with
+    // more pieces or more handles than the contours alone give is not
+    // what the contours describe (harness slices: bunny gained a handle,
+    // spikes a cone's end section capped into a piece of its own), and
+    // then the surface without them is kept.
+    let stacked = o
+        .model_in
+        .is_none()
+        .then(|| with_stack_samples(points))
+        .flatten();
+    let (mut kept, contour_stack) = match &stacked {
+        None => (plain, None),
+        Some(stacked) => {
+            let with_stack = surface(stacked, &settings, hook)?;
+            mesh_seconds += with_stack.mesh_seconds;
+            match stack_verdict(&plain.mesh, &with_stack.mesh) {
+                ContourStack::Used => (with_stack, Some(ContourStack::Used)),
+                dropped => (plain, Some(dropped)),
+            }
+        }
+    };
+    if let (Some(path), SvmFit::Fitted(_)) = (&o.model_out, &kept.fit) {
+        kept.model
+            .translated(by)
+            .save(path)
+            .map_err(|e| e.within(&format!("cannot write model {}", path.display())))?;
+    }
+    if let SvmFit::Fitted(fit) = &mut kept.fit {
+        fit.cleaning = cleaning.as_ref().map(|(_, report)| *report);
+    }
+    let normals_estimated =
+        (o.model_in.is_none() && points.normals.is_none()).then_some(o.normal_k);
+    let Surface {
+        fit,
+        centres,
+        levels_used,
+        mut mesh,
+        meshing: m,
+        refined,
+        ..
+    } = kept;
     mesh.vertices.iter_mut().for_each(|v| *v += by);
     let svm = SvmSummary {
         method: "svm",
         fit,
-        centres: model.centre_count(),
-        levels_used: model.levels.len(),
-        fit_seconds,
-        mesh_seconds: started.elapsed().as_secs_f64() - fit_seconds,
+        contour_stack,
+        centres,
+        levels_used,
+        fit_seconds: started.elapsed().as_secs_f64() - mesh_seconds,
+        mesh_seconds,
         mesh: SvmMeshReport {
             grid_dims: m.grid_dims,
             spacing: m.spacing,
@@ -143,6 +153,100 @@ pub(crate) fn run(
         field: None,
         report: Report::Svm(Box::new(report)),
     })
+}
+
+/// What every surface of one run is made with.
+struct SurfaceSettings<'a> {
+    o: &'a SvmOptions,
+    /// The points' move towards the origin (undone on the model saved).
+    by: DVec3,
+    noise_floor: f64,
+    resolution: usize,
+    /// Refine the mesh onto the points (see `run`).
+    exact: bool,
+}
+
+/// One model, fitted or loaded, and its mesh, near the origin.
+struct Surface {
+    /// As fitted or loaded: what `--model-out` saves.
+    model: SvmModel,
+    fit: SvmFit,
+    /// Centres and levels of the model meshed (`--drop-levels` applied).
+    centres: usize,
+    levels_used: usize,
+    mesh: TriMesh,
+    meshing: MeshReport,
+    refined: Option<RefineStats>,
+    mesh_seconds: f64,
+}
+
+/// The model fitted to `points` (or loaded), meshed over them and, for
+/// exact points, refined onto them.
+fn surface(points: &PointCloud, s: &SurfaceSettings, hook: Hook) -> Result<Surface> {
+    let o = s.o;
+    let (model, fit) = match &o.model_in {
+        Some(path) => (
+            SvmModel::load(path)
+                .map_err(|e| e.within(&format!("cannot load model {}", path.display())))?
+                .translated(-s.by),
+            SvmFit::Loaded {
+                loaded: path.display().to_string(),
+            },
+        ),
+        None => {
+            let (model, fit) = fit_model(points, o, s.noise_floor, hook)?;
+            (model, SvmFit::Fitted(Box::new(fit)))
+        }
+    };
+    let started = Instant::now();
+    let meshed = (o.drop_levels > 0).then(|| model.without_finest(o.drop_levels));
+    let meshed = meshed.as_ref().unwrap_or(&model);
+    check(hook, "mesh")?;
+    let opts = MeshOptions {
+        resolution: s.resolution,
+        ..Default::default()
+    };
+    let (mut mesh, meshing) = mesh_model(meshed, &points.positions, points.bounds(), &opts)
+        .map_err(|e| e.within("meshing the SVM implicit surface failed"))?;
+    let refined = s.exact.then(|| {
+        let options = RefineOptions {
+            fair_gaps: false,
+            exact_points: true,
+        };
+        refine_surface(&mut mesh, &points.positions, meshing.spacing, options)
+    });
+    Ok(Surface {
+        centres: meshed.centre_count(),
+        levels_used: meshed.levels.len(),
+        model,
+        fit,
+        mesh,
+        meshing,
+        refined,
+        mesh_seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// Whether the surface fitted with a contour stack's samples is kept over
+/// the one fitted to the contours alone: not if it has more pieces, nor
+/// more handles.
+fn stack_verdict(plain: &TriMesh, stacked: &TriMesh) -> ContourStack {
+    let (plain, stacked) = (topology(plain), topology(stacked));
+    if stacked.components > plain.components {
+        ContourStack::DroppedMorePieces
+    } else if twice_handles(&stacked) > twice_handles(&plain) {
+        ContourStack::DroppedMoreHandles
+    } else {
+        ContourStack::Used
+    }
+}
+
+/// Twice the handles of a closed surface (each piece's Euler
+/// characteristic is 2 − 2·handles). Counted per piece rather than by
+/// the Euler characteristic alone, which also drops by 2 when two pieces
+/// join into one: that is no handle.
+fn twice_handles(t: &Topology) -> i64 {
+    2 * t.components as i64 - t.euler
 }
 
 /// `points` moved by `by`.
@@ -254,4 +358,41 @@ fn normals_for(points: &PointCloud, k: usize) -> Vec<DVec3> {
         return n.clone();
     }
     estimate_oriented_sheet_normals(&points.positions, k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use surfrecon_geom::shapes::{icosphere, torus};
+
+    /// `a` and `b` as one mesh of two pieces.
+    fn both(a: &TriMesh, b: &TriMesh) -> TriMesh {
+        let offset = a.vertices.len() as u32;
+        let mut mesh = a.clone();
+        mesh.vertices.extend(&b.vertices);
+        let moved = b.triangles.iter().map(|t| t.map(|i| i + offset));
+        mesh.triangles.extend(moved);
+        mesh
+    }
+
+    #[test]
+    fn stack_is_dropped_for_an_added_piece_or_handle_but_not_for_a_join() {
+        let ball = icosphere(DVec3::ZERO, 1.0, 2);
+        let far_ball = icosphere(DVec3::new(5.0, 0.0, 0.0), 1.0, 2);
+        let two_balls = both(&ball, &far_ball);
+        let ring = torus(1.0, 0.3, 24, 12);
+        assert_eq!(stack_verdict(&ball, &ball), ContourStack::Used);
+        assert_eq!(
+            stack_verdict(&ball, &two_balls),
+            ContourStack::DroppedMorePieces
+        );
+        assert_eq!(
+            stack_verdict(&ball, &ring),
+            ContourStack::DroppedMoreHandles
+        );
+        // Two pieces joined into one: the Euler characteristic drops by
+        // 2, but no handle is added.
+        assert_eq!(stack_verdict(&two_balls, &ball), ContourStack::Used);
+        assert_eq!(stack_verdict(&ring, &ball), ContourStack::Used);
+    }
 }

@@ -120,6 +120,18 @@ pub fn say_fit(args: &SvmArgs, report: &surfrecon::SvmReport, ctx: &Context) {
             }
         }
     }
+    match svm.contour_stack {
+        Some(surfrecon::ContourStack::Used) => {
+            ctx.detail("contour stack: fitted with samples between and past the slices")
+        }
+        Some(surfrecon::ContourStack::DroppedMorePieces) => ctx.say(
+            "svm: contour stack: samples between and past the slices dropped (they added pieces)",
+        ),
+        Some(surfrecon::ContourStack::DroppedMoreHandles) => ctx.say(
+            "svm: contour stack: samples between and past the slices dropped (they added handles)",
+        ),
+        None => {}
+    }
     if args.drop_levels > 0 {
         ctx.detail(format!(
             "leaving out the {} finest level(s)",

@@ -1,0 +1,316 @@
+//! Contour stacks for the SVM. Its kernels are as wide as the spacing
+//! along a contour, four to twenty times less than the gap between
+//! slices: alone, the fit sags between slices and ends flat at the last
+//! ones. The fit is given, besides the contours, samples of the surface
+//! the contours' own normals describe: between two slices the middle of
+//! a Hermite curve from each contour point to the point its tilt leads
+//! to on the next slice, and past each end slice a dome that leaves the contour at
+//! its tilt and closes over its section.
+
+use surfrecon_geom::spatial::KdTree;
+use surfrecon_geom::{DVec3, PointCloud};
+use surfrecon_levelset::slices::{detect_slices, SliceStack};
+use surfrecon_levelset::Input;
+
+/// Steepest tilt (axial over in-plane normal component) followed: beyond
+/// it the surface is nearly parallel to the slice and the ratio says more
+/// about noise than shape (the level set's interpolation uses the same).
+const MAX_TILT: f64 = 3.0;
+/// A contour point and the one its tilt leads to on the next slice are
+/// joined only if each lands within this share of the gap of the other
+/// (else the surface changes shape between the slices: a part begins or
+/// ends, and the fit is left to bridge it).
+const MATCH_TOLERANCE: f64 = 0.25;
+/// ... and their in-plane normals agree to this cosine.
+const MATCH_COSINE: f64 = 0.7;
+/// A cap closes at most this many gaps past its end slice (a stack sampled
+/// at a regular spacing ends within one gap; on average half way).
+const CAP_HEIGHT: f64 = 0.5;
+/// Samples nearer than this many contour spacings to one kept before are
+/// dropped (the arcs of a cap meet over its middle).
+const THINNING: f64 = 0.7;
+/// Most half-spacing steps inward from a contour point to the middle of
+/// its section.
+const MAX_MARCH: usize = 2000;
+/// Most samples on one cap profile.
+const MAX_STEPS: usize = 12;
+
+/// `points` (oriented) with samples between and past its slices added, if
+/// they form a stack of oriented contour slices; `None` otherwise (every
+/// other input is fitted exactly as before).
+pub(crate) fn with_stack_samples(points: &PointCloud) -> Option<PointCloud> {
+    let normals = points.normals.as_ref()?;
+    let input = Input {
+        points: points.positions.clone(),
+        normals: normals.clone(),
+        ..Default::default()
+    };
+    let stack = detect_slices(&input)?;
+    if stack.slices.iter().any(|s| !s.is_oriented()) {
+        return None;
+    }
+    let mut joined = points.clone();
+    for (p, n) in stack_samples(&stack) {
+        let n = unflat(&stack, n).normalize_or_zero();
+        if n == DVec3::ZERO || !p.is_finite() {
+            continue;
+        }
+        joined.positions.push(unflat(&stack, p));
+        if let Some(normals) = &mut joined.normals {
+            normals.push(n);
+        }
+    }
+    // Per-point values of the contours have no counterpart on the samples.
+    joined.scalars = None;
+    Some(joined)
+}
+
+/// Mid-gap samples between each two neighbouring slices and caps past
+/// the two end ones, thinned, in plane coordinates.
+fn stack_samples(stack: &SliceStack) -> Vec<Sample> {
+    let slices: Vec<Slice> = (stack.slices.iter().zip(&stack.levels))
+        .map(|(s, &level)| Slice::new(s, level))
+        .collect();
+    let mut samples = Vec::new();
+    for pair in slices.windows(2) {
+        mid_gap_samples(&pair[0], &pair[1], &mut samples);
+    }
+    let cap_height = CAP_HEIGHT * stack.gap();
+    if let (Some(first), Some(last)) = (slices.first(), slices.last()) {
+        end_cap_samples(first, -1.0, cap_height, &mut samples);
+        end_cap_samples(last, 1.0, cap_height, &mut samples);
+    }
+    let finest_spacing = slices
+        .iter()
+        .map(|s| s.spacing)
+        .fold(f64::INFINITY, f64::min);
+    thinned(samples, THINNING * finest_spacing)
+}
+
+/// A sample: position and normal, in the plane's coordinates (the axis as
+/// z, the level added).
+type Sample = (DVec3, DVec3);
+
+/// `p` in plane coordinates (the stacking axis as z) back in the input's.
+fn unflat(stack: &SliceStack, p: DVec3) -> DVec3 {
+    let [u, v] = stack.plane_axes();
+    let mut out = DVec3::ZERO;
+    out[u] = p.x;
+    out[v] = p.y;
+    out[stack.axis] = p.z;
+    out
+}
+
+/// One slice's contour points with what the samples need of them.
+struct Slice<'a> {
+    level: f64,
+    points: &'a [DVec3],
+    tree: KdTree,
+    /// Unit outward direction in the plane of each point's normal.
+    outward: Vec<DVec3>,
+    /// Axial over in-plane component of each normal: the surface moves
+    /// inward by this much per unit along the axis.
+    tilt: Vec<f64>,
+    /// Median distance between neighbouring contour points.
+    spacing: f64,
+}
+
+impl<'a> Slice<'a> {
+    fn new(slice: &'a Input, level: f64) -> Self {
+        let tree = KdTree::new(&slice.points);
+        let (outward, tilt) = slice.normals.iter().map(|&n| split_normal(n)).unzip();
+        let mut spacings: Vec<f64> = (slice.points.iter())
+            .filter_map(|&p| tree.knn(p, 2).get(1).map(|n| n.distance))
+            .collect();
+        spacings.sort_by(f64::total_cmp);
+        let spacing = spacings.get(spacings.len() / 2).copied().unwrap_or(0.0);
+        Self {
+            level,
+            points: &slice.points,
+            tree,
+            outward,
+            tilt,
+            spacing,
+        }
+    }
+
+    /// Where the surface through point `i` meets the plane `ds` along the
+    /// axis, following its tilt.
+    fn led_to(&self, i: usize, ds: f64) -> DVec3 {
+        self.points[i] - ds * self.tilt[i] * self.outward[i]
+    }
+}
+
+/// A normal's unit in-plane direction and tilt (axial over in-plane
+/// component, clamped to [`MAX_TILT`]).
+fn split_normal(n: DVec3) -> (DVec3, f64) {
+    let flat = DVec3::new(n.x, n.y, 0.0);
+    let across = flat.length();
+    if across * MAX_TILT <= n.z.abs() {
+        let outward = if across > 0.0 {
+            flat / across
+        } else {
+            DVec3::X
+        };
+        return (outward, MAX_TILT.copysign(n.z));
+    }
+    (flat / across, n.z / across)
+}
+
+/// The point of `b` that contour point `i` of `a` leads to (following its
+/// tilt across the gap), if that point leads back near `i`.
+fn partner(a: &Slice, i: usize, b: &Slice) -> Option<usize> {
+    let gap = b.level - a.level;
+    let tolerance = MATCH_TOLERANCE * gap.abs();
+    let ahead = a.led_to(i, gap);
+    let j = b.tree.nearest(ahead)?.index;
+    let back = b.led_to(j, -gap);
+    let agree = a.outward[i].dot(b.outward[j]) >= MATCH_COSINE;
+    (agree && b.points[j].distance(ahead) <= tolerance && a.points[i].distance(back) <= tolerance)
+        .then_some(j)
+}
+
+/// Samples of the Hermite curves joining contour points of `a` to their
+/// partners on `b`, one mid-gap per curve. (Samples at the contours'
+/// spacing along the axis, up to 12 a curve, held the fit so tightly
+/// to the curves that contours where a part ends, with no partners,
+/// were left behind: harness fandisk slices with a contour point 9.0%
+/// of the diagonal off, bunny 2.8% and genus 2, against 0.3% and genus
+/// 1 with one sample.)
+fn mid_gap_samples(a: &Slice, b: &Slice, out: &mut Vec<Sample>) {
+    for i in 0..a.points.len() {
+        if let Some(j) = partner(a, i, b) {
+            out.push(hermite(a, i, b, j, 0.5));
+        }
+    }
+}
+
+/// Number of steps of about `spacing` over `length`, 2 to [`MAX_STEPS`].
+fn steps_over(length: f64, spacing: f64) -> usize {
+    if spacing <= 0.0 {
+        return 2;
+    }
+    ((length / spacing).ceil() as usize).clamp(2, MAX_STEPS)
+}
+
+/// The point at `t` (0 at `a`'s point `i`, 1 at `b`'s point `j`) of the
+/// cubic that leaves each at its tilt, with the normal of the surface
+/// there.
+fn hermite(a: &Slice, i: usize, b: &Slice, j: usize, t: f64) -> Sample {
+    let gap = b.level - a.level;
+    let (p, q) = (a.points[i], b.points[j]);
+    // In-plane motion per unit along the axis, times the gap.
+    let (mp, mq) = (
+        -gap * a.tilt[i] * a.outward[i],
+        -gap * b.tilt[j] * b.outward[j],
+    );
+    let (t2, t3) = (t * t, t * t * t);
+    let at = p * (2.0 * t3 - 3.0 * t2 + 1.0)
+        + mp * (t3 - 2.0 * t2 + t)
+        + q * (3.0 * t2 - 2.0 * t3)
+        + mq * (t3 - t2);
+    let along = p * (6.0 * t2 - 6.0 * t)
+        + mp * (3.0 * t2 - 4.0 * t + 1.0)
+        + q * (6.0 * t - 6.0 * t2)
+        + mq * (3.0 * t2 - 2.0 * t);
+    let outward = (a.outward[i] * (1.0 - t) + b.outward[j] * t).normalize_or_zero();
+    let tilt = -along.dot(outward) / gap;
+    let position = DVec3::new(at.x, at.y, a.level + t * gap);
+    (position, outward + DVec3::Z * tilt)
+}
+
+/// Samples of a dome past slice `end` (`side` +1 above it, −1 below):
+/// from each of its contour points a circular arc that leaves it at its
+/// tilt and ends level over the middle of its section, squashed to close
+/// within `max_height`. A sphere's or a round tube's end is closed
+/// exactly. (Caps also where a part ends between two slices, closed from
+/// the contour points without a partner on the next slice, gave the
+/// harness's bunny, sphere and tori 12-36 pieces: a part that only
+/// narrows or merges looks the same from one slice.)
+fn end_cap_samples(end: &Slice, side: f64, max_height: f64, out: &mut Vec<Sample>) {
+    for i in 0..end.points.len() {
+        let Some(radius) = half_width(end, i) else {
+            continue;
+        };
+        // Elevation of the normal towards the cap's side; a surface that
+        // still widens there is closed as if it stood upright.
+        let elevation = (side * end.tilt[i]).atan().max(0.0);
+        let (sin_e, cos_e) = elevation.sin_cos();
+        let arc_radius = radius / cos_e;
+        let height = arc_radius * (1.0 - sin_e);
+        let squash = if height > max_height {
+            max_height / height
+        } else {
+            1.0
+        };
+        let sweep = std::f64::consts::FRAC_PI_2 - elevation;
+        let steps = steps_over(arc_radius * sweep, end.spacing);
+        let p = end.points[i];
+        let outward = end.outward[i];
+        for k in 1..=steps {
+            let angle = elevation + sweep * k as f64 / steps as f64;
+            let (sin_a, cos_a) = angle.sin_cos();
+            let inward = arc_radius * (cos_e - cos_a);
+            let up = squash * arc_radius * (sin_a - sin_e);
+            let position = p - inward * outward + DVec3::Z * (end.level + side * up);
+            let normal = outward * (squash * cos_a) + DVec3::Z * (side * sin_a);
+            out.push((position, normal));
+        }
+    }
+}
+
+/// Distance inward from contour point `i` to the middle of its section:
+/// along its inward direction, where the distance to the contours peaks.
+/// (A shrinking disc that must touch the point is thrown off by the
+/// slightest error in its normal: a circle's came out 0.09–0.43 for 0.44.)
+fn half_width(slice: &Slice, i: usize) -> Option<f64> {
+    let p = slice.points[i];
+    let inward = -slice.outward[i];
+    let step = 0.5 * slice.spacing;
+    if step.is_nan() || step <= 0.0 {
+        return None;
+    }
+    let mut best = (0.0, 0.0); // (depth, distance along)
+    for k in 1..=MAX_MARCH {
+        let along = k as f64 * step;
+        let depth = slice.tree.nearest(p + along * inward)?.distance;
+        if depth > best.0 {
+            best = (depth, along);
+        } else if depth < best.0 - 2.0 * step {
+            // A ridge much shallower than it is far lies outside.
+            return (best.0 >= 0.5 * best.1).then_some(best.1);
+        }
+    }
+    // No ridge: the ray left the section (through a gap, or from a
+    // point whose normal lies nearly along the axis).
+    None
+}
+
+/// `samples` without those nearer than `radius` to one kept before.
+fn thinned(samples: Vec<Sample>, radius: f64) -> Vec<Sample> {
+    if radius.is_nan() || radius <= 0.0 {
+        return samples;
+    }
+    let cell = |p: DVec3| {
+        let c = (p / radius).floor();
+        [c.x as i64, c.y as i64, c.z as i64]
+    };
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<DVec3>> = Default::default();
+    let mut kept = Vec::with_capacity(samples.len());
+    for (p, n) in samples {
+        let c = cell(p);
+        let crowded = (-1..=1).any(|x| {
+            (-1..=1).any(|y| {
+                (-1..=1).any(|z| {
+                    grid.get(&[c[0] + x, c[1] + y, c[2] + z])
+                        .is_some_and(|v| v.iter().any(|q| q.distance(p) < radius))
+                })
+            })
+        });
+        if !crowded {
+            grid.entry(c).or_default().push(p);
+            kept.push((p, n));
+        }
+    }
+    kept
+}
