@@ -960,9 +960,10 @@ fn edge_root(combined: &Combined, origin: DVec3, axis: usize, h: f64) -> Option<
 /// cell and more off. For each such edge touching a changed sample, the
 /// endpoint nearer the wall moves into it (as an offset field's sample,
 /// within its own box) and takes the result's distance there, so the
-/// edges from it cross both faces of the wall. Moves that would leave an
-/// edge of the sample crossing the surface twice, or a cell not convex,
-/// are not made. Returns the samples moved.
+/// edges from it cross both faces of the wall. Moves that would leave a
+/// cell not convex, or a feature point without a sample, are not made;
+/// nor into the thin tips of wedges ([`is_wall`]). Returns the samples
+/// moved.
 fn fill_thin_walls(field: &mut UnifiedField, combined: &Combined, changed: &[usize]) -> Vec<usize> {
     let spec = field.spec;
     let h = spec.spacing;
@@ -1007,17 +1008,14 @@ fn fill_thin_walls(field: &mut UnifiedField, combined: &Combined, changed: &[usi
     let mut moved = Vec::new();
     for (_, node, p) in found {
         let reach = (p - node_position(&spec, node)).abs().max_element();
-        let free = !field.extras.contains_key(&(node as u32))
-            || matches!(field.extras.get(&(node as u32)), Some(Extra::Directed(_)));
-        if on_outer_layer(&spec, node)
-            || !free
-            || reach >= 0.5 * h
-            || !stays_convex(&spec, node, p, |m| field.position(m))
-        {
-            continue;
-        }
         let value = combined.signed_distance(p);
-        if !is_wall(combined, p, value, h) {
+        if on_outer_layer(&spec, node)
+            || reach >= 0.5 * h
+            || !is_wall(combined, p, value, h)
+            || !stays_convex(&spec, node, p, |m| field.position(m))
+            // A feature point it holds goes to another sample of its cell.
+            || !crate::refine::hand_over(field, node)
+        {
             continue;
         }
         field.values[node] = value;

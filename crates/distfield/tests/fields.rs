@@ -735,8 +735,10 @@ fn sculpted_fandisk_errors(centre: DVec3, radius: f64) -> (f64, f64) {
 /// face of fandisk, nearly parallel to it: the wall between them is
 /// thinner than a cell, and between two samples on the same side no edge
 /// of the grid crossed it. Before session 23 the wall vanished (the hole
-/// opened into the pocket beyond it) and the cap lay 1.26 h from the
-/// surface; a sample moved into the wall keeps it (0.43 h).
+/// opened into the pocket beyond it: genus 1, the reference's genus is 0)
+/// and the cap lay 1.17 h from the surface at these points; samples moved
+/// into the wall keep it (0.42 h). One opening remains at the wall's rim,
+/// where it meets the pocket's side face (genus 1 still).
 #[test]
 fn sculpting_fandisk_keeps_a_wall_thinner_than_a_cell() {
     use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
@@ -759,7 +761,7 @@ fn sculpting_fandisk_keeps_a_wall_thinner_than_a_cell() {
     let report = sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
     assert!(report.thin > 0, "no sample moved into the wall");
     let (mesh, _) = udf.extract();
-    assert_closed_manifold(&mesh, 2);
+    assert_closed_manifold(&mesh, 0);
     // The cap (a disc around b, inside fandisk everywhere) lies on the
     // result: the surface must pass through it.
     let exact = MeshQuery::new(&shape).unwrap();
