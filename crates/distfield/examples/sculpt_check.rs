@@ -2,7 +2,7 @@
 //! unified field, write the extracted surface, and report where it
 //! differs most from the exact result, both ways, in units of `H`
 //! (every vertex and 16 points per triangle, as `examples/worst.rs`).
-//! cargo run --release -p surfrecon-distfield --example sculpt_check -- FIELD.udf TOOL REF H OUT.ply
+//! cargo run --release -p surfrecon-distfield --example sculpt_check -- FIELD.udf TOOL REF H OUT.ply [OUT.udf]
 //! TOOL: sphere:x,y,z,r | box:x0,y0,z0,x1,y1,z1 | cylinder:x0,y0,z0,x1,y1,z1,r
 use surfrecon_distfield::format::read_udf;
 use surfrecon_distfield::query::{deviation, MeshQuery};
@@ -35,6 +35,10 @@ fn main() {
     let start = std::time::Instant::now();
     let report = sculpt_udf(&mut field, Operation::Subtract, &tool, 0.1).unwrap();
     let seconds = start.elapsed().as_secs_f64();
+    if let Some(path) = args.get(5) {
+        // The sculpted field too, for `examples/probe_sculpt.rs`.
+        surfrecon_distfield::format::write_udf(std::path::Path::new(path), &field).unwrap();
+    }
     let (out, _) = field.extract();
     io::write(&args[4], &Geometry::from_mesh(out.clone())).unwrap();
     let (to_ref, to_out) = (
@@ -44,12 +48,15 @@ fn main() {
     let there = deviation(&out, &to_ref, 16);
     let back = deviation(&reference, &to_out, 16);
     println!(
-        "{}: sculpt {seconds:.2} s, repaired {}, out->ref max {:.3} h mean {:.4} h; ref->out max {:.3} h mean {:.4} h",
+        "{}: sculpt {seconds:.2} s, repaired {}, thin {}, out->ref max {:.3} h mean {:.4} h at {:.3}; ref->out max {:.3} h mean {:.4} h at {:.3}",
         args[1],
         report.repaired,
+        report.thin,
         there.max / h,
         there.mean / h,
+        there.worst,
         back.max / h,
-        back.mean / h
+        back.mean / h,
+        back.worst
     );
 }

@@ -18,8 +18,9 @@
 //! bits 2(i mod 4) of byte i/4: 0 = distance only, 1 = directed distances,
 //! 2 = a feature point, 3 = the sample's moved position. Then, for each
 //! tagged sample in index order, three f64: the distances along +x, +y, +z
-//! to the surface (+∞ where that edge has none stored), the feature point,
-//! or the position. Untagged samples (almost all) cost nothing beyond
+//! to the surface (+∞ where that edge has none stored; towards a moved
+//! sample off the surface, d/h is the crossing's fraction of the edge to
+//! its position), the feature point, or the position. Untagged samples (almost all) cost nothing beyond
 //! their distance and 2 bits.
 
 use crate::offset::{node_position, OffsetField};

@@ -564,7 +564,7 @@ fn snap(field: &mut UnifiedField, node: usize, point: DVec3, inside: bool) -> bo
 /// Whether sample `node` is free to move: it carries nothing but
 /// directed distances, or a feature point that another sample of the
 /// point's cell can hold (which then gets it).
-fn hand_over(field: &mut UnifiedField, node: usize) -> bool {
+pub(crate) fn hand_over(field: &mut UnifiedField, node: usize) -> bool {
     let spec = field.spec;
     match field.extras.get(&(node as u32)) {
         None | Some(Extra::Directed(_)) => true,

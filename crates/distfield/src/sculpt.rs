@@ -168,6 +168,9 @@ pub struct SculptReport {
     /// Cells whose feature point the error-driven repair against the
     /// exact result changed ([`crate::refine`]).
     pub repaired: usize,
+    /// Samples moved into a wall or gap of the result thinner than a
+    /// cell that lay between them and a neighbour (UDF).
+    pub thin: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -371,6 +374,13 @@ pub fn sculpt_udf(
             .find_map(|(&n, e)| (*e == Extra::Position(*p)).then_some(n as usize));
         cells.extend(node.into_iter().flat_map(|n| cells_around(&spec, n)));
     }
+    // Material (or a gap) thinner than a cell between two samples of one
+    // side: a sample moves into it.
+    let walls = fill_thin_walls(field, &combined, &changed);
+    for &n in &walls {
+        cells.extend(cells_around(&spec, n));
+    }
+    report.thin = walls.len();
     cells.sort_unstable();
     cells.dedup();
     cells.retain(|&c| crosses(&spec, &field.values, c));
@@ -386,14 +396,7 @@ pub fn sculpt_udf(
     let crossings: HashMap<(usize, usize), Tangent> = edges
         .par_iter()
         .filter_map(|&(n, axis)| {
-            let m = n + spec.strides()[axis];
-            if (field.values[n] >= 0.0) == (field.values[m] >= 0.0) {
-                return None;
-            }
-            let origin = node_position(&spec, n);
-            let d = edge_root(&combined, origin, axis, h)?;
-            let mut p = origin;
-            p[axis] += d;
+            let p = edge_crossing(field, &combined, n, axis)?;
             Some(((n, axis), (p, combined.normal(p, h)?)))
         })
         .collect();
@@ -403,10 +406,19 @@ pub fn sculpt_udf(
             let m = n + spec.strides()[axis];
             let regular = !field.extras.contains_key(&(n as u32))
                 || matches!(field.extras[&(n as u32)], Extra::Directed(_));
-            if !regular || matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_))) {
+            let on_surface = matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_)))
+                && !field.floats(m);
+            if !regular || on_surface {
                 return None;
             }
-            let d = p[axis] - node_position(&spec, n)[axis];
+            // To a floating sample the edge leaves the grid line: the
+            // distance stored is the crossing's fraction of it, times h.
+            let d = if field.floats(m) {
+                let from = field.position(n);
+                p.distance(from) / field.position(m).distance(from) * h
+            } else {
+                p[axis] - node_position(&spec, n)[axis]
+            };
             let (a, b) = (field.values[n], field.values[m]);
             ((d - crossing_fraction(a, b, 0.0) * h).abs() > threshold * h).then_some((n, axis, d))
         })
@@ -657,14 +669,8 @@ impl Exact for Combined<'_> {
         EDGE_CORNERS
             .iter()
             .filter_map(|&[a, b]| {
-                let (na, nb) = (nodes[a as usize], nodes[b as usize]);
-                if (field.values[na] >= 0.0) == (field.values[nb] >= 0.0) {
-                    return None;
-                }
                 let axis = (a ^ b).trailing_zeros() as usize;
-                let origin = node_position(spec, na);
-                let mut p = origin;
-                p[axis] += edge_root(self, origin, axis, h)?;
+                let p = edge_crossing(field, self, nodes[a as usize], axis)?;
                 Some((p, self.normal(p, h)?))
             })
             .collect()
@@ -878,6 +884,51 @@ fn cell_tangents(
         .collect()
 }
 
+/// Where the combined surface crosses the edge from sample `n` along
+/// `+axis`, if its samples lie on different sides. The edge runs between
+/// the samples' positions where one floats inside a thin wall
+/// ([`fill_thin_walls`]); otherwise, as before, along the grid (a sample
+/// moved onto the surface is its own crossing there).
+fn edge_crossing(
+    field: &UnifiedField,
+    combined: &Combined,
+    n: usize,
+    axis: usize,
+) -> Option<DVec3> {
+    let spec = &field.spec;
+    let h = spec.spacing;
+    let m = n + spec.strides()[axis];
+    if (field.values[n] >= 0.0) == (field.values[m] >= 0.0) {
+        return None;
+    }
+    if field.floats(n) || field.floats(m) {
+        return segment_root(combined, field.position(n), field.position(m));
+    }
+    let origin = node_position(spec, n);
+    let mut p = origin;
+    p[axis] += edge_root(combined, origin, axis, h)?;
+    Some(p)
+}
+
+/// Where the combined distance changes sign on segment `a`-`b`
+/// (bisection), if its ends lie on different sides.
+fn segment_root(combined: &Combined, a: DVec3, b: DVec3) -> Option<DVec3> {
+    let inside = combined.signed_distance(a) < 0.0;
+    if inside == (combined.signed_distance(b) < 0.0) {
+        return None;
+    }
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..48 {
+        let mid = 0.5 * (lo + hi);
+        if (combined.signed_distance(a.lerp(b, mid)) < 0.0) == inside {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some(a.lerp(b, 0.5 * (lo + hi)))
+}
+
 /// Distance along `+axis` from `origin` to the combined surface within
 /// one spacing (bisection on the exact combined distance).
 fn edge_root(combined: &Combined, origin: DVec3, axis: usize, h: f64) -> Option<f64> {
@@ -900,6 +951,147 @@ fn edge_root(combined: &Combined, origin: DVec3, axis: usize, h: f64) -> Option<
         }
     }
     Some(0.5 * (lo + hi))
+}
+
+/// Where the result has a wall (or a gap) thinner than a cell between
+/// two samples on the same side (a tool's flat cap a fraction of a cell
+/// below an object's face), no edge of the grid crosses it and marching
+/// cubes leaves it out: the surfaces on both sides of it vanish, a full
+/// cell and more off. For each such edge touching a changed sample, the
+/// endpoint nearer the wall moves into it (as an offset field's sample,
+/// within its own box) and takes the result's distance there, so the
+/// edges from it cross both faces of the wall. Moves that would leave a
+/// cell not convex, or a feature point without a sample, are not made;
+/// nor into the thin tips of wedges ([`is_wall`]). Returns the samples
+/// moved.
+fn fill_thin_walls(field: &mut UnifiedField, combined: &Combined, changed: &[usize]) -> Vec<usize> {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let strides = spec.strides();
+    let mut edges: BTreeSet<(usize, usize)> = BTreeSet::new();
+    for &n in changed {
+        let idx = spec.unlinear(n);
+        for axis in 0..3 {
+            if idx[axis] > 0 {
+                edges.insert((n - strides[axis], axis));
+            }
+            if idx[axis] + 1 < spec.dims[axis] {
+                edges.insert((n, axis));
+            }
+        }
+    }
+    let found: Vec<(f64, usize, DVec3)> = edges
+        .par_iter()
+        .filter_map(|&(n, axis)| {
+            let m = n + strides[axis];
+            let (a, b) = (field.values[n], field.values[m]);
+            // Both samples' distances bound how near the surface comes:
+            // a wall between them needs their sum below a spacing.
+            if (a < 0.0) != (b < 0.0) || a.abs() + b.abs() >= h {
+                return None;
+            }
+            let (pa, pb) = (field.position(n), field.position(m));
+            let (depth, p) = deepest_across(combined, pa, pb, a < 0.0, h)?;
+            // The nearer sample moves (within half a spacing of its node).
+            let node = if p.distance(node_position(&spec, n)) <= p.distance(node_position(&spec, m))
+            {
+                n
+            } else {
+                m
+            };
+            Some((depth, node, p))
+        })
+        .collect();
+    let mut found = found;
+    // Deepest first: a sample beside two walls takes the thicker.
+    found.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+    let mut moved = Vec::new();
+    for (_, node, p) in found {
+        let reach = (p - node_position(&spec, node)).abs().max_element();
+        let value = combined.signed_distance(p);
+        if on_outer_layer(&spec, node)
+            || reach >= 0.5 * h
+            || !is_wall(combined, p, value, h)
+            || !stays_convex(&spec, node, p, |m| field.position(m))
+            // A feature point it holds goes to another sample of its cell.
+            || !crate::refine::hand_over(field, node)
+        {
+            continue;
+        }
+        field.values[node] = value;
+        field.extras.insert(node as u32, Extra::Position(p));
+        moved.push(node);
+    }
+    moved
+}
+
+/// Whether the thin place around `p` (at distance `value` from the
+/// result's surface) is a wall worth a sample: at least [`WALL_DEPTH`]
+/// deep, and not the tip of a wedge where the tool meets the object at
+/// a shallow angle (those lie within [`WEDGE_RATIO`] times their depth of
+/// the new edge, whose feature points keep them; a sample moved into one
+/// breaks their fans: fandisk − sphere went from 0.10 to 0.36 h).
+fn is_wall(combined: &Combined, p: DVec3, value: f64, h: f64) -> bool {
+    let depth = value.abs();
+    depth >= WALL_DEPTH * h
+        && combined
+            .edge_point(p, 1e-6 * h)
+            .is_none_or(|q| q.distance(p) > WEDGE_RATIO * depth)
+}
+
+/// Least half-thickness (spacings) of a wall a sample is moved into.
+const WALL_DEPTH: f64 = 0.1;
+/// A thin place nearer the new edge than this many times its depth is a
+/// wedge, not a wall (the wedges of the tuned cases: 1.2-2.3).
+const WEDGE_RATIO: f64 = 4.0;
+
+/// Smallest step (spacings) of the marches along a segment: walls thinner
+/// than this are left out.
+const MARCH_STEP: f64 = 0.01;
+
+/// The points where the combined distance changes sign along `a`-`b`,
+/// marching by the distance itself (a lower bound of the distance to the
+/// surface, so no crossing further apart than [`MARCH_STEP`] is missed).
+fn sign_changes(combined: &Combined, a: DVec3, b: DVec3, h: f64) -> Vec<f64> {
+    let length = a.distance(b);
+    let mut out = Vec::new();
+    let mut t = 0.0;
+    let mut side = combined.signed_distance(a) < 0.0;
+    while t < length {
+        let d = combined.signed_distance(a.lerp(b, t / length));
+        if (d < 0.0) != side {
+            out.push(t);
+            side = d < 0.0;
+        }
+        t += d.abs().max(MARCH_STEP * h);
+    }
+    if (combined.signed_distance(b) < 0.0) != side {
+        out.push(length);
+    }
+    out
+}
+
+/// A wall on the other side than `inside` that segment `a`-`b` (both
+/// ends on side `inside`) passes through: its deepest point sampled
+/// along the segment and how deep it is.
+fn deepest_across(
+    combined: &Combined,
+    a: DVec3,
+    b: DVec3,
+    inside: bool,
+    h: f64,
+) -> Option<(f64, DVec3)> {
+    let changes = sign_changes(combined, a, b, h);
+    let [t0, t1, ..] = changes[..] else {
+        return None;
+    };
+    let length = a.distance(b);
+    (0..=16)
+        .map(|k| a.lerp(b, (t0 + (t1 - t0) * k as f64 / 16.0) / length))
+        .map(|p| (combined.signed_distance(p), p))
+        .filter(|&(d, _)| (d < 0.0) != inside)
+        .map(|(d, p)| (d.abs(), p))
+        .max_by(|x, y| x.0.total_cmp(&y.0))
 }
 
 /// Sculpt an offset field: combine at the samples' positions, then move a

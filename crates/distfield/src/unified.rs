@@ -766,12 +766,25 @@ impl UnifiedField {
             .collect()
     }
 
+    /// Whether sample `node` was moved off its grid node to a place off
+    /// the surface (not onto a corner or feature line, where its distance
+    /// is 0).
+    pub fn floats(&self, node: usize) -> bool {
+        matches!(self.extras.get(&(node as u32)), Some(Extra::Position(_)))
+            && self.values[node].abs() > FLOAT_OFF_SURFACE * self.spec.spacing
+    }
+
     /// The surface: marching cubes with the stored crossings, positions
     /// and feature fans.
     pub fn extract(&self) -> (TriMesh, ExtractReport) {
         extract(self, &self.feature_points())
     }
 }
+
+/// Distance (spacings) from the surface beyond which a moved sample
+/// counts as floating ([`UnifiedField::floats`]); samples moved onto the
+/// surface hold ±1e-9 h or 0.
+const FLOAT_OFF_SURFACE: f64 = 1e-6;
 
 impl SampledField for UnifiedField {
     fn spec(&self) -> &GridSpec<3> {
@@ -790,13 +803,26 @@ impl SampledField for UnifiedField {
         let Some(Extra::Directed(d)) = self.extras.get(&(node as u32)) else {
             return None;
         };
-        // Directed distances were measured between grid nodes.
-        let other = (node + self.spec.strides()[axis]) as u32;
-        if !d[axis].is_finite() || matches!(self.extras.get(&other), Some(Extra::Position(_))) {
+        // Directed distances were measured between grid nodes, except
+        // towards a sample floating off the surface (sculpting moves one
+        // into a wall thinner than a cell): there d / h is the fraction of
+        // the edge to it. A sample moved onto the surface is its edges'
+        // crossing itself.
+        let other = node + self.spec.strides()[axis];
+        if !d[axis].is_finite() {
             return None;
         }
-        let mut p = self.position(node);
-        p[axis] += d[axis];
-        Some(p)
+        let from = self.position(node);
+        match self.extras.get(&(other as u32)) {
+            Some(Extra::Position(q)) if self.floats(other) => {
+                Some(from.lerp(*q, d[axis] / self.spec.spacing))
+            }
+            Some(Extra::Position(_)) => None,
+            _ => {
+                let mut p = from;
+                p[axis] += d[axis];
+                Some(p)
+            }
+        }
     }
 }

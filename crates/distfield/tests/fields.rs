@@ -731,6 +731,62 @@ fn sculpted_fandisk_errors(centre: DVec3, radius: f64) -> (f64, f64) {
     (worst, off)
 }
 
+/// Fandisk minus a capped cylinder whose flat cap lies 0-0.85 h beneath a
+/// face of fandisk, nearly parallel to it: the wall between them is
+/// thinner than a cell, and between two samples on the same side no edge
+/// of the grid crossed it. Before session 23 the wall vanished (the hole
+/// opened into the pocket beyond it: genus 1, the reference's genus is 0)
+/// and the cap lay 1.17 h from the surface at these points; samples moved
+/// into the wall keep it (0.42 h). One opening remains at the wall's rim,
+/// where it meets the pocket's side face (genus 1 still).
+#[test]
+fn sculpting_fandisk_keeps_a_wall_thinner_than_a_cell() {
+    use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
+    let shape = fandisk();
+    let (mut udf, _) = build_udf(
+        &shape,
+        &UdfOptions {
+            size: GridSize::Resolution(64),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let h = udf.spec.spacing;
+    let (a, b, radius) = (
+        DVec3::new(3.0, 13.5, -1.6),
+        DVec3::new(3.0, 15.0, -1.6),
+        0.3,
+    );
+    let tool = Tool::Cylinder { a, b, radius };
+    let report = sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
+    assert!(report.thin > 0, "no sample moved into the wall");
+    let (mesh, _) = udf.extract();
+    assert_closed_manifold(&mesh, 0);
+    // The cap (a disc around b, inside fandisk everywhere) lies on the
+    // result: the surface must pass through it.
+    let exact = MeshQuery::new(&shape).unwrap();
+    let cap: Vec<DVec3> = (0..60)
+        .flat_map(|i| (1..=10).map(move |r| (i, r)))
+        .map(|(i, r)| {
+            let angle = std::f64::consts::TAU * i as f64 / 60.0;
+            b + DVec3::new(angle.cos(), 0.0, angle.sin()) * (radius * r as f64 / 10.0)
+        })
+        .collect();
+    assert!(cap.iter().all(|&p| exact.signed_distance(p) < 0.0));
+    let surface = MeshQuery::new(&mesh).unwrap();
+    let worst = cap
+        .iter()
+        .map(|&p| surface.signed_distance(p).abs() / h)
+        .fold(0.0, f64::max);
+    // The surface the other way (a lower bound of the distance outside).
+    let off = dense_points(&mesh)
+        .map(|p| exact.signed_distance(p).max(-tool.signed_distance(p)).abs() / h)
+        .fold(0.0, f64::max);
+    eprintln!("cap off the surface by {worst} h; surface off the result by {off} h");
+    assert!(worst < 0.5, "the cap lies {worst} h from the surface");
+    assert!(off < 0.5, "the surface leaves the result by {off} h");
+}
+
 /// A mesh's vertices and 10 points inside each triangle (a 4-step
 /// lattice; `examples/worst.rs` takes the same ones).
 fn dense_points(mesh: &TriMesh) -> impl Iterator<Item = DVec3> + '_ {

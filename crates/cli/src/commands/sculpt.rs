@@ -56,6 +56,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "samples_turned": r.turned,
             "feature_points_repicked": r.repicked,
             "feature_points_repaired": r.repaired,
+            "samples_moved_into_thin_walls": r.thin,
         }));
     }
     field.write(&args.output)?;
