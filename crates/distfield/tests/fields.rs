@@ -761,6 +761,9 @@ fn sculpting_fandisk_keeps_a_wall_thinner_than_a_cell() {
     let report = sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
     assert!(report.thin > 0, "no sample moved into the wall");
     let (mesh, _) = udf.extract();
+    // Euler 0 is not the exact result's (a sphere's 2): a slot of the
+    // wall still opens a handle where the wall meets the pocket's side
+    // (BENCHMARKS, session 23). Asserted so no second one goes unseen.
     assert_closed_manifold(&mesh, 0);
     // The cap (a disc around b, inside fandisk everywhere) lies on the
     // result: the surface must pass through it.
