@@ -53,6 +53,7 @@
 pub mod decimate;
 pub mod dynamic;
 mod error;
+pub mod flips;
 pub mod gabriel;
 pub mod holes;
 pub mod manifold;

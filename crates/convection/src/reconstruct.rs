@@ -3,6 +3,7 @@
 use crate::decimate::{decimate, Brush, Decimation};
 use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
+use crate::flips::flip_to_lower_bending;
 use crate::holes::{open_sampling_holes, HoleRule};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::refine::{refine, Quality, RefineStats};
@@ -62,6 +63,10 @@ pub struct Params {
     /// covering them; they are reported as boundary edges. `None`: the
     /// output is closed wherever the convection closes it.
     pub open_holes: Option<HoleRule>,
+    /// Flip edges where that lowers the surface's bending, across Delaunay
+    /// tetrahedra only (see [`crate::flips`]): bevels across sharp edges
+    /// and uneven sampling's zig-zags go; the vertices stay the points.
+    pub edge_flips: bool,
 }
 
 impl Default for Params {
@@ -80,6 +85,7 @@ impl Default for Params {
             refine_alpha: 0.0,
             refine_gamma: 0.0,
             open_holes: None,
+            edge_flips: true,
         }
     }
 }
@@ -101,6 +107,8 @@ pub struct Timings {
     /// The spacing (when not with the normals) and the pocket convection.
     pub pockets: f64,
     pub output: f64,
+    /// The edge flips (part of `output`).
+    pub flips: f64,
 }
 
 /// Counts of one reconstruction.
@@ -147,6 +155,8 @@ pub struct Report {
     /// Faces removed where parts of the surface pinch (non-manifold edges
     /// or vertices).
     pub nonmanifold_faces_removed: usize,
+    /// Edges flipped to lower the bending (`Params::edge_flips`).
+    pub edge_flips: usize,
     /// Short boundary loops closed by ear clipping.
     pub holes_filled: usize,
     /// Holes in the sampling left open (`open_holes`), and the faces
@@ -509,6 +519,46 @@ fn finish(
     mesh
 }
 
+/// [`flip_to_lower_bending`] on output faces by site, across the
+/// triangulation's finite tetrahedra; `facets` are the solid's boundary
+/// facets (by site) with their tetrahedra, in the order the faces were
+/// made.
+fn flip_across_tets(
+    triangles: &mut [[u32; 3]],
+    facets: &[([u32; 3], TetId)],
+    tri: &Triangulation,
+    site: &Sites,
+) -> usize {
+    let mut vertex_of_site = vec![None; site.points.len()];
+    for v in tri.vertices() {
+        if let Some(s) = (site.of_vertex)(v) {
+            vertex_of_site[s] = Some(v);
+        }
+    }
+    // The clean-up removes faces in place and appends the faces closing
+    // holes (no facets: they stay), so one walk matches faces to facets.
+    let mut cells: Vec<Option<TetId>> = vec![None; triangles.len()];
+    let mut made = facets.iter();
+    for (cell, face) in cells.iter_mut().zip(triangles.iter()) {
+        *cell = made.by_ref().find(|(f, _)| f == face).map(|&(_, t)| t);
+    }
+    // `t` has the facet abc: the tetrahedron abcd is `t` or its neighbour
+    // across abc.
+    let cell_of_quad = |t: TetId, quad: [u32; 4]| {
+        let [Some(a), Some(b), Some(c), Some(d)] = quad.map(|s| vertex_of_site[s as usize]) else {
+            return None;
+        };
+        let corners = tri.tet_vertices(t);
+        let slot = (0..4).find(|&i| ![a, b, c].contains(&corners[i]))?;
+        if corners[slot] == d {
+            return Some(t);
+        }
+        let (u, across) = tri.mirror(t, slot);
+        (!tri.is_ghost(u) && tri.tet_vertices(u)[across] == d).then_some(u)
+    };
+    flip_to_lower_bending(triangles, site.points, &mut cells, cell_of_quad)
+}
+
 fn check_params(params: &Params) -> Result<()> {
     for (name, value) in [
         ("rho_geometric", params.rho_geometric),
@@ -700,7 +750,12 @@ fn extract_mesh(
             best = thick;
         }
     }
-    let triangles = best.triangles;
+    let mut triangles = best.triangles;
+    if params.edge_flips {
+        let clock = Instant::now();
+        report.edge_flips = flip_across_tets(&mut triangles, &best.facets, tri, site);
+        report.seconds.flips = clock.elapsed().as_secs_f64();
+    }
     report.nonmanifold_faces_removed = best.removed;
     report.holes_filled = best.filled;
     report.boundary_edges = best.boundary_edges;
@@ -716,6 +771,9 @@ fn extract_mesh(
 /// Output faces by input index and what the clean-up did to them.
 struct Boundary {
     triangles: Vec<[u32; 3]>,
+    /// The solid's boundary facets before the clean-up, with their solid
+    /// tetrahedra, sorted by [`rotated_to_smallest`].
+    facets: Vec<([u32; 3], TetId)>,
     removed: usize,
     filled: usize,
     boundary_edges: usize,
@@ -752,17 +810,18 @@ fn closed_boundary(
     };
     // In parallel: the faces are sorted next, so the order they are found
     // in does not matter.
-    let mut triangles: Vec<[u32; 3]> = (0..tri.tet_slots() as u32)
+    let mut facets: Vec<([u32; 3], TetId)> = (0..tri.tet_slots() as u32)
         .into_par_iter()
         .map(TetId)
         .filter(|&t| tri.is_live(t) && !tri.is_ghost(t) && solid(t))
-        .flat_map_iter(boundary_faces)
+        .flat_map_iter(|t| boundary_faces(t).map(move |f| (f, t)))
         .collect();
     // The clean-up breaks ties (which fan of a pinched vertex stays, which
     // face goes at a pinched edge) in face order; in an order of their own
     // the faces give the same mesh however the triangulation numbers its
     // tetrahedra. Faces are distinct, so any sort gives that order.
-    triangles.par_sort_unstable_by_key(|&t| rotated_to_smallest(t));
+    facets.par_sort_unstable_by_key(|&(f, _)| rotated_to_smallest(f));
+    let mut triangles: Vec<[u32; 3]> = facets.iter().map(|&(f, _)| f).collect();
     let removed = make_manifold(&mut triangles);
     let filled = fill_small_holes(&mut triangles, points, params.max_hole_edges);
     Boundary {
@@ -770,6 +829,7 @@ fn closed_boundary(
         pieces: count_pieces(&triangles, points.len()),
         points_used: points_used(&triangles, points.len()),
         triangles,
+        facets,
         removed,
         filled,
     }

@@ -391,3 +391,93 @@ fn quality_refinement_keeps_a_closed_torus() {
     assert!(after < before);
     assert!(cd_b <= cd_a * 1.02);
 }
+
+/// Turned off the axes (about z by 0.5, then about x by 0.3), so no box
+/// face lies on a coordinate plane.
+fn turn(p: DVec3) -> DVec3 {
+    let (s, c) = 0.5f64.sin_cos();
+    let p = DVec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
+    let (s, c) = 0.3f64.sin_cos();
+    DVec3::new(p.x, c * p.y - s * p.z, s * p.y + c * p.z)
+}
+
+fn unturn(p: DVec3) -> DVec3 {
+    let (s, c) = 0.3f64.sin_cos();
+    let p = DVec3::new(p.x, c * p.y + s * p.z, -s * p.y + c * p.z);
+    let (s, c) = 0.5f64.sin_cos();
+    DVec3::new(c * p.x + s * p.y, -s * p.x + c * p.y, p.z)
+}
+
+/// Distance from `q` (in the box's frame) to the surface of the box
+/// `[-half, half]`, and to its nearest edge.
+fn box_distances(q: DVec3, half: DVec3) -> (f64, f64) {
+    let d = q.abs() - half;
+    let surface = d.max(DVec3::ZERO).length() + d.max_element().min(0.0);
+    let mut gaps = (-d).max(DVec3::ZERO).to_array();
+    gaps.sort_by(f64::total_cmp);
+    (surface.abs(), gaps[0].hypot(gaps[1]))
+}
+
+/// Where two sampled faces of a box meet, the convection keeps bevel
+/// triangles across the edge; the flips put the edge back. The vertices
+/// stay the points, the mesh stays a closed manifold whose faces are all
+/// Delaunay facets (no fold, no self-crossing), and the flat faces, where
+/// every flip would gain nothing, keep their triangles.
+#[test]
+fn edge_flips_take_the_bevels_off_a_sampled_box() {
+    let half = DVec3::new(1.0, 0.7, 0.5);
+    let mut solid = surfrecon_geom::shapes::cuboid(-half, half);
+    for v in &mut solid.vertices {
+        *v = turn(*v);
+    }
+    let points = sample_surface(&solid, 8000, 4).positions;
+    let plain = reconstruct(
+        &points,
+        None,
+        &Params {
+            edge_flips: false,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    let flipped = run(&points);
+    assert!(flipped.report.edge_flips > 0);
+    assert_closed_genus(&flipped, points.len(), 0);
+
+    let diagonal = 2.0 * half.length();
+    let centroid = |m: &TriMesh, t: &[u32; 3]| {
+        unturn(t.iter().map(|&v| m.vertices[v as usize]).sum::<DVec3>() / 3.0)
+    };
+    let off = |m: &TriMesh| {
+        let far = |t: &&[u32; 3]| box_distances(centroid(m, t), half).0 > 1e-3 * diagonal;
+        m.triangles.iter().filter(far).count()
+    };
+    let (before, after) = (off(&plain.mesh), off(&flipped.mesh));
+    eprintln!("faces off the box: {before} -> {after}");
+    assert!(after * 3 < before, "faces off the box: {before} -> {after}");
+
+    // Faces that changed lie along the box's edges (sample spacing ~0.04).
+    let plain_faces = face_set(&plain.mesh);
+    let far_from_edges = face_set(&flipped.mesh)
+        .difference(&plain_faces)
+        .filter(|t| box_distances(centroid(&flipped.mesh, t), half).1 > 0.15)
+        .count();
+    assert_eq!(far_from_edges, 0, "flips on the flat faces");
+
+    let tri = surfrecon_delaunay::Triangulation::bulk_load(&points).unwrap();
+    let mut facets = std::collections::HashSet::new();
+    for t in tri.finite_tets() {
+        for i in 0..4 {
+            let mut f = tri
+                .facet(t, i)
+                .map(|v| tri.input_of_vertex(v).unwrap() as u32);
+            f.sort_unstable();
+            facets.insert(f);
+        }
+    }
+    for t in &flipped.mesh.triangles {
+        let mut f = *t;
+        f.sort_unstable();
+        assert!(facets.contains(&f), "face {t:?} is no Delaunay facet");
+    }
+}

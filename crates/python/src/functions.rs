@@ -201,7 +201,9 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
 ///   rho=0.0 decimation radius / diagonal; rho_geom=0.9; rho_topo=0.95;
 ///   fill_holes=24 largest hole (edges) closed; no_pockets=False;
 ///   no_thin_parts=False; convection_normal_k=12; open_holes=False leave
-///   holes in the sampling open (boundary edges) instead of covering them.
+///   holes in the sampling open (boundary edges) instead of covering them;
+///   no_edge_flips=False keep the convection's triangles (no flips that
+///   lower the bending).
 ///
 /// Raises ValueError for bad arrays or options (the command line's
 /// messages), OSError for model files, surfrecon.Cancelled when cancelled.
@@ -215,7 +217,8 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
     svm_c=None, svm_epsilon=None, svm_accuracy=None, loss="epsilon", drop_levels=0,
     model_out=None, model_in=None, svm_normal_k=None,
     rho=None, rho_geom=None, rho_topo=None, fill_holes=None, no_pockets=false,
-    no_thin_parts=false, convection_normal_k=None, open_holes=false
+    no_thin_parts=false, convection_normal_k=None, open_holes=false,
+    no_edge_flips=false
 ))]
 #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python API
 pub fn reconstruct<'py>(
@@ -258,6 +261,7 @@ pub fn reconstruct<'py>(
     no_thin_parts: bool,
     convection_normal_k: Option<usize>,
     open_holes: bool,
+    no_edge_flips: bool,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let input = input_geometry(points, normals, curves, triangles)?;
     let ls = LevelSetOptions::default();
@@ -298,6 +302,7 @@ pub fn reconstruct<'py>(
             thin_parts: !no_thin_parts,
             normal_k: convection_normal_k.unwrap_or(cv.normal_k),
             open_holes,
+            edge_flips: !no_edge_flips,
             // The brush and the quality refinement are CLI and library
             // options only so far.
             brush: None,

@@ -26,6 +26,7 @@ pub(crate) fn params(o: &ConvectionOptions) -> Params {
         refine_alpha: o.refine_alpha,
         refine_gamma: o.refine_gamma,
         open_holes: o.open_holes.then(HoleRule::default),
+        edge_flips: o.edge_flips,
         ..Params::default()
     }
 }

@@ -221,6 +221,9 @@ pub struct ConvectionOptions {
     /// Leave holes in the sampling open (reported as boundary edges)
     /// instead of covering them with faces far larger than the spacing.
     pub open_holes: bool,
+    /// Flip edges where that lowers the surface's bending (across Delaunay
+    /// tetrahedra, vertices unchanged).
+    pub edge_flips: bool,
 }
 
 impl Default for ConvectionOptions {
@@ -238,6 +241,7 @@ impl Default for ConvectionOptions {
             refine_alpha: p.refine_alpha,
             refine_gamma: p.refine_gamma,
             open_holes: p.open_holes.is_some(),
+            edge_flips: p.edge_flips,
         }
     }
 }

@@ -54,6 +54,11 @@ pub struct ConvectionArgs {
     /// edges. For scans with unseen parts; the output is then not closed.
     #[arg(long)]
     pub open_holes: bool,
+    /// Keep the convection's own triangles: do not flip edges where that
+    /// lowers the surface's bending (the flips remove bevels across sharp
+    /// edges; the vertices are the input points either way).
+    #[arg(long)]
+    pub no_edge_flips: bool,
     /// Neighbours used to estimate normals (pocket test) when the input has none.
     #[arg(long = "convection-normal-k", default_value_t = 12)]
     pub normal_k: usize,
@@ -74,6 +79,7 @@ impl ConvectionArgs {
             refine_alpha: self.refine_alpha,
             refine_gamma: self.refine_gamma,
             open_holes: self.open_holes,
+            edge_flips: !self.no_edge_flips,
         }
     }
 }
