@@ -17,7 +17,9 @@
 //! 4. output ([`manifold`]): sheets of coupled facets left at convergence
 //!    are left out, faces where the surface pinches are removed
 //!    so the mesh is manifold, optionally short holes are closed; the
-//!    boundary edges left are reported.
+//!    boundary edges left are reported; then ([`flips`]) edges are flipped
+//!    across Delaunay tetrahedra where that lowers the surface's bending
+//!    (bevels across sharp edges go, the vertices stay the points).
 //!
 //! 5. thin parts ([`thin`]): the paper's 2D convection over the sheets of
 //!    coupled facets keeps the sheets of parts thinner than the sampling
