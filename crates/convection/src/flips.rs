@@ -16,8 +16,8 @@
 //! vertices, so no flip can fold the surface or make it cross itself.
 
 use rayon::prelude::*;
-use std::cmp::Ordering;
 use std::collections::VecDeque;
+use surfrecon_delaunay::hilbert_index;
 use surfrecon_geom::DVec3;
 
 /// A half-edge `3f + k` runs from corner `k` of face `f` to corner `k + 1`.
@@ -70,6 +70,9 @@ struct FlipMesh<'a> {
     normals: Vec<DVec3>,
     /// A half-edge leaving each vertex (kept up to date).
     leaving: Vec<u32>,
+    /// The dihedral angle at each half-edge's edge (0 on the boundary; kept
+    /// up to date).
+    bend: Vec<f64>,
     points: &'a [DVec3],
 }
 
@@ -137,19 +140,26 @@ impl FlipMesh<'_> {
         self.find_around(self.leaving[a as usize], |g| self.end(g) == b)
     }
 
-    /// Edges in position order of their ends (lower end first): the
-    /// order flips are tried in, whatever the numbering.
-    fn edge_order(&self, h: u32, g: u32) -> Ordering {
-        let ends = |h: u32| {
-            let (p, q) = (self.start(h), self.start(Self::next(h)));
-            let (p, q) = (self.points[p as usize], self.points[q as usize]);
-            match position_order(p, q) {
-                Ordering::Greater => (q, p),
-                _ => (p, q),
-            }
-        };
-        let ((a, b), (c, d)) = (ends(h), ends(g));
-        position_order(a, c).then(position_order(b, d))
+    /// An edge's key: its ends, lower first. Vertices are numbered in
+    /// [`SpatialOrder`], so flips are tried in an order of the points'
+    /// positions, whatever their input numbering.
+    fn edge_key(&self, h: u32) -> (u32, u32) {
+        let (p, q) = (self.start(h), self.end(h));
+        (p.min(q), p.max(q))
+    }
+
+    fn face_normal(&self, face: [u32; 3]) -> DVec3 {
+        face_normal(self.points, face)
+    }
+
+    /// Stores the dihedral angle at `h` (on both halves of its edge).
+    fn bend_at(&mut self, h: u32) {
+        let angle = angle(self.normal(h as usize / 3), self.normal_across(h));
+        self.bend[h as usize] = angle;
+        let t = self.twin[h as usize];
+        if t != NONE {
+            self.bend[t as usize] = angle;
+        }
     }
 
     fn link(&mut self, h: u32, t: u32) {
@@ -160,23 +170,75 @@ impl FlipMesh<'_> {
     }
 }
 
-/// Points in lexicographic order of their coordinates: an order of the
-/// mesh that does not depend on how its vertices are numbered.
-fn position_order(p: DVec3, q: DVec3) -> Ordering {
-    (p.x.total_cmp(&q.x))
-        .then(p.y.total_cmp(&q.y))
-        .then(p.z.total_cmp(&q.z))
+/// The mesh renumbered along a Hilbert curve through its vertices (ties
+/// by coordinates), and its faces sorted by their renumbered corners: an
+/// order of the points' positions alone, and one in which neighbours sit
+/// close in memory (input points come in any order).
+struct SpatialOrder {
+    /// The input vertex of each new one.
+    vertex: Vec<u32>,
+    /// The input face of each new one.
+    face: Vec<u32>,
+    points: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
 }
 
-/// The face's normal, computed from its first corner in position order:
-/// the same bits however the face's corners are rotated.
-fn face_normal(points: &[DVec3], face: [u32; 3]) -> DVec3 {
-    let [a, b, c] = face.map(|v| points[v as usize]);
-    let [a, b, c] = match (position_order(a, b).is_lt(), position_order(a, c).is_lt()) {
-        (true, true) => [a, b, c],
-        (false, _) if position_order(b, c).is_lt() => [b, c, a],
+impl SpatialOrder {
+    fn new(points: &[DVec3], triangles: &[[u32; 3]]) -> Self {
+        let mut used = vec![false; points.len()];
+        for &v in triangles.iter().flatten() {
+            used[v as usize] = true;
+        }
+        let mut vertex: Vec<u32> = (0..points.len() as u32)
+            .filter(|&v| used[v as usize])
+            .collect();
+        let (lo, hi) = vertex.iter().fold(
+            (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+            |(lo, hi), &v| (lo.min(points[v as usize]), hi.max(points[v as usize])),
+        );
+        let scale =
+            f64::from((1u32 << CURVE_BITS) - 1) / (hi - lo).max_element().max(f64::MIN_POSITIVE);
+        let key = |v: u32| {
+            let p = points[v as usize];
+            let cell = ((p - lo) * scale).to_array().map(|c| c as u32);
+            let bits = p.to_array().map(|c| c.to_bits());
+            (hilbert_index(cell, CURVE_BITS), bits)
+        };
+        vertex.par_sort_by_cached_key(|&v| key(v));
+        let mut new_of = vec![NONE; points.len()];
+        for (new, &v) in vertex.iter().enumerate() {
+            new_of[v as usize] = new as u32;
+        }
+        let renumbered: Vec<[u32; 3]> = triangles
+            .iter()
+            .map(|t| t.map(|v| new_of[v as usize]))
+            .collect();
+        let mut face: Vec<u32> = (0..triangles.len() as u32).collect();
+        face.par_sort_unstable_by_key(|&f| rotated_to_lowest(renumbered[f as usize]));
+        SpatialOrder {
+            points: vertex.iter().map(|&v| points[v as usize]).collect(),
+            triangles: face.iter().map(|&f| renumbered[f as usize]).collect(),
+            vertex,
+            face,
+        }
+    }
+}
+
+/// Bits per axis of the Hilbert curve's grid.
+const CURVE_BITS: u32 = 20;
+
+fn rotated_to_lowest([a, b, c]: [u32; 3]) -> [u32; 3] {
+    match a.min(b).min(c) {
+        m if m == a => [a, b, c],
+        m if m == b => [b, c, a],
         _ => [c, a, b],
-    };
+    }
+}
+
+/// The face's normal, computed from its lowest-numbered corner: the same
+/// bits however the face's corners are rotated.
+fn face_normal(points: &[DVec3], face: [u32; 3]) -> DVec3 {
+    let [a, b, c] = rotated_to_lowest(face).map(|v| points[v as usize]);
     (b - a).cross(c - a)
 }
 
@@ -221,20 +283,17 @@ impl FlipMesh<'_> {
     fn lowers_bending(&self, q: &Quad) -> bool {
         let [a, b, c, d] = q.corners;
         let (h, g) = (q.h, q.g);
-        let (n1, n2) = (self.normal(h as usize / 3), self.normal(g as usize / 3));
-        let (m1, m2) = (
-            face_normal(self.points, [a, d, c]),
-            face_normal(self.points, [d, b, c]),
-        );
+        let (m1, m2) = (self.face_normal([a, d, c]), self.face_normal([d, b, c]));
         let [n_bc, n_ca] = [Self::next(h), Self::prev(h)].map(|e| self.normal_across(e));
         let [n_ad, n_db] = [Self::next(g), Self::prev(g)].map(|e| self.normal_across(e));
-        let bound = sum_of([
-            angle(n1, Some(n2)),
-            angle(n1, n_bc),
-            angle(n1, n_ca),
-            angle(n2, n_ad),
-            angle(n2, n_db),
-        ]) - MIN_GAIN;
+        let around = [
+            h,
+            Self::next(h),
+            Self::prev(h),
+            Self::next(g),
+            Self::prev(g),
+        ];
+        let bound = sum_of(around.map(|e| self.bend[e as usize])) - MIN_GAIN;
         // The new edge's angle alone is a lower bound of the sum after
         // (non-negative terms never lower a float sum): most edges stop here.
         let across = angle(m1, Some(m2));
@@ -258,8 +317,8 @@ impl FlipMesh<'_> {
         let (o_ad, o_db) = (outer(Self::next(q.g)), outer(Self::prev(q.g)));
         self.triangles[f1 as usize] = [a, d, c];
         self.triangles[f2 as usize] = [d, b, c];
-        self.normals[f1 as usize] = face_normal(self.points, [a, d, c]);
-        self.normals[f2 as usize] = face_normal(self.points, [d, b, c]);
+        self.normals[f1 as usize] = self.face_normal([a, d, c]);
+        self.normals[f2 as usize] = self.face_normal([d, b, c]);
         let (e1, e2) = (3 * f1, 3 * f2);
         for (v, h) in [(a, e1), (d, e1 + 1), (c, e1 + 2), (b, e2 + 1)] {
             self.leaving[v as usize] = h;
@@ -269,6 +328,9 @@ impl FlipMesh<'_> {
         self.link(e1 + 2, o_ca);
         self.link(e2, o_db);
         self.link(e2 + 1, o_bc);
+        for h in [e1, e1 + 1, e1 + 2, e2, e2 + 1] {
+            self.bend_at(h);
+        }
         [e1, e1 + 2, e2, e2 + 1]
     }
 }
@@ -279,10 +341,33 @@ impl FlipMesh<'_> {
 /// of which face `f` is a facet (`None`: the face never flips), and
 /// `cell_of_quad(t, [a, b, c, d])` is the cell with those corners, if any,
 /// given a cell `t` with the facet `abc`. Edges worth a flip are tried in
-/// position order, then those around each flip again: the result does not
-/// depend on how the vertices are numbered nor on the faces' order.
-/// Returns the flips made.
+/// an order of the points' positions ([`SpatialOrder`]), then those around
+/// each flip again: the result does not depend on how the vertices are
+/// numbered nor on the faces' order. Returns the flips made.
 pub fn flip_to_lower_bending<T: Copy>(
+    triangles: &mut [[u32; 3]],
+    points: &[DVec3],
+    cells: &mut [Option<T>],
+    cell_of_quad: impl Fn(T, [u32; 4]) -> Option<T>,
+) -> usize {
+    let mut order = SpatialOrder::new(points, triangles);
+    let mut new_cells: Vec<Option<T>> = order.face.iter().map(|&f| cells[f as usize]).collect();
+    let input = |quad: [u32; 4]| quad.map(|v| order.vertex[v as usize]);
+    let flips = flip_spatially_ordered(
+        &mut order.triangles,
+        &order.points,
+        &mut new_cells,
+        |t, quad| cell_of_quad(t, input(quad)),
+    );
+    for (new, &f) in order.face.iter().enumerate() {
+        triangles[f as usize] = order.triangles[new].map(|v| order.vertex[v as usize]);
+        cells[f as usize] = new_cells[new];
+    }
+    flips
+}
+
+/// [`flip_to_lower_bending`] on a mesh in [`SpatialOrder`].
+fn flip_spatially_ordered<T: Copy>(
     triangles: &mut [[u32; 3]],
     points: &[DVec3],
     cells: &mut [Option<T>],
@@ -294,14 +379,18 @@ pub fn flip_to_lower_bending<T: Copy>(
     }
     let mut mesh = FlipMesh {
         twin: twins(triangles),
-        normals: triangles
-            .par_iter()
+        normals: (triangles.par_iter())
             .map(|&t| face_normal(points, t))
             .collect(),
         leaving,
+        bend: Vec::new(),
         triangles,
         points,
     };
+    mesh.bend = (0..mesh.twin.len())
+        .into_par_iter()
+        .map(|h| angle(mesh.normal(h / 3), mesh.normal_across(h as u32)))
+        .collect();
     let halves = mesh.twin.len() as u32;
     // Edges worth flipping now, found in parallel; the others join the
     // queue when a flip next to them changes their gain. Queued by their
@@ -311,7 +400,7 @@ pub fn flip_to_lower_bending<T: Copy>(
         .filter(|&h| h < mesh.twin[h as usize])
         .filter(|&h| mesh.quad(h).is_some_and(|q| mesh.lowers_bending(&q)))
         .collect();
-    start.par_sort_unstable_by(|&h, &g| mesh.edge_order(h, g));
+    start.par_sort_unstable_by_key(|&h| mesh.edge_key(h));
     let ends = |mesh: &FlipMesh, h: u32| (mesh.start(h), mesh.end(h));
     let mut queue: VecDeque<(u32, u32)> = start.iter().map(|&h| ends(&mesh, h)).collect();
     let mut flips = 0;
@@ -328,7 +417,7 @@ pub fn flip_to_lower_bending<T: Copy>(
             .or_else(|| cells[f2].and_then(|t| cell_of_quad(t, [b, a, d, c])));
         let Some(cell) = crossed else { continue };
         let mut around = mesh.flip(&q);
-        around.sort_unstable_by(|&h, &g| mesh.edge_order(h, g));
+        around.sort_unstable_by_key(|&h| mesh.edge_key(h));
         queue.extend(around.map(|h| ends(&mesh, h)));
         // Both new faces are facets of the crossed cell.
         cells[f1] = Some(cell);
@@ -366,12 +455,7 @@ mod tests {
     }
 
     fn face_set(faces: &[[u32; 3]]) -> BTreeSet<[u32; 3]> {
-        let rotated = |[a, b, c]: [u32; 3]| match a.min(b).min(c) {
-            m if m == a => [a, b, c],
-            m if m == b => [b, c, a],
-            _ => [c, a, b],
-        };
-        faces.iter().map(|&t| rotated(t)).collect()
+        faces.iter().map(|&t| rotated_to_lowest(t)).collect()
     }
 
     /// Sum of the dihedral angles over all edges of a closed mesh.
