@@ -151,6 +151,12 @@ pub fn clean_points_with_normals(
     (cleaned, kept_normals, stats)
 }
 
+/// Whether 3D `points` are noisy by the test cleaning decides by
+/// ([`noise_level`]): for methods that must treat noisy data apart.
+pub fn is_noisy(points: &[DVec3]) -> bool {
+    points.len() >= MIN_POINTS && noise_level(points, &KdTree::new(points), 3).is_some()
+}
+
 /// The normal of the point of `points` nearest to each of `cleaned`
 /// (cleaning drops points and moves the rest slightly); empty when
 /// `normals` is.

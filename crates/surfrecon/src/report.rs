@@ -281,6 +281,9 @@ pub struct SvmMeshReport {
 pub struct ConvectionReport {
     pub method: &'static str,
     pub convection: surfrecon_convection::Report,
+    /// The input was found noisy, so no edges were flipped (tested only
+    /// when flips are on).
+    pub noisy_input: bool,
     pub output_counts: OutputCounts,
     pub data_fit: Option<DataFitReport>,
 }
