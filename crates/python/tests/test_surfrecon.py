@@ -102,6 +102,17 @@ def test_other_methods_close_a_sphere(method):
     assert sphere_error(V) < 0.03
 
 
+def test_convection_flips_only_faces_never_points():
+    points = torus_points(4000)
+    runs = [surfrecon.reconstruct(points, method="convection", report=True,
+                                  no_edge_flips=off) for off in (False, True)]
+    (V, F, flipped), (W, G, kept) = runs
+    assert flipped["convection"]["edge_flips"] > 0
+    assert kept["convection"]["edge_flips"] == 0
+    assert np.array_equal(V, W) and len(F) == len(G)
+    check_closed(V, F, 1, points)
+
+
 def test_round_trip_through_files(tmp_path):
     points = sphere_points(2000)
     V, F = surfrecon.reconstruct(points)
