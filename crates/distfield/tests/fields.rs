@@ -672,6 +672,22 @@ fn sculpting_fandisk_keeps_a_sphere_cut_into_an_edge() {
     assert!(off < 0.15, "the surface leaves the result by {off} h");
 }
 
+/// Fandisk minus a larger sphere whose new edge leaves fandisk's 89°
+/// ridge at about 13°: over 4-5 cells both lines cross the same cells
+/// and one feature point per cell keeps one of them (sessions 21-22: the
+/// new edge missed the surface by 0.25 h at (2.77, 14.12, −2.28)).
+/// Session 24: the repair may move every sample along such a stretch
+/// onto the second line at once (`refine::line_snaps`).
+#[test]
+fn sculpting_fandisk_keeps_a_new_edge_leaving_a_ridge_at_a_shallow_angle() {
+    let (worst, off) = sculpted_fandisk_errors(DVec3::new(3.9, 13.6, -1.9), 1.3);
+    // Branch 0.174 / 0.210 h, main 0.217 / 0.212 h; the goal, 0.15 h,
+    // is not met: the stretch's other end, where the new edge meets the
+    // ridge again, is still cut (0.215 h densely).
+    assert!(worst < 0.19, "the new edge is cut by {worst} h");
+    assert!(off < 0.25, "the surface leaves the result by {off} h");
+}
+
 /// Fandisk's UDF (64 cells, padding 4) minus a sphere, against the exact
 /// result: the largest distance of points on the new edge to the
 /// surface, and of the surface (densely) to the result, in spacings.
