@@ -665,9 +665,9 @@ fn chains(pieces: &[[DVec3; 2]], tolerance: f64) -> Vec<Vec<[DVec3; 2]>> {
         }
     }
     let mut by_root: BTreeMap<usize, Vec<[DVec3; 2]>> = BTreeMap::new();
-    for i in 0..n {
+    for (i, &piece) in pieces.iter().enumerate() {
         let r = root(&mut group, i);
-        by_root.entry(r).or_default().push(pieces[i]);
+        by_root.entry(r).or_default().push(piece);
     }
     by_root.into_values().collect()
 }
