@@ -429,6 +429,9 @@ enum Action {
         point: DVec3,
         inside: bool,
     },
+    /// The cell keeps its point and adds this one, on its other feature
+    /// line (extraction splits the patch between the two).
+    Second(DVec3),
 }
 
 /// Points on a crowded cell's features tried per corner sample.
@@ -494,6 +497,17 @@ fn actions(
     };
     if f.lines() > 1 {
         out.extend(snaps(field, cell, &f.probes()));
+        if let [first] = now[..] {
+            let far: Vec<DVec3> = (f.probes().into_iter())
+                .filter(|p| p.distance(first) > h / 3.0)
+                .collect();
+            let step = (far.len() / CANDIDATES_PER_CELL).max(1);
+            out.extend(
+                far.into_iter()
+                    .step_by(step)
+                    .map(|p| Action::Second(nudge_into(spec, cell, p))),
+            );
+        }
     }
     let centroid = tangents.iter().map(|t| t.0).sum::<DVec3>() / tangents.len().max(1) as f64;
     let candidates = f.candidates(centroid);
@@ -744,6 +758,13 @@ fn apply(field: &mut UnifiedField, cell: usize, action: &Action) -> bool {
     {
         return snap(field, corner_nodes(&spec, cell)[corner], point, inside);
     }
+    if let Action::Second(p) = *action {
+        let Some(n) = storage_for(field, cell, p) else {
+            return false;
+        };
+        field.extras.insert(n, Extra::FeaturePoint(p));
+        return true;
+    }
     for n in corner_nodes(&spec, cell) {
         if let Some(&Extra::FeaturePoint(p)) = field.extras.get(&(n as u32)) {
             if owner_cell(&spec, n, p) == Some(cell) {
@@ -752,7 +773,7 @@ fn apply(field: &mut UnifiedField, cell: usize, action: &Action) -> bool {
         }
     }
     match *action {
-        Action::Remove | Action::Turn(_) | Action::Snap { .. } => true,
+        Action::Remove | Action::Turn(_) | Action::Snap { .. } | Action::Second(_) => true,
         Action::Replace(p) => match storage_for(field, cell, p) {
             Some(n) => {
                 field.extras.insert(n, Extra::FeaturePoint(p));
