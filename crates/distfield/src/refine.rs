@@ -434,6 +434,9 @@ enum Action {
     Second(DVec3),
 }
 
+/// Second points tried per cell crossed by two feature lines.
+const SECOND_CANDIDATES: usize = 12;
+
 /// Points on a crowded cell's features tried per corner sample.
 const SNAPS_PER_SAMPLE: usize = 2;
 
@@ -501,7 +504,7 @@ fn actions(
             let far: Vec<DVec3> = (f.probes().into_iter())
                 .filter(|p| p.distance(first) > h / 3.0)
                 .collect();
-            let step = (far.len() / CANDIDATES_PER_CELL).max(1);
+            let step = (far.len() / SECOND_CANDIDATES).max(1);
             out.extend(
                 far.into_iter()
                     .step_by(step)
