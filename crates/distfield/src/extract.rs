@@ -66,6 +66,17 @@ pub fn extract(
     field: &impl SampledField,
     features: &BTreeMap<usize, DVec3>,
 ) -> (TriMesh, ExtractReport) {
+    extract_split(field, features, &BTreeMap::new())
+}
+
+/// [`extract`], where the cells in `seconds` keep a second feature point
+/// on a second feature line: their patch is split between the two points
+/// (see [`fan_two`]) where that fits, else fanned around the first.
+pub fn extract_split(
+    field: &impl SampledField,
+    features: &BTreeMap<usize, DVec3>,
+    seconds: &BTreeMap<usize, DVec3>,
+) -> (TriMesh, ExtractReport) {
     let cells = active_cells(field);
     let (keys, vertices) = edge_vertices(field, &cells);
     let spec = field.spec();
@@ -75,7 +86,12 @@ pub fn extract(
             let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
             match features.get(&cell) {
                 Some(&f) if !leans_on_neighbour(field, cell, f) => {
-                    patch.fan(f, &vertices, &keys, field)
+                    let split = (seconds.get(&cell))
+                        .and_then(|&g| fan_two(&patch.boundary(), f, g, &vertices, &keys, field));
+                    match split {
+                        Some(two) => two,
+                        None => patch.fan(f, &vertices, &keys, field),
+                    }
                 }
                 Some(_) => Patch {
                     fanned: Some(false),
@@ -105,7 +121,7 @@ pub fn extract(
         match patch.fanned {
             Some(true) => {
                 report.fans += 1;
-                feature_vertices.insert(base);
+                feature_vertices.extend((0..patch.extra.len() as u32).map(|k| base + k));
             }
             Some(false) => report.fans_refused += 1,
             None => {}
@@ -481,6 +497,86 @@ fn fan_over(
             .map(|&(a, b)| [a, b, Vertex::Extra(0)])
             .collect(),
         extra: vec![feature],
+        fanned: Some(true),
+    })
+}
+
+/// A cell crossed by two feature lines, with a point on each: its
+/// crossing loop split into the run of crossings nearer `first` and the
+/// run nearer `second`, each fanned to its point, the strip between the
+/// lines closed by two triangles on the edge between the points. Only
+/// when the loop is one, the runs are two and contiguous, and no triangle
+/// turns against a crossing's inside-to-outside direction (as
+/// [`fan_over`]).
+fn fan_two(
+    boundary: &[(Vertex, Vertex)],
+    first: DVec3,
+    second: DVec3,
+    vertices: &[DVec3],
+    keys: &[u64],
+    field: &impl SampledField,
+) -> Option<Patch> {
+    if !is_one_loop(boundary) {
+        return None;
+    }
+    // The loop in order, from its first edge.
+    let mut order = vec![boundary[0].0];
+    while order.len() < boundary.len() {
+        let last = *order.last()?;
+        order.push(boundary.iter().find(|e| e.0 == last)?.1);
+    }
+    let at = |v: Vertex| match v {
+        Vertex::Edge(i) => Some(vertices[i as usize]),
+        Vertex::Extra(_) => None,
+    };
+    let near_second: Vec<bool> = order
+        .iter()
+        .map(|&v| at(v).map(|p| p.distance(second) < p.distance(first)))
+        .collect::<Option<_>>()?;
+    let n = order.len();
+    let changes: Vec<usize> = (0..n)
+        .filter(|&k| near_second[k] != near_second[(k + 1) % n])
+        .collect();
+    if changes.len() != 2 {
+        return None;
+    }
+    let (p1, p2) = (Vertex::Extra(0), Vertex::Extra(1));
+    let mut triangles = Vec::new();
+    for k in 0..n {
+        let (a, b) = (order[k], order[(k + 1) % n]);
+        let apex = if near_second[(k + 1) % n] { p2 } else { p1 };
+        triangles.push([a, b, apex]);
+        // Where the run changes, the strip between the lines: a triangle
+        // on the crossing shared by both fans and the two points.
+        if near_second[k] != near_second[(k + 1) % n] {
+            let own = if near_second[k] { p2 } else { p1 };
+            triangles.push([a, apex, own]);
+        }
+    }
+    let extra = vec![first, second];
+    let h = field.spec().spacing;
+    let min_area2 = (1e-8 * h * h).powi(2);
+    let pos = |v: Vertex| match v {
+        Vertex::Edge(i) => vertices[i as usize],
+        Vertex::Extra(i) => extra[i as usize],
+    };
+    for t in &triangles {
+        let normal = triangle_normal(t.map(pos));
+        if normal.length_squared() < min_area2 {
+            return None;
+        }
+        let normal = normal.normalize();
+        let against = t.iter().any(|&v| match v {
+            Vertex::Edge(i) => normal.dot(outward(field, keys[i as usize])) < -FAN_SLACK,
+            Vertex::Extra(_) => false,
+        });
+        if against {
+            return None;
+        }
+    }
+    Some(Patch {
+        triangles,
+        extra,
         fanned: Some(true),
     })
 }

@@ -21,7 +21,9 @@
 //! to the surface (+∞ where that edge has none stored; towards a moved
 //! sample off the surface, d/h is the crossing's fraction of the edge to
 //! its position), the feature point, or the position. Untagged samples (almost all) cost nothing beyond
-//! their distance and 2 bits.
+//! their distance and 2 bits. A cell crossed by two feature lines may own
+//! two feature points (two of its samples tagged 2; the higher index is
+//! its first, see [`UnifiedField::second_points`]): no change of layout.
 
 use crate::offset::{node_position, OffsetField};
 use crate::unified::{Extra, UnifiedField};

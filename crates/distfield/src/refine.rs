@@ -20,7 +20,7 @@
 
 use crate::extract::corner_nodes;
 use crate::extract::SampledField;
-use crate::features::{cell_of, nudge_into, thinned_by_cell, CellFeatures};
+use crate::features::{cell_of, closest_on_segment, nudge_into, thinned_by_cell, CellFeatures};
 use crate::offset::THINNED;
 use crate::offset::{may_take, node_position, stays_convex};
 use crate::query::{lattice_points, MeshQuery};
@@ -338,6 +338,34 @@ fn repair_place(
                 .chain(evaluate(moves, &bound))
                 .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         }
+        // Where no single change reaches the target, a whole stretch
+        // of a second feature line may need samples on it at once.
+        let mut stretch = None;
+        if best.is_none_or(|b| b.0 > target * h) {
+            stretch = line_snaps(&view, cells, c)
+                .into_par_iter()
+                .filter_map(|list| {
+                    let mut trial = local.clone();
+                    let done = list
+                        .iter()
+                        .filter(|(n, a)| apply(&mut trial, to_local(*n), a))
+                        .count();
+                    (done > 1).then_some(())?;
+                    let error = place.error(&trial, query, bound.get())?;
+                    bound.lower(error);
+                    Some((error, list))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        if let Some((error, list)) = stretch {
+            if best.is_none_or(|b| error < b.0) && error < now - GAIN * h {
+                for (n, action) in &list {
+                    apply(view.to_mut(), *n, action);
+                }
+                outcome.changes.extend(list);
+                continue;
+            }
+        }
         match best.filter(|b| b.0 < now - GAIN * h) {
             Some((_, n, action)) => {
                 apply(view.to_mut(), n, &action);
@@ -401,7 +429,13 @@ enum Action {
         point: DVec3,
         inside: bool,
     },
+    /// The cell keeps its point and adds this one, on its other feature
+    /// line (extraction splits the patch between the two).
+    Second(DVec3),
 }
+
+/// Second points tried per cell crossed by two feature lines.
+const SECOND_CANDIDATES: usize = 12;
 
 /// Points on a crowded cell's features tried per corner sample.
 const SNAPS_PER_SAMPLE: usize = 2;
@@ -466,6 +500,17 @@ fn actions(
     };
     if f.lines() > 1 {
         out.extend(snaps(field, cell, &f.probes()));
+        if let [first] = now[..] {
+            let far: Vec<DVec3> = (f.probes().into_iter())
+                .filter(|p| p.distance(first) > h / 3.0)
+                .collect();
+            let step = (far.len() / SECOND_CANDIDATES).max(1);
+            out.extend(
+                far.into_iter()
+                    .step_by(step)
+                    .map(|p| Action::Second(nudge_into(spec, cell, p))),
+            );
+        }
     }
     let centroid = tangents.iter().map(|t| t.0).sum::<DVec3>() / tangents.len().max(1) as f64;
     let candidates = f.candidates(centroid);
@@ -541,6 +586,109 @@ fn snaps(field: &UnifiedField, cell: usize, probes: &[DVec3]) -> Vec<Action> {
     out
 }
 
+/// Where two feature lines run through the same cells over a stretch,
+/// one point per cell keeps one of them, and moving one sample onto the
+/// other (a [`snaps`] try) does not lower the error while the cells
+/// beside it still cut that line. So for each feature line through the
+/// block around `c` (chains of its cells' pieces), one try moves every
+/// sample of the block's crossed cells whose box the line passes through
+/// onto the line's point nearest it: keeping its side, all inside, or
+/// all outside. Only blocks with a cell crossed by two lines try this.
+fn line_snaps(
+    field: &UnifiedField,
+    cells: &BTreeMap<usize, CellFeatures>,
+    c: usize,
+) -> Vec<Vec<(usize, Action)>> {
+    let spec = &field.spec;
+    let half = 0.5 * spec.spacing;
+    let around: Vec<usize> = block(spec, c, 1).filter(|&n| field.crosses(n)).collect();
+    if !around
+        .iter()
+        .any(|n| cells.get(n).is_some_and(|f| f.lines() > 1))
+    {
+        return Vec::new();
+    }
+    let mut nodes: Vec<usize> = around
+        .iter()
+        .flat_map(|&n| corner_nodes(spec, n))
+        .filter(|n| !matches!(field.extras.get(&(*n as u32)), Some(Extra::Position(_))))
+        .collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    let pieces: Vec<[DVec3; 2]> = around
+        .iter()
+        .filter_map(|n| cells.get(n))
+        .flat_map(|f| f.pieces.iter().copied())
+        .collect();
+    let mut out = Vec::new();
+    for line in chains(&pieces, 1e-6 * spec.spacing) {
+        let on_line: Vec<(usize, DVec3)> = nodes
+            .iter()
+            .filter_map(|&n| {
+                let at = node_position(spec, n);
+                let p = (line.iter())
+                    .map(|&[a, b]| closest_on_segment(at, a, b))
+                    .min_by(|x, y| x.distance(at).total_cmp(&y.distance(at)))?;
+                ((p - at).abs().max_element() < half).then_some((n, p))
+            })
+            .collect();
+        if on_line.len() < 2 {
+            continue;
+        }
+        let sides: [fn(f64) -> bool; 3] = [|v| v < 0.0, |_| true, |_| false];
+        for side in sides {
+            out.push(
+                on_line
+                    .iter()
+                    .map(|&(n, point)| {
+                        let inside = side(field.values[n]);
+                        (
+                            n,
+                            Action::Snap {
+                                corner: 0,
+                                point,
+                                inside,
+                            },
+                        )
+                    })
+                    .collect(),
+            );
+        }
+    }
+    out
+}
+
+/// `pieces` grouped into chains joined end to end (ends within `tolerance`).
+fn chains(pieces: &[[DVec3; 2]], tolerance: f64) -> Vec<Vec<[DVec3; 2]>> {
+    let n = pieces.len();
+    let mut group: Vec<usize> = (0..n).collect();
+    fn root(group: &mut [usize], mut i: usize) -> usize {
+        while group[i] != i {
+            group[i] = group[group[i]];
+            i = group[i];
+        }
+        i
+    }
+    let touch = |p: &[DVec3; 2], q: &[DVec3; 2]| {
+        p.iter()
+            .any(|a| q.iter().any(|b| a.distance(*b) <= tolerance))
+    };
+    for i in 0..n {
+        for j in i + 1..n {
+            if touch(&pieces[i], &pieces[j]) {
+                let (ri, rj) = (root(&mut group, i), root(&mut group, j));
+                group[ri] = rj;
+            }
+        }
+    }
+    let mut by_root: BTreeMap<usize, Vec<[DVec3; 2]>> = BTreeMap::new();
+    for (i, &piece) in pieces.iter().enumerate() {
+        let r = root(&mut group, i);
+        by_root.entry(r).or_default().push(piece);
+    }
+    by_root.into_values().collect()
+}
+
 /// Move sample `node` onto `point` at distance 0 (see [`Action::Snap`]),
 /// if it carries nothing but directed distances (dropped), stays inside
 /// the grid, keeps its cells convex and the turn keeps their topology.
@@ -613,6 +761,13 @@ fn apply(field: &mut UnifiedField, cell: usize, action: &Action) -> bool {
     {
         return snap(field, corner_nodes(&spec, cell)[corner], point, inside);
     }
+    if let Action::Second(p) = *action {
+        let Some(n) = storage_for(field, cell, p) else {
+            return false;
+        };
+        field.extras.insert(n, Extra::FeaturePoint(p));
+        return true;
+    }
     for n in corner_nodes(&spec, cell) {
         if let Some(&Extra::FeaturePoint(p)) = field.extras.get(&(n as u32)) {
             if owner_cell(&spec, n, p) == Some(cell) {
@@ -621,7 +776,7 @@ fn apply(field: &mut UnifiedField, cell: usize, action: &Action) -> bool {
         }
     }
     match *action {
-        Action::Remove | Action::Turn(_) | Action::Snap { .. } => true,
+        Action::Remove | Action::Turn(_) | Action::Snap { .. } | Action::Second(_) => true,
         Action::Replace(p) => match storage_for(field, cell, p) {
             Some(n) => {
                 field.extras.insert(n, Extra::FeaturePoint(p));

@@ -12,7 +12,7 @@
 //! mix: extraction interpolates it wherever nothing more is stored.
 
 use crate::extract::{
-    corner_nodes, extract, fan_fits, fan_triangles, leans_on_neighbour, ExtractReport, SampledField,
+    corner_nodes, fan_fits, fan_triangles, leans_on_neighbour, ExtractReport, SampledField,
 };
 use crate::features::{cells_with_features, nudge_into, CellFeatures, Features};
 use crate::offset::{may_take, node_position, stays_convex};
@@ -777,7 +777,22 @@ impl UnifiedField {
     /// The surface: marching cubes with the stored crossings, positions
     /// and feature fans.
     pub fn extract(&self) -> (TriMesh, ExtractReport) {
-        extract(self, &self.feature_points())
+        let first = self.feature_points();
+        crate::extract::extract_split(self, &first, &self.second_points(&first))
+    }
+
+    /// Per cell owning two feature points (two feature lines through it),
+    /// the one [`Self::feature_points`] does not give.
+    pub fn second_points(&self, first: &BTreeMap<usize, DVec3>) -> BTreeMap<usize, DVec3> {
+        self.extras
+            .iter()
+            .filter_map(|(&n, e)| match *e {
+                Extra::FeaturePoint(p) => owner_cell(&self.spec, n as usize, p)
+                    .filter(|c| first.get(c).is_some_and(|&f| f != p))
+                    .map(|c| (c, p)),
+                _ => None,
+            })
+            .collect()
     }
 }
 

@@ -672,6 +672,74 @@ fn sculpting_fandisk_keeps_a_sphere_cut_into_an_edge() {
     assert!(off < 0.15, "the surface leaves the result by {off} h");
 }
 
+/// Fandisk minus a larger sphere whose new edge leaves fandisk's 89°
+/// ridge at about 13°: over 4-5 cells both lines cross the same cells
+/// and one feature point per cell keeps one of them (sessions 21-22: the
+/// new edge missed the surface by 0.25 h at (2.77, 14.12, −2.28)).
+/// Session 24: the repair may move every sample along such a stretch
+/// onto the second line at once (`refine::line_snaps`).
+#[test]
+fn sculpting_fandisk_keeps_a_new_edge_leaving_a_ridge_at_a_shallow_angle() {
+    let (worst, off) = sculpted_fandisk_errors(DVec3::new(3.9, 13.6, -1.9), 1.3);
+    // Stretch moves alone 0.174 / 0.210 h, main 0.217 / 0.212 h; the goal, 0.15 h,
+    // is not met: the stretch's other end, where the new edge meets the
+    // ridge again, is still cut (0.215 h densely).
+    assert!(worst < 0.19, "the new edge is cut by {worst} h");
+    assert!(off < 0.25, "the surface leaves the result by {off} h");
+}
+
+/// Fandisk minus a box whose y = 14.25 face meets fandisk's sloped face
+/// a fraction of a cell from its ridge: the new edge and the ridge cross
+/// the same cells, with a sliver of fandisk's face between them. Session
+/// 24: such cells keep a second feature point, on the second line, and
+/// extraction splits their patch between the two. The surface stays
+/// within 0.15 h of the exact result (0.133 h; 0.252 h with one point
+/// per cell), and the field with its second points reads back exactly
+/// and extracts the same surface.
+#[test]
+fn sculpting_fandisk_keeps_a_box_cut_beside_a_ridge() {
+    use surfrecon_distfield::format::{read_udf, write_udf};
+    use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
+    let shape = fandisk();
+    let (mut udf, _) = build_udf(
+        &shape,
+        &UdfOptions {
+            size: GridSize::Resolution(64),
+            padding: 4,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let h = udf.spec.spacing;
+    let tool = Tool::Box {
+        min: DVec3::new(2.8, 12.0, -2.0),
+        max: DVec3::new(3.4, 14.25, -1.0),
+    };
+    sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
+    let seconds = udf.second_points(&udf.feature_points());
+    assert!(!seconds.is_empty(), "no cell keeps two feature points");
+    let (mesh, _) = udf.extract();
+    assert_closed_manifold(&mesh, 2);
+    // The exact result's signed distance: exact inside, a lower bound
+    // outside (as `sculpted_fandisk_errors`).
+    let exact = MeshQuery::new(&shape).unwrap();
+    let off = dense_points(&mesh)
+        .map(|p| exact.signed_distance(p).max(-tool.signed_distance(p)).abs() / h)
+        .fold(0.0, f64::max);
+    eprintln!(
+        "box cut: surface off the result by {off} h, {} cells with two points",
+        seconds.len()
+    );
+    assert!(off < 0.15, "the surface leaves the result by {off} h");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cut.udf");
+    write_udf(&path, &udf).unwrap();
+    let back = read_udf(&path).unwrap();
+    assert_eq!(back, udf);
+    assert_eq!(back.second_points(&back.feature_points()), seconds);
+    assert_eq!(back.extract().0.triangles, mesh.triangles);
+}
+
 /// Fandisk's UDF (64 cells, padding 4) minus a sphere, against the exact
 /// result: the largest distance of points on the new edge to the
 /// surface, and of the surface (densely) to the result, in spacings.
