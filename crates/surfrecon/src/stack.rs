@@ -35,10 +35,17 @@ const MAX_MARCH: usize = 2000;
 /// Most samples on one cap profile.
 const MAX_STEPS: usize = 12;
 
-/// `points` (oriented) with samples between and past its slices added, if
-/// they form a stack of oriented contour slices; `None` otherwise (every
-/// other input is fitted exactly as before).
-pub(crate) fn with_stack_samples(points: &PointCloud) -> Option<PointCloud> {
+/// Whether the domes past the end slices are among the samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum EndCaps {
+    Added,
+    Left,
+}
+
+/// `points` (oriented) with samples between (and, with `caps`, past) its
+/// slices added, if they form a stack of oriented contour slices; `None`
+/// otherwise (every other input is fitted exactly as before).
+pub(crate) fn with_stack_samples(points: &PointCloud, caps: EndCaps) -> Option<PointCloud> {
     let normals = points.normals.as_ref()?;
     let input = Input {
         points: points.positions.clone(),
@@ -50,7 +57,7 @@ pub(crate) fn with_stack_samples(points: &PointCloud) -> Option<PointCloud> {
         return None;
     }
     let mut joined = points.clone();
-    for (p, n) in stack_samples(&stack) {
+    for (p, n) in stack_samples(&stack, caps) {
         let n = unflat(&stack, n).normalize_or_zero();
         if n == DVec3::ZERO || !p.is_finite() {
             continue;
@@ -65,9 +72,9 @@ pub(crate) fn with_stack_samples(points: &PointCloud) -> Option<PointCloud> {
     Some(joined)
 }
 
-/// Mid-gap samples between each two neighbouring slices and caps past
-/// the two end ones, thinned, in plane coordinates.
-fn stack_samples(stack: &SliceStack) -> Vec<Sample> {
+/// Mid-gap samples between each two neighbouring slices and (with `caps`)
+/// caps past the two end ones, thinned, in plane coordinates.
+fn stack_samples(stack: &SliceStack, caps: EndCaps) -> Vec<Sample> {
     let slices: Vec<Slice> = (stack.slices.iter().zip(&stack.levels))
         .map(|(s, &level)| Slice::new(s, level))
         .collect();
@@ -76,7 +83,7 @@ fn stack_samples(stack: &SliceStack) -> Vec<Sample> {
         mid_gap_samples(&pair[0], &pair[1], &mut samples);
     }
     let cap_height = CAP_HEIGHT * stack.gap();
-    if let (Some(first), Some(last)) = (slices.first(), slices.last()) {
+    if let (EndCaps::Added, Some(first), Some(last)) = (caps, slices.first(), slices.last()) {
         end_cap_samples(first, -1.0, cap_height, &mut samples);
         end_cap_samples(last, 1.0, cap_height, &mut samples);
     }
