@@ -211,6 +211,9 @@ pub struct SvmSummary {
 pub enum ContourStack {
     /// Kept: no more pieces and no more handles than without the samples.
     Used,
+    /// Kept without the end caps: with them the surface had more pieces
+    /// or handles, without them not.
+    UsedWithoutCaps,
     /// The surface fitted to the contours alone kept: the samples added pieces.
     DroppedMorePieces,
     /// The surface fitted to the contours alone kept: the samples added handles.

@@ -17,9 +17,9 @@ use surfrecon_levelset::Input;
 /// about noise than shape (the level set's interpolation uses the same).
 const MAX_TILT: f64 = 3.0;
 /// A contour point and the one its tilt leads to on the next slice are
-/// joined only if each lands within this share of the gap of the other
-/// (else the surface changes shape between the slices: a part begins or
-/// ends, and the fit is left to bridge it).
+/// joined only if, carried half way at their tilts, they land within this
+/// share of the gap of each other (else the surface changes shape between
+/// the slices: a part begins or ends, and the fit is left to bridge it).
 const MATCH_TOLERANCE: f64 = 0.25;
 /// ... and their in-plane normals agree to this cosine.
 const MATCH_COSINE: f64 = 0.7;
@@ -35,10 +35,17 @@ const MAX_MARCH: usize = 2000;
 /// Most samples on one cap profile.
 const MAX_STEPS: usize = 12;
 
-/// `points` (oriented) with samples between and past its slices added, if
-/// they form a stack of oriented contour slices; `None` otherwise (every
-/// other input is fitted exactly as before).
-pub(crate) fn with_stack_samples(points: &PointCloud) -> Option<PointCloud> {
+/// Whether the domes past the end slices are among the samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum EndCaps {
+    Added,
+    Left,
+}
+
+/// `points` (oriented) with samples between (and, with `caps`, past) its
+/// slices added, if they form a stack of oriented contour slices; `None`
+/// otherwise (every other input is fitted exactly as before).
+pub(crate) fn with_stack_samples(points: &PointCloud, caps: EndCaps) -> Option<PointCloud> {
     let normals = points.normals.as_ref()?;
     let input = Input {
         points: points.positions.clone(),
@@ -50,7 +57,7 @@ pub(crate) fn with_stack_samples(points: &PointCloud) -> Option<PointCloud> {
         return None;
     }
     let mut joined = points.clone();
-    for (p, n) in stack_samples(&stack) {
+    for (p, n) in stack_samples(&stack, caps) {
         let n = unflat(&stack, n).normalize_or_zero();
         if n == DVec3::ZERO || !p.is_finite() {
             continue;
@@ -65,9 +72,9 @@ pub(crate) fn with_stack_samples(points: &PointCloud) -> Option<PointCloud> {
     Some(joined)
 }
 
-/// Mid-gap samples between each two neighbouring slices and caps past
-/// the two end ones, thinned, in plane coordinates.
-fn stack_samples(stack: &SliceStack) -> Vec<Sample> {
+/// Mid-gap samples between each two neighbouring slices and (with `caps`)
+/// caps past the two end ones, thinned, in plane coordinates.
+fn stack_samples(stack: &SliceStack, caps: EndCaps) -> Vec<Sample> {
     let slices: Vec<Slice> = (stack.slices.iter().zip(&stack.levels))
         .map(|(s, &level)| Slice::new(s, level))
         .collect();
@@ -76,7 +83,7 @@ fn stack_samples(stack: &SliceStack) -> Vec<Sample> {
         mid_gap_samples(&pair[0], &pair[1], &mut samples);
     }
     let cap_height = CAP_HEIGHT * stack.gap();
-    if let (Some(first), Some(last)) = (slices.first(), slices.last()) {
+    if let (EndCaps::Added, Some(first), Some(last)) = (caps, slices.first(), slices.last()) {
         end_cap_samples(first, -1.0, cap_height, &mut samples);
         end_cap_samples(last, 1.0, cap_height, &mut samples);
     }
@@ -158,16 +165,18 @@ fn split_normal(n: DVec3) -> (DVec3, f64) {
 }
 
 /// The point of `b` that contour point `i` of `a` leads to (following its
-/// tilt across the gap), if that point leads back near `i`.
+/// tilt across the gap), if the two agree where the surface crosses the
+/// middle of the gap: each point's tilt carried half way lands near the
+/// other's. (Carried the whole gap, a tangent overshoots on a curved
+/// section four times as far: the lower half of the harness's spikes
+/// ball, sliced 0.31 apart, got no mid-gap sample at all.)
 fn partner(a: &Slice, i: usize, b: &Slice) -> Option<usize> {
     let gap = b.level - a.level;
     let tolerance = MATCH_TOLERANCE * gap.abs();
-    let ahead = a.led_to(i, gap);
-    let j = b.tree.nearest(ahead)?.index;
-    let back = b.led_to(j, -gap);
+    let j = b.tree.nearest(a.led_to(i, gap))?.index;
+    let meet = a.led_to(i, 0.5 * gap).distance(b.led_to(j, -0.5 * gap));
     let agree = a.outward[i].dot(b.outward[j]) >= MATCH_COSINE;
-    (agree && b.points[j].distance(ahead) <= tolerance && a.points[i].distance(back) <= tolerance)
-        .then_some(j)
+    (agree && meet <= tolerance).then_some(j)
 }
 
 /// Samples of the Hermite curves joining contour points of `a` to their
@@ -313,4 +322,49 @@ fn thinned(samples: Vec<Sample>, radius: f64) -> Vec<Sample> {
         }
     }
     kept
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `count` points of the unit sphere's section at height `z`, with
+    /// the sphere's normals, in plane coordinates (as `detect_slices`
+    /// gives them).
+    fn sphere_section(z: f64, count: usize) -> Input {
+        let r = (1.0 - z * z).sqrt();
+        let points: Vec<DVec3> = (0..count)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / count as f64;
+                DVec3::new(r * a.cos(), r * a.sin(), z)
+            })
+            .collect();
+        Input {
+            normals: points.clone(),
+            points: points.iter().map(|p| DVec3::new(p.x, p.y, 0.0)).collect(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn sections_of_a_curved_surface_sliced_far_apart_are_joined_on_it() {
+        // A unit ball's lower half sliced 0.3 apart (the harness's spikes
+        // ball: 0.31): the sections' tilts, carried the whole gap, miss
+        // the next section by more than a third of the gap.
+        let (za, zb) = (-0.75, -0.45);
+        let (a, b) = (sphere_section(za, 200), sphere_section(zb, 240));
+        let (a, b) = (Slice::new(&a, za), Slice::new(&b, zb));
+        let mut samples = Vec::new();
+        mid_gap_samples(&a, &b, &mut samples);
+        assert!(
+            samples.len() * 10 >= a.points.len() * 9,
+            "{} of {} contour points joined",
+            samples.len(),
+            a.points.len()
+        );
+        for (p, n) in &samples {
+            assert!((p.length() - 1.0).abs() < 0.01, "sample {p} off the sphere");
+            assert!(n.normalize().dot(p.normalize()) > 0.99, "normal {n} at {p}");
+        }
+    }
 }

@@ -4,7 +4,7 @@
 
 use crate::error::{Classify, Error, ErrorKind, Result};
 use crate::report::*;
-use crate::stack::with_stack_samples;
+use crate::stack::{with_stack_samples, EndCaps};
 use crate::{check, data_fit_report, Loss, Output, SvmC, SvmOptions};
 use std::time::Instant;
 use surfrecon_geom::aabb::offset_to_origin;
@@ -76,27 +76,10 @@ pub(crate) fn run(
     let plain = surface(points, &settings, hook)?;
     let mut mesh_seconds = plain.mesh_seconds;
     // Contour slices: the fit also gets the surface the contours'
-    // normals describe between and past them (see `stack`). Those samples
-    // are guesses (mid-gap curves, end caps), not data: a surface with
-    // more pieces or more handles than the contours alone give is not
-    // what the contours describe (harness slices: bunny gained a handle,
-    // spikes a cone's end section capped into a piece of its own), and
-    // then the surface without them is kept.
-    let stacked = o
-        .model_in
-        .is_none()
-        .then(|| with_stack_samples(points))
-        .flatten();
-    let (mut kept, contour_stack) = match &stacked {
-        None => (plain, None),
-        Some(stacked) => {
-            let with_stack = surface(stacked, &settings, hook)?;
-            mesh_seconds += with_stack.mesh_seconds;
-            match stack_verdict(&plain.mesh, &with_stack.mesh) {
-                ContourStack::Used => (with_stack, Some(ContourStack::Used)),
-                dropped => (plain, Some(dropped)),
-            }
-        }
+    // normals describe between and past them (see `stack`).
+    let (mut kept, contour_stack) = match o.model_in {
+        None => with_contour_stack(points, plain, &settings, &mut mesh_seconds, hook)?,
+        Some(_) => (plain, None),
     };
     if let (Some(path), SvmFit::Fitted(_)) = (&o.model_out, &kept.fit) {
         kept.model
@@ -225,6 +208,43 @@ fn surface(points: &PointCloud, s: &SurfaceSettings, hook: Hook) -> Result<Surfa
         refined,
         mesh_seconds: started.elapsed().as_secs_f64(),
     })
+}
+
+/// For a stack of contour slices, the surface fitted with the samples the
+/// contours' normals describe (see `stack`), else `plain`, and what
+/// became of the samples (`None`: no stack). Those samples are guesses
+/// (mid-gap curves, end caps), not data: a surface with more pieces or
+/// more handles than the contours alone give is not what the contours
+/// describe, and then the fit is tried again without the end caps, the
+/// boldest guesses (a dome over a whole end section; on the harness's
+/// slices they gave bunny its extra handles and spikes an end section
+/// capped into a piece of its own), and failing that `plain` is kept.
+/// `mesh_seconds` grows by the meshing time of each surface made.
+fn with_contour_stack(
+    points: &PointCloud,
+    plain: Surface,
+    settings: &SurfaceSettings,
+    mesh_seconds: &mut f64,
+    hook: Hook,
+) -> Result<(Surface, Option<ContourStack>)> {
+    let Some(stacked) = with_stack_samples(points, EndCaps::Added) else {
+        return Ok((plain, None));
+    };
+    let with_caps = surface(&stacked, settings, hook)?;
+    *mesh_seconds += with_caps.mesh_seconds;
+    let verdict = stack_verdict(&plain.mesh, &with_caps.mesh);
+    if verdict == ContourStack::Used {
+        return Ok((with_caps, Some(verdict)));
+    }
+    drop(with_caps);
+    if let Some(uncapped) = with_stack_samples(points, EndCaps::Left) {
+        let without_caps = surface(&uncapped, settings, hook)?;
+        *mesh_seconds += without_caps.mesh_seconds;
+        if stack_verdict(&plain.mesh, &without_caps.mesh) == ContourStack::Used {
+            return Ok((without_caps, Some(ContourStack::UsedWithoutCaps)));
+        }
+    }
+    Ok((plain, Some(verdict)))
 }
 
 /// Whether the surface fitted with a contour stack's samples is kept over

@@ -124,6 +124,9 @@ pub fn say_fit(args: &SvmArgs, report: &surfrecon::SvmReport, ctx: &Context) {
         Some(surfrecon::ContourStack::Used) => {
             ctx.detail("contour stack: fitted with samples between and past the slices")
         }
+        Some(surfrecon::ContourStack::UsedWithoutCaps) => ctx.say(
+            "svm: contour stack: fitted with samples between the slices; caps past the end slices dropped (they added pieces or handles)",
+        ),
         Some(surfrecon::ContourStack::DroppedMorePieces) => ctx.say(
             "svm: contour stack: samples between and past the slices dropped (they added pieces)",
         ),
