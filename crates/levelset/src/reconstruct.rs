@@ -885,6 +885,34 @@ fn initial_band<const D: usize>(
                 report.sealed_nodes = count;
             }
         }
+        // ε grown until its contour closed a hole also closes every
+        // concavity narrower than itself (webs between a thin part and
+        // the body that the evolution does not open again): where the
+        // normals seal the hole at the starting ε, tag with that instead.
+        let grown = params.epsilon.is_none() && tagging.epsilon > epsilon;
+        if grown && report.sealed_nodes == 0 {
+            let tag_at = |field: &Field<D>| {
+                tag(
+                    field,
+                    epsilon,
+                    false,
+                    h,
+                    bbox.as_ref(),
+                    params.keep_topology,
+                )
+            };
+            let sealed = report.time("tagging", || {
+                let plain = tag_at(d).inside();
+                seal_with_normals(d, |l| !plain[l], input, epsilon, reach)
+                    .map(|(sealed_d, count)| (tag_at(&sealed_d), count))
+            });
+            if let Some((with_seal, count)) = sealed {
+                if with_seal.inside_count() as f64 >= SEALED_KEEPS * tagging.inside_count() as f64 {
+                    tagging = with_seal;
+                    report.sealed_nodes = count;
+                }
+            }
+        }
     }
     report.epsilon = tagging.epsilon;
     report.heap_pops = tagging.heap_pops;
@@ -912,6 +940,12 @@ const HOLE_REACH: f64 = 0.1;
 /// Sealing is kept when it keeps this many times the inside the plain
 /// tagging does (the flood through a hole takes most of the inside).
 const FLOODED: f64 = 1.3;
+
+/// The tagging at the starting ε with the holes sealed replaces the one
+/// at a grown ε if it keeps at least this share of that one's inside (it
+/// keeps less only by the concavities the grown ε filled; a flood that
+/// the seal did not stop takes most of it).
+const SEALED_KEEPS: f64 = 0.8;
 
 fn bounds_diagonal<const D: usize>(input: &Input) -> f64 {
     let (lo, hi) = bounds::<D>(input);
