@@ -31,7 +31,10 @@ const SAMPLE_STRIDE: usize = 32;
 /// The distance field for tagging, when the flood got in: `d` with the
 /// nodes that `exterior` (the plain tagging) put outside, farther than
 /// `epsilon` but within `reach` of the data, set to 0 where the oriented
-/// points' winding number puts them inside; and how many were sealed.
+/// points' winding number exceeds `inside_above` (1/2: inside; lower
+/// also seals the mouth of a hole out to where the winding number falls
+/// off, while the outside of a closed part stays near 0); and how many
+/// were sealed.
 /// `None` when a sample of those nodes finds (almost) none inside, so data
 /// the flood did not enter cost one cheap test. `input.normals` must hold
 /// one unit normal per point.
@@ -41,6 +44,7 @@ pub(crate) fn seal_with_normals<const D: usize>(
     input: &Input,
     epsilon: f64,
     reach: f64,
+    inside_above: f64,
 ) -> Option<(Field<D>, usize)> {
     if D != 3 {
         return None;
@@ -56,7 +60,7 @@ pub(crate) fn seal_with_normals<const D: usize>(
     let inside = |l: usize| {
         let p = spec.position(spec.unlinear(l));
         let x = DVec3::from_array(std::array::from_fn(|a| if a < D { p[a] } else { 0.0 }));
-        tree.winding_number(x) > 0.5
+        tree.winding_number(x) > inside_above
     };
     let sampled: Vec<usize> = candidates.iter().step_by(SAMPLE_STRIDE).copied().collect();
     let found = sampled.par_iter().filter(|&&l| inside(l)).count();

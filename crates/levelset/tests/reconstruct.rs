@@ -724,6 +724,51 @@ fn oriented_normals_keep_the_outside_out_of_wide_holes() {
 }
 
 #[test]
+fn a_hole_does_not_web_a_narrow_wedge() {
+    // A unit sphere crossed by a plate 0.06 thick at y = -0.6 (its upper
+    // face meets the sphere at 53°), oriented points, and a ball-shaped
+    // hole of radius 0.35 on the far side. The outer contour closes that
+    // hole only at ε ≈ 0.3, which also fills the wedge, and the evolution
+    // did not open it again: a web from the plate to the sphere left the
+    // points in the wedge 4.1% of the diagonal off the surface. The
+    // normals seal the hole at the starting ε instead.
+    let (plate_lo, plate_hi) = (DVec3::new(-1.4, -0.63, -0.3), DVec3::new(-0.2, -0.57, 0.3));
+    let in_plate = |p: &DVec3| p.cmpgt(plate_lo).all() && p.cmplt(plate_hi).all();
+    let sphere = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 8000, 5);
+    let plate = sample_surface(&surfrecon_geom::shapes::cuboid(plate_lo, plate_hi), 2000, 6);
+    let hole = DVec3::new(0.5, 0.6, 0.62).normalize();
+    // Each part's points outside the other part, minus the hole.
+    let mut input = Input::default();
+    let mut add = |cloud: &surfrecon_geom::PointCloud, outside_other: &dyn Fn(&DVec3) -> bool| {
+        for (p, n) in cloud.positions.iter().zip(cloud.normals.as_ref().unwrap()) {
+            if outside_other(p) && p.distance(hole) > 0.35 {
+                input.points.push(*p);
+                input.normals.push(*n);
+            }
+        }
+    };
+    add(&sphere, &|p| !in_plate(p));
+    add(&plate, &|p| p.length() > 1.0);
+    let r = reconstruct_3d(&input, &ReconstructParams::default()).unwrap();
+    assert_eq!(
+        topology(&r.mesh),
+        (true, 2, 1),
+        "one closed piece of genus 0"
+    );
+    let fit = surfrecon_geom::data_fit::data_fit(&r.mesh, &input.points).unwrap();
+    assert!(
+        fit.max < 0.02,
+        "farthest point {:.2}% of the diagonal at {:?}",
+        100.0 * fit.max,
+        fit.farthest
+    );
+    assert!(
+        r.report.sealed_nodes > 0,
+        "the hole was sealed by the normals"
+    );
+}
+
+#[test]
 fn slices_of_a_torus_keep_its_hole() {
     // A torus (R = 1, r = 0.4) cut by 12 planes across z: every slice is
     // two concentric closed contours (polylines). The disk inside the
