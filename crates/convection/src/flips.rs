@@ -15,6 +15,7 @@
 //! faces then stay Delaunay facets, which meet only along shared edges and
 //! vertices, so no flip can fold the surface or make it cross itself.
 
+use crate::manifold::rows;
 use rayon::prelude::*;
 use std::collections::VecDeque;
 use surfrecon_delaunay::hilbert_index;
@@ -31,24 +32,9 @@ const MIN_GAIN: f64 = 1e-6;
 /// read from rows of half-edges by start vertex (short rows, no search).
 fn twins(triangles: &[[u32; 3]]) -> Vec<u32> {
     let end = |h: usize| triangles[h / 3][(h + 1) % 3];
-    let vertices = triangles
-        .iter()
-        .flatten()
-        .max()
-        .map_or(0, |&v| v as usize + 1);
-    let mut offsets = vec![0usize; vertices + 1];
-    for &v in triangles.iter().flatten() {
-        offsets[v as usize + 1] += 1;
-    }
-    for i in 0..vertices {
-        offsets[i + 1] += offsets[i];
-    }
-    let mut fill = offsets.clone();
-    let mut leaving = vec![0u32; 3 * triangles.len()];
-    for (h, &v) in triangles.iter().flatten().enumerate() {
-        leaving[fill[v as usize]] = h as u32;
-        fill[v as usize] += 1;
-    }
+    let (offsets, leaving) = rows(triangles, |f, &[a, b, c]| {
+        [(a, 3 * f), (b, 3 * f + 1), (c, 3 * f + 2)]
+    });
     (0..3 * triangles.len())
         .into_par_iter()
         .map(|h| {

@@ -82,7 +82,7 @@ impl PairedEdges {
 }
 
 /// Compressed rows: `pairs(face index, face)` yields (row, value) entries.
-fn rows<I: IntoIterator<Item = (u32, u32)>>(
+pub(crate) fn rows<I: IntoIterator<Item = (u32, u32)>>(
     triangles: &[[u32; 3]],
     pairs: impl Fn(u32, &[u32; 3]) -> I,
 ) -> (Vec<usize>, Vec<u32>) {
