@@ -555,19 +555,6 @@ impl<const D: usize> BandDistance<D> {
             .for_each(|b| fill(b.coord, &mut b.values));
     }
 
-    /// Compute d on the blocks holding `nodes` that lack it (parallel over
-    /// the new blocks): nodes off the band that a local re-tagging reads.
-    pub fn cover_nodes(&mut self, nodes: impl Iterator<Item = [usize; D]>) {
-        let first_new = self.grid.blocks().len();
-        for idx in nodes {
-            self.grid.allocate(idx);
-        }
-        let fill = &self.fill;
-        self.grid.blocks_mut()[first_new..]
-            .par_iter_mut()
-            .for_each(|b| fill(b.coord, &mut b.values));
-    }
-
     /// Bytes held by the computed blocks and the table.
     pub fn memory_bytes(&self) -> usize {
         self.grid.memory_bytes()

@@ -5,11 +5,12 @@
 //! interpolated to each finer grid, grown to the points still missed
 //! ([`grow_to_points`]), and evolved on the finest.
 
-use crate::band::{inside, is_inner, BandDistance, NarrowBand};
+use crate::band::{inside, is_inner, NarrowBand};
 use crate::tagging::{fast_tag_with, Tag, TagStore};
 use crate::error::Result;
 use crate::reinit::reinitialize;
 use rayon::prelude::*;
+use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::DVec3;
 use surfrecon_grid::sparse::{BlockGrid, BLOCK};
 use surfrecon_grid::spec::for_each_in_box;
@@ -256,15 +257,16 @@ pub const BURIED_CELLS: f64 = 2.0;
 /// short of its apex and the fine convection stalls on its bisector, where
 /// d has no slope across). Around every point more than [`BURIED_CELLS`]
 /// cells inside the surface, the fast tagging runs again on this level's
-/// distance `d`, within `radius` of such points, from the outside next to
-/// them: it turns inside nodes outside only downhill in d and down to
-/// d = one cell, so it stops at the data and cannot cross a gap between
-/// samples (nor, with `keep_topology`, change the topology). The opened
-/// nodes get φ = d; φ elsewhere is kept. Returns the band (reinitialized)
-/// and the number of buried points.
+/// grid, within `radius` of such points, from the outside next to them,
+/// on the exact distance to the points (the interpolated coarse distance
+/// is off by up to a fine cell, enough to block the walk into a wedge):
+/// it turns inside nodes outside only downhill in d and down to d = one
+/// cell, so it stops at the data and cannot cross a gap between samples
+/// (nor, with `keep_topology`, change the topology). The opened nodes get
+/// φ = d; φ elsewhere is kept. Returns the band (reinitialized) and the
+/// number of buried points.
 pub fn reopen_near_buried<const D: usize>(
     band: NarrowBand<D>,
-    d: &mut BandDistance<D>,
     points: &[DVec3],
     radius: f64,
     keep_topology: bool,
@@ -279,7 +281,7 @@ pub fn reopen_near_buried<const D: usize>(
     let region = nodes_near(&spec, &buried, radius, |idx| {
         is_inner(&spec, idx) && inside(band.phi.get(idx))
     });
-    d.cover_nodes(region.iter().map(|&n| spec.unlinear(n)));
+    let distance = distances_to_points(&spec, &region, points);
     let mut tags = LocalTags {
         tags: region.iter().map(|&n| (n, Tag::Interior)).collect(),
         other: |n: usize| {
@@ -304,7 +306,8 @@ pub fn reopen_near_buried<const D: usize>(
     for &n in &front {
         tags.set_tag(n as usize, Tag::Temporary);
     }
-    let dist = |n: usize| d.get(spec.unlinear(n)).unwrap_or(0.0);
+    // The walk reads d only at region nodes.
+    let dist = |n: usize| distance.get(&n).copied().unwrap_or(0.0);
     fast_tag_with(&strides, dist, &mut tags, &front, h, keep_topology);
     let opened: Vec<(usize, f64)> = region
         .iter()
@@ -322,6 +325,25 @@ pub fn reopen_near_buried<const D: usize>(
     let mut band = NarrowBand::from_grid(grid, half_width);
     reinitialize(&mut band);
     (band, buried.len())
+}
+
+/// Distance from each node of `nodes` (linear indices) to the nearest of
+/// `points`.
+fn distances_to_points<const D: usize>(
+    spec: &GridSpec<D>,
+    nodes: &[usize],
+    points: &[DVec3],
+) -> std::collections::HashMap<usize, f64> {
+    let tree = KdTree::new(points);
+    nodes
+        .par_iter()
+        .map(|&n| {
+            let x = spec.position(spec.unlinear(n));
+            let c = |a: usize| if a < D { x[a] } else { 0.0 };
+            let q = DVec3::new(c(0), c(1), c(2));
+            (n, tree.nearest(q).map_or(f64::INFINITY, |nb| nb.distance))
+        })
+        .collect()
 }
 
 /// Linear indices (sorted) of the nodes within `radius` of any of

@@ -549,6 +549,15 @@ fn evolve_field<const D: usize>(
         band = grown;
         report.grown_to_points += missed;
     }
+    if levels > 1 {
+        // The coarse levels filled concavities narrower than their cells.
+        let epsilon = report.epsilon;
+        let (reopened, buried) = report.time("reopen", || {
+            reopen_near_buried(band, &input.points, epsilon, params.keep_topology)
+        });
+        band = reopened;
+        report.reopened_near_points = buried;
+    }
     check(hook, "distance")?;
     let mut d = if levels == 1 {
         BandDistance::dense(coarsest_d)?
@@ -557,15 +566,6 @@ fn evolve_field<const D: usize>(
             refined_distance(input, &surfels, fine, coarsest_d, FINE_EXACT_CELLS)
         })?
     };
-    if levels > 1 {
-        // The coarse levels filled concavities narrower than their cells.
-        let epsilon = report.epsilon;
-        let (reopened, buried) = report.time("reopen", || {
-            reopen_near_buried(band, &mut d, &input.points, epsilon, params.keep_topology)
-        });
-        band = reopened;
-        report.reopened_near_points = buried;
-    }
     let data = LevelData {
         input,
         sampling,
