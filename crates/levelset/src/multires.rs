@@ -6,9 +6,9 @@
 //! ([`grow_to_points`]), and evolved on the finest.
 
 use crate::band::{inside, is_inner, NarrowBand};
-use crate::tagging::{fast_tag_with, Tag, TagStore};
 use crate::error::Result;
 use crate::reinit::reinitialize;
+use crate::tagging::{fast_tag_with, Tag, TagStore};
 use rayon::prelude::*;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::DVec3;
@@ -381,7 +381,10 @@ struct LocalTags<F> {
 
 impl<F: Fn(usize) -> Tag> TagStore for LocalTags<F> {
     fn tag(&self, n: usize) -> Tag {
-        self.tags.get(&n).copied().unwrap_or_else(|| (self.other)(n))
+        self.tags
+            .get(&n)
+            .copied()
+            .unwrap_or_else(|| (self.other)(n))
     }
     fn set_tag(&mut self, n: usize, t: Tag) {
         self.tags.insert(n, t);

@@ -159,7 +159,14 @@ pub fn fast_tag<const D: usize>(
     keep_topology: bool,
 ) -> usize {
     let strides = d.spec.strides();
-    fast_tag_with(&strides, |n| d.values[n], tags, front, tolerance, keep_topology)
+    fast_tag_with(
+        &strides,
+        |n| d.values[n],
+        tags,
+        front,
+        tolerance,
+        keep_topology,
+    )
 }
 
 /// [`fast_tag`] on any store of tags over a grid with `strides`, reading d
@@ -174,8 +181,10 @@ pub fn fast_tag_with<const D: usize, S: TagStore + ?Sized>(
     keep_topology: bool,
 ) -> usize {
     let cube = Neighbourhood::new(strides);
-    let mut heap: BinaryHeap<(u64, u32)> =
-        front.iter().map(|&l| key(d(l as usize), l as usize)).collect();
+    let mut heap: BinaryHeap<(u64, u32)> = front
+        .iter()
+        .map(|&l| key(d(l as usize), l as usize))
+        .collect();
     let mut pops = 0;
     while let Some(&(bits, l)) = heap.peek() {
         let dist = f64::from_bits(bits);

@@ -790,7 +790,11 @@ fn the_fine_level_reopens_a_wedge_the_coarse_level_filled() {
         ..Default::default()
     };
     let r = reconstruct_3d(&input, &params).unwrap();
-    assert_eq!(topology(&r.mesh), (true, 2, 1), "one closed piece of genus 0");
+    assert_eq!(
+        topology(&r.mesh),
+        (true, 2, 1),
+        "one closed piece of genus 0"
+    );
     let fit = surfrecon_geom::data_fit::data_fit(&r.mesh, &input.points).unwrap();
     assert!(
         fit.max < 0.022,
