@@ -8,7 +8,9 @@
 use crate::band::{inside, is_inner, NarrowBand};
 use crate::error::Result;
 use crate::reinit::reinitialize;
+use crate::tagging::{fast_tag_with, Tag, TagStore};
 use rayon::prelude::*;
+use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::DVec3;
 use surfrecon_grid::sparse::{BlockGrid, BLOCK};
 use surfrecon_grid::spec::for_each_in_box;
@@ -228,12 +230,165 @@ fn points_outside<const D: usize>(
     points: &[DVec3],
     beyond: f64,
 ) -> Vec<[f64; D]> {
+    points_where(band, points, |phi| phi > beyond)
+}
+
+/// The points where φ (interpolated) satisfies `keep`.
+fn points_where<const D: usize>(
+    band: &NarrowBand<D>,
+    points: &[DVec3],
+    keep: impl Fn(f64) -> bool + Sync,
+) -> Vec<[f64; D]> {
     let spec = *band.spec();
     points
         .par_iter()
         .map(|p| -> [f64; D] { std::array::from_fn(|a| p[a]) })
-        .filter(|&p| interpolate_with(&spec, |i| band.phi.get(i), p) > beyond)
+        .filter(|&p| keep(interpolate_with(&spec, |i| band.phi.get(i), p)))
         .collect()
+}
+
+/// Points deeper inside the inherited surface than this many cells count
+/// as buried ([`reopen_near_buried`]): like [`MISSED_CELLS`] outside, a
+/// coarser zero set is within two fine cells of what it reached.
+pub const BURIED_CELLS: f64 = 2.0;
+
+/// Re-open the concavities a coarser level filled in (a narrow wedge
+/// between a fin and the body: the coarse tagging stops a coarse cell
+/// short of its apex and the fine convection stalls on its bisector, where
+/// d has no slope across). Around every point more than [`BURIED_CELLS`]
+/// cells inside the surface, the fast tagging runs again on this level's
+/// grid, within `radius` of such points, from the outside next to them,
+/// on the exact distance to the points (the interpolated coarse distance
+/// is off by up to a fine cell, enough to block the walk into a wedge):
+/// it turns inside nodes outside only downhill in d and down to d = one
+/// cell, so it stops at the data and cannot cross a gap between samples
+/// (nor, with `keep_topology`, change the topology). The opened nodes get
+/// φ = d; φ elsewhere is kept. Returns the band (reinitialized) and the
+/// number of buried points.
+pub fn reopen_near_buried<const D: usize>(
+    band: NarrowBand<D>,
+    points: &[DVec3],
+    radius: f64,
+    keep_topology: bool,
+) -> (NarrowBand<D>, usize) {
+    let spec = *band.spec();
+    let h = spec.spacing;
+    let buried = points_where(&band, points, |phi| phi < -BURIED_CELLS * h);
+    if buried.is_empty() {
+        return (band, 0);
+    }
+    let phi_at = |n: usize| band.phi.get(spec.unlinear(n));
+    let region = nodes_near(&spec, &buried, radius, |idx| {
+        is_inner(&spec, idx) && inside(band.phi.get(idx))
+    });
+    let distance = distances_to_points(&spec, &region, points);
+    let mut tags = LocalTags {
+        tags: region.iter().map(|&n| (n, Tag::Interior)).collect(),
+        other: |n: usize| {
+            if inside(phi_at(n)) {
+                Tag::Boundary
+            } else {
+                Tag::Exterior
+            }
+        },
+    };
+    let strides = spec.strides();
+    let front: Vec<u32> = region
+        .iter()
+        .copied()
+        .filter(|&n| {
+            strides
+                .iter()
+                .any(|&s| tags.tag(n - s) == Tag::Exterior || tags.tag(n + s) == Tag::Exterior)
+        })
+        .map(|n| n as u32)
+        .collect();
+    for &n in &front {
+        tags.set_tag(n as usize, Tag::Temporary);
+    }
+    // The walk reads d only at region nodes.
+    let dist = |n: usize| distance.get(&n).copied().unwrap_or(0.0);
+    fast_tag_with(&strides, dist, &mut tags, &front, h, keep_topology);
+    let opened: Vec<(usize, f64)> = region
+        .iter()
+        .filter(|&&n| tags.tag(n) == Tag::Exterior)
+        .map(|&n| (n, dist(n)))
+        .collect();
+    if opened.is_empty() {
+        return (band, buried.len());
+    }
+    let half_width = band.half_width;
+    let mut grid = band.phi;
+    for (n, dn) in opened {
+        grid.set(spec.unlinear(n), dn.clamp(0.5 * h, half_width));
+    }
+    let mut band = NarrowBand::from_grid(grid, half_width);
+    reinitialize(&mut band);
+    (band, buried.len())
+}
+
+/// Distance from each node of `nodes` (linear indices) to the nearest of
+/// `points`.
+fn distances_to_points<const D: usize>(
+    spec: &GridSpec<D>,
+    nodes: &[usize],
+    points: &[DVec3],
+) -> std::collections::HashMap<usize, f64> {
+    let tree = KdTree::new(points);
+    nodes
+        .par_iter()
+        .map(|&n| {
+            let x = spec.position(spec.unlinear(n));
+            let c = |a: usize| if a < D { x[a] } else { 0.0 };
+            let q = DVec3::new(c(0), c(1), c(2));
+            (n, tree.nearest(q).map_or(f64::INFINITY, |nb| nb.distance))
+        })
+        .collect()
+}
+
+/// Linear indices (sorted) of the nodes within `radius` of any of
+/// `centres` that satisfy `keep`.
+fn nodes_near<const D: usize>(
+    spec: &GridSpec<D>,
+    centres: &[[f64; D]],
+    radius: f64,
+    keep: impl Fn([usize; D]) -> bool,
+) -> Vec<usize> {
+    let mut found = std::collections::HashSet::new();
+    for p in centres {
+        let Some((lo, hi)) = spec.node_box((*p, *p), radius) else {
+            continue;
+        };
+        for_each_in_box(lo, hi, |&idx| {
+            let x = spec.position(idx);
+            let r2: f64 = (0..D).map(|a| (x[a] - p[a]).powi(2)).sum();
+            if r2 <= radius * radius && keep(idx) {
+                found.insert(spec.linear(idx));
+            }
+        });
+    }
+    let mut nodes: Vec<usize> = found.into_iter().collect();
+    nodes.sort_unstable();
+    nodes
+}
+
+/// Tags of a region's nodes; every other node keeps the side `other`
+/// gives it, frozen (inside nodes there are final boundary nodes).
+struct LocalTags<F> {
+    tags: std::collections::HashMap<usize, Tag>,
+    other: F,
+}
+
+impl<F: Fn(usize) -> Tag> TagStore for LocalTags<F> {
+    fn tag(&self, n: usize) -> Tag {
+        self.tags
+            .get(&n)
+            .copied()
+            .unwrap_or_else(|| (self.other)(n))
+    }
+    fn set_tag(&mut self, n: usize, t: Tag) {
+        self.tags.insert(n, t);
+    }
 }
 
 #[cfg(test)]

@@ -11,7 +11,8 @@ use crate::error::{LevelsetError, Result};
 use crate::flow::{evolve, Anchors, EvolveParams, EvolveStats, Motion};
 use crate::holes::seal_with_normals;
 use crate::multires::{
-    auto_levels, coarsen, grow_to_points, interpolate, restore_near_missed, upsample_band,
+    auto_levels, coarsen, grow_to_points, interpolate, reopen_near_buried, restore_near_missed,
+    upsample_band,
 };
 use crate::refine::{refine_surface, RefineOptions, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
@@ -191,6 +192,10 @@ pub struct Report {
     /// Points the coarsest evolution left outside, around which the tagged
     /// inside was put back ([`crate::multires::restore_near_missed`]).
     pub restored_near_points: usize,
+    /// Points the coarser levels' surface buried inside, around which the
+    /// finest level re-opened the filled concavities
+    /// ([`crate::multires::reopen_near_buried`]).
+    pub reopened_near_points: usize,
     /// Nodes the points' oriented normals sealed against the exterior
     /// flood ([`crate::holes`]).
     pub sealed_nodes: usize,
@@ -543,6 +548,15 @@ fn evolve_field<const D: usize>(
         let (grown, missed) = report.time("grow", || grow_to_points(band, &input.points, radius));
         band = grown;
         report.grown_to_points += missed;
+    }
+    if levels > 1 {
+        // The coarse levels filled concavities narrower than their cells.
+        let epsilon = report.epsilon;
+        let (reopened, buried) = report.time("reopen", || {
+            reopen_near_buried(band, &input.points, epsilon, params.keep_topology)
+        });
+        band = reopened;
+        report.reopened_near_points = buried;
     }
     check(hook, "distance")?;
     let mut d = if levels == 1 {

@@ -130,6 +130,21 @@ fn key(d: f64, l: usize) -> (u64, u32) {
     (d.max(0.0).to_bits(), l as u32)
 }
 
+/// Node labels the fast tagging reads and writes, by linear node index.
+pub trait TagStore {
+    fn tag(&self, n: usize) -> Tag;
+    fn set_tag(&mut self, n: usize, t: Tag);
+}
+
+impl TagStore for [Tag] {
+    fn tag(&self, n: usize) -> Tag {
+        self[n]
+    }
+    fn set_tag(&mut self, n: usize, t: Tag) {
+        self[n] = t;
+    }
+}
+
 /// The fast tagging algorithm on `tags` (from [`outer_contour`]; the seeds
 /// in `front` must be tagged [`Tag::Temporary`]). With `keep_topology`, a
 /// node whose removal would change the topology of the inside (a simple
@@ -144,11 +159,31 @@ pub fn fast_tag<const D: usize>(
     keep_topology: bool,
 ) -> usize {
     let strides = d.spec.strides();
-    let cube = Neighbourhood::new(&strides);
-    let is_inside = |tags: &[Tag], n: usize| tags[n] != Tag::Exterior;
+    fast_tag_with(
+        &strides,
+        |n| d.values[n],
+        tags,
+        front,
+        tolerance,
+        keep_topology,
+    )
+}
+
+/// [`fast_tag`] on any store of tags over a grid with `strides`, reading d
+/// by `d` (only at interior and temporary nodes, which must not touch the
+/// grid border).
+pub fn fast_tag_with<const D: usize, S: TagStore + ?Sized>(
+    strides: &[usize; D],
+    d: impl Fn(usize) -> f64,
+    tags: &mut S,
+    front: &[u32],
+    tolerance: f64,
+    keep_topology: bool,
+) -> usize {
+    let cube = Neighbourhood::new(strides);
     let mut heap: BinaryHeap<(u64, u32)> = front
         .iter()
-        .map(|&l| key(d.values[l as usize], l as usize))
+        .map(|&l| key(d(l as usize), l as usize))
         .collect();
     let mut pops = 0;
     while let Some(&(bits, l)) = heap.peek() {
@@ -162,24 +197,23 @@ pub fn fast_tag<const D: usize>(
         // Interior nodes never touch the grid border (the border is
         // exterior), so their neighbours are all in range.
         let neighbours = || strides.iter().flat_map(move |&s| [l - s, l + s]);
-        let blocked = neighbours().any(|n| tags[n] == Tag::Interior && d.values[n] >= dist)
-            || (keep_topology && !cube.is_simple(l, |n| is_inside(tags, n)));
+        let blocked = neighbours().any(|n| tags.tag(n) == Tag::Interior && d(n) >= dist)
+            || (keep_topology && !cube.is_simple(l, |n| tags.tag(n) != Tag::Exterior));
         if blocked {
-            tags[l] = Tag::Boundary;
+            tags.set_tag(l, Tag::Boundary);
             continue;
         }
-        tags[l] = Tag::Exterior;
+        tags.set_tag(l, Tag::Exterior);
         for n in neighbours() {
-            if tags[n] == Tag::Interior {
-                tags[n] = Tag::Temporary;
-                heap.push(key(d.values[n], n));
+            if tags.tag(n) == Tag::Interior {
+                tags.set_tag(n, Tag::Temporary);
+                heap.push(key(d(n), n));
             }
         }
     }
-    for t in tags.iter_mut() {
-        if *t == Tag::Temporary {
-            *t = Tag::Boundary;
-        }
+    // What is left in the heap is exactly the temporary nodes.
+    for (_, l) in heap {
+        tags.set_tag(l as usize, Tag::Boundary);
     }
     pops
 }

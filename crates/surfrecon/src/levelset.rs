@@ -111,6 +111,7 @@ fn report(
             removed_components: r.removed_components,
             grown_to_points: r.grown_to_points,
             restored_near_points: r.restored_near_points,
+            reopened_near_points: r.reopened_near_points,
             sealed_by_normals: r.sealed_nodes,
         },
         band_nodes: r.band_nodes,

@@ -132,6 +132,7 @@ pub struct TaggingReport {
     pub removed_components: usize,
     pub grown_to_points: usize,
     pub restored_near_points: usize,
+    pub reopened_near_points: usize,
     pub sealed_by_normals: usize,
 }
 
