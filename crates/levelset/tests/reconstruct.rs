@@ -723,6 +723,38 @@ fn oriented_normals_keep_the_outside_out_of_wide_holes() {
     );
 }
 
+/// A unit sphere crossed by a plate 0.06 thick at y = -0.6 (its upper
+/// face meets the sphere at 53°), sampled with normals: each part's
+/// points outside the other part, those where `keep` holds.
+fn sphere_and_plate(
+    sphere_points: usize,
+    plate_points: usize,
+    keep: impl Fn(&DVec3) -> bool,
+) -> Input {
+    let (plate_lo, plate_hi) = (DVec3::new(-1.4, -0.63, -0.3), DVec3::new(-0.2, -0.57, 0.3));
+    let in_plate = |p: &DVec3| p.cmpgt(plate_lo).all() && p.cmplt(plate_hi).all();
+    let sphere = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), sphere_points, 5);
+    let plate = sample_surface(
+        &surfrecon_geom::shapes::cuboid(plate_lo, plate_hi),
+        plate_points,
+        6,
+    );
+    let mut input = Input::default();
+    let parts: [(&surfrecon_geom::PointCloud, &dyn Fn(&DVec3) -> bool); 2] = [
+        (&sphere, &|p| !in_plate(p)),
+        (&plate, &|p| p.length() > 1.0),
+    ];
+    for (cloud, outside_other) in parts {
+        for (p, n) in cloud.positions.iter().zip(cloud.normals.as_ref().unwrap()) {
+            if outside_other(p) && keep(p) {
+                input.points.push(*p);
+                input.normals.push(*n);
+            }
+        }
+    }
+    input
+}
+
 #[test]
 fn a_hole_does_not_web_a_narrow_wedge() {
     // A unit sphere crossed by a plate 0.06 thick at y = -0.6 (its upper
@@ -732,23 +764,8 @@ fn a_hole_does_not_web_a_narrow_wedge() {
     // did not open it again: a web from the plate to the sphere left the
     // points in the wedge 4.1% of the diagonal off the surface. The
     // normals seal the hole at the starting ε instead.
-    let (plate_lo, plate_hi) = (DVec3::new(-1.4, -0.63, -0.3), DVec3::new(-0.2, -0.57, 0.3));
-    let in_plate = |p: &DVec3| p.cmpgt(plate_lo).all() && p.cmplt(plate_hi).all();
-    let sphere = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 8000, 5);
-    let plate = sample_surface(&surfrecon_geom::shapes::cuboid(plate_lo, plate_hi), 2000, 6);
     let hole = DVec3::new(0.5, 0.6, 0.62).normalize();
-    // Each part's points outside the other part, minus the hole.
-    let mut input = Input::default();
-    let mut add = |cloud: &surfrecon_geom::PointCloud, outside_other: &dyn Fn(&DVec3) -> bool| {
-        for (p, n) in cloud.positions.iter().zip(cloud.normals.as_ref().unwrap()) {
-            if outside_other(p) && p.distance(hole) > 0.35 {
-                input.points.push(*p);
-                input.normals.push(*n);
-            }
-        }
-    };
-    add(&sphere, &|p| !in_plate(p));
-    add(&plate, &|p| p.length() > 1.0);
+    let input = sphere_and_plate(8000, 2000, |p| p.distance(hole) > 0.35);
     let r = reconstruct_3d(&input, &ReconstructParams::default()).unwrap();
     assert_eq!(
         topology(&r.mesh),
@@ -776,15 +793,7 @@ fn the_fine_level_reopens_a_wedge_the_coarse_level_filled() {
     // sphere a coarse cell deep and the fine convection stalls on its
     // bisector: the points at its apex were 2.71% of the diagonal off the
     // surface. The fine level re-tags around them: 1.85%.
-    let (plate_lo, plate_hi) = (DVec3::new(-1.4, -0.63, -0.3), DVec3::new(-0.2, -0.57, 0.3));
-    let in_plate = |p: &DVec3| p.cmpgt(plate_lo).all() && p.cmplt(plate_hi).all();
-    let sphere = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 16000, 5);
-    let plate = sample_surface(&surfrecon_geom::shapes::cuboid(plate_lo, plate_hi), 4000, 6);
-    let points: Vec<DVec3> = (sphere.positions.iter().filter(|p| !in_plate(p)))
-        .chain(plate.positions.iter().filter(|p| p.length() > 1.0))
-        .copied()
-        .collect();
-    let input = Input::from_points(points);
+    let input = Input::from_points(sphere_and_plate(16000, 4000, |_| true).points);
     let params = ReconstructParams {
         levels: Some(2),
         ..Default::default()
