@@ -740,18 +740,16 @@ fn sphere_and_plate(
         6,
     );
     let mut input = Input::default();
-    let parts: [(&surfrecon_geom::PointCloud, &dyn Fn(&DVec3) -> bool); 2] = [
-        (&sphere, &|p| !in_plate(p)),
-        (&plate, &|p| p.length() > 1.0),
-    ];
-    for (cloud, outside_other) in parts {
+    let mut add = |cloud: &surfrecon_geom::PointCloud, outside_other: &dyn Fn(&DVec3) -> bool| {
         for (p, n) in cloud.positions.iter().zip(cloud.normals.as_ref().unwrap()) {
             if outside_other(p) && keep(p) {
                 input.points.push(*p);
                 input.normals.push(*n);
             }
         }
-    }
+    };
+    add(&sphere, &|p| !in_plate(p));
+    add(&plate, &|p| p.length() > 1.0);
     input
 }
 
