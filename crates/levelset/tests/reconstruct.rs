@@ -3,7 +3,9 @@
 use std::collections::HashMap;
 use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
 use surfrecon_geom::{DVec3, TriMesh};
-use surfrecon_levelset::{reconstruct_2d, reconstruct_3d, Input, ReconstructParams};
+use surfrecon_levelset::{
+    reconstruct_2d, reconstruct_3d, Input, ReconstructParams, Reconstruction3,
+};
 
 /// Watertight (every edge in exactly two triangles, consistently oriented),
 /// Euler characteristic, connected components.
@@ -753,6 +755,23 @@ fn sphere_and_plate(
     input
 }
 
+/// One closed piece of genus 0 whose farthest input point is within
+/// `max` of the diagonal.
+fn assert_one_closed_sphere_reaching(r: &Reconstruction3, points: &[DVec3], max: f64) {
+    assert_eq!(
+        topology(&r.mesh),
+        (true, 2, 1),
+        "one closed piece of genus 0"
+    );
+    let fit = surfrecon_geom::data_fit::data_fit(&r.mesh, points).unwrap();
+    assert!(
+        fit.max < max,
+        "farthest point {:.2}% of the diagonal at {:?}",
+        100.0 * fit.max,
+        fit.farthest
+    );
+}
+
 #[test]
 fn a_hole_does_not_web_a_narrow_wedge() {
     // A unit sphere crossed by a plate 0.06 thick at y = -0.6 (its upper
@@ -765,18 +784,7 @@ fn a_hole_does_not_web_a_narrow_wedge() {
     let hole = DVec3::new(0.5, 0.6, 0.62).normalize();
     let input = sphere_and_plate(8000, 2000, |p| p.distance(hole) > 0.35);
     let r = reconstruct_3d(&input, &ReconstructParams::default()).unwrap();
-    assert_eq!(
-        topology(&r.mesh),
-        (true, 2, 1),
-        "one closed piece of genus 0"
-    );
-    let fit = surfrecon_geom::data_fit::data_fit(&r.mesh, &input.points).unwrap();
-    assert!(
-        fit.max < 0.02,
-        "farthest point {:.2}% of the diagonal at {:?}",
-        100.0 * fit.max,
-        fit.farthest
-    );
+    assert_one_closed_sphere_reaching(&r, &input.points, 0.02);
     assert!(
         r.report.sealed_nodes > 0,
         "the hole was sealed by the normals"
@@ -797,18 +805,7 @@ fn the_fine_level_reopens_a_wedge_the_coarse_level_filled() {
         ..Default::default()
     };
     let r = reconstruct_3d(&input, &params).unwrap();
-    assert_eq!(
-        topology(&r.mesh),
-        (true, 2, 1),
-        "one closed piece of genus 0"
-    );
-    let fit = surfrecon_geom::data_fit::data_fit(&r.mesh, &input.points).unwrap();
-    assert!(
-        fit.max < 0.022,
-        "farthest point {:.2}% of the diagonal at {:?}",
-        100.0 * fit.max,
-        fit.farthest
-    );
+    assert_one_closed_sphere_reaching(&r, &input.points, 0.022);
     assert!(r.report.reopened_near_points > 0, "points were buried");
 }
 
