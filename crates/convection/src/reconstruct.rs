@@ -1,6 +1,7 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
-use crate::decimate::{decimate, Brush, Decimation};
+use crate::decimate::{Brush, Decimation};
+use crate::front::{decimate_on_the_fly, FrontStats};
 use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
 use crate::flips::flip_to_lower_bending;
@@ -118,6 +119,8 @@ pub struct Report {
     pub points: usize,
     /// Input points removed by the decimation (`rho`), after refinement.
     pub decimated: usize,
+    /// The decimation's convection front (all zero without `rho`).
+    pub front: FrontStats,
     /// Triangle-quality refinement (`refine_alpha`, `refine_gamma`).
     pub refine: RefineStats,
     /// Input points that are exact duplicates of an earlier one.
@@ -221,7 +224,7 @@ pub fn reconstruct(
             ..b
         }),
     };
-    let mut keep = decimate(points, &unit, &settings);
+    let (mut keep, front) = decimate_on_the_fly(points, &unit, &settings);
     let seconds = clock.elapsed().as_secs_f64();
     let quality = Quality {
         alpha: params.refine_alpha,
@@ -260,6 +263,7 @@ pub fn reconstruct(
     r.mesh.vertices = points.to_vec();
     r.report.points = points.len();
     r.report.decimated = points.len() - kept.len();
+    r.report.front = front;
     r.report.seconds.decimation = seconds;
     r.report.seconds.refine = refine_seconds;
     r.report.refine = refine_stats;
@@ -366,7 +370,7 @@ impl DynamicSurface {
     }
 }
 
-fn bounding_diagonal(points: &[DVec3]) -> f64 {
+pub(crate) fn bounding_diagonal(points: &[DVec3]) -> f64 {
     let lo = points.iter().fold(DVec3::splat(f64::MAX), |a, &p| a.min(p));
     let hi = points.iter().fold(DVec3::splat(f64::MIN), |a, &p| a.max(p));
     lo.distance(hi)
