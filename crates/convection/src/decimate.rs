@@ -1,7 +1,7 @@
 //! Decimation of the input points by the paper's two criteria, before the
-//! triangulation (the paper decimates on the fly as points join the
-//! surface; here the region growing is the same but runs over the input in
-//! its given order).
+//! triangulation, in input order ([`crate::front`] decimates on the fly, as
+//! the paper does, in the order a convection front reaches the points;
+//! both grow the same disks, [`remove_around`]).
 //!
 //! Each point not yet removed is kept and grows a ball over its nearest
 //! neighbours, closest first, up to a radius. A neighbour `q` is removed

@@ -88,7 +88,10 @@ struct Ball {
 impl Ball {
     /// Squared distance from the centre to a box.
     fn gap2(&self, [lo, hi]: [DVec3; 2]) -> f64 {
-        (lo - self.centre).max(self.centre - hi).max(DVec3::ZERO).length_squared()
+        (lo - self.centre)
+            .max(self.centre - hi)
+            .max(DVec3::ZERO)
+            .length_squared()
     }
 
     fn holds(&self, p: DVec3) -> bool {
@@ -237,4 +240,3 @@ impl LiveTree {
         best.map(|(i, _)| i)
     }
 }
-

@@ -1,10 +1,10 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
-use crate::decimate::{Brush, Decimation};
-use crate::front::{decimate_on_the_fly, FrontStats};
+use crate::decimate::{decimate, Brush, Decimation};
 use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
 use crate::flips::flip_to_lower_bending;
+use crate::front::{decimate_on_the_fly, FrontStats};
 use crate::holes::{open_sampling_holes, HoleRule};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::refine::{refine, Quality, RefineStats};
@@ -46,6 +46,13 @@ pub struct Params {
     pub rho_geometric: f64,
     /// The topological-disk criterion's cosine ρ′ (1: off).
     pub rho_topo: f64,
+    /// Decimate on the fly, in the order a convection front from the
+    /// convex hull reaches the points, without a triangulation of all of
+    /// them ([`crate::front`], the paper's scheme); otherwise in input
+    /// order before the triangulation ([`crate::decimate`]). The front
+    /// keeps the points it meets first (extremes, tips) and fits closer at
+    /// the same `rho`, at several times the cost.
+    pub decimate_on_the_fly: bool,
     /// The paper's brush: the decimation radius varies from `rho_centre`
     /// at the centre to `rho` at the brush's reach. Centre and reach in the
     /// points' units, `rho_centre` like `rho` a fraction of the diagonal.
@@ -81,6 +88,7 @@ impl Default for Params {
             rho: 0.0,
             rho_geometric: 0.9,
             rho_topo: 0.95,
+            decimate_on_the_fly: false,
             brush: None,
             max_hole_edges: 24,
             refine_alpha: 0.0,
@@ -119,8 +127,8 @@ pub struct Report {
     pub points: usize,
     /// Input points removed by the decimation (`rho`), after refinement.
     pub decimated: usize,
-    /// The decimation's convection front (all zero without `rho`).
-    pub front: FrontStats,
+    /// The decimation's convection front (`decimate_on_the_fly`).
+    pub front: Option<FrontStats>,
     /// Triangle-quality refinement (`refine_alpha`, `refine_gamma`).
     pub refine: RefineStats,
     /// Input points that are exact duplicates of an earlier one.
@@ -224,7 +232,13 @@ pub fn reconstruct(
             ..b
         }),
     };
-    let (mut keep, front) = decimate_on_the_fly(points, &unit, &settings);
+    let (mut keep, front) = match params.decimate_on_the_fly {
+        true => {
+            let (keep, stats) = decimate_on_the_fly(points, &unit, &settings);
+            (keep, Some(stats))
+        }
+        false => (decimate(points, &unit, &settings), None),
+    };
     let seconds = clock.elapsed().as_secs_f64();
     let quality = Quality {
         alpha: params.refine_alpha,
