@@ -193,6 +193,7 @@ fn convection_options(u: &mut Unstructured) -> Result<surfrecon::ConvectionOptio
         rho: pick_f64(u, &[0.0, 0.0, 0.05, 0.3, 2.0, -1.0])?,
         rho_geom: pick_f64(u, &[d.rho_geom, 0.0, 1.0, -1.0])?,
         rho_topo: pick_f64(u, &[d.rho_topo, 1.0, 0.0])?,
+        decimate_on_the_fly: u.arbitrary()?,
         fill_holes: u.int_in_range(0..=30)?,
         pockets: u.arbitrary()?,
         thin_parts: u.arbitrary()?,

@@ -1,7 +1,7 @@
 //! Decimation of the input points by the paper's two criteria, before the
-//! triangulation (the paper decimates on the fly as points join the
-//! surface; here the region growing is the same but runs over the input in
-//! its given order).
+//! triangulation, in input order ([`crate::front`] decimates on the fly, as
+//! the paper does, in the order a convection front reaches the points;
+//! both grow the same disks, [`remove_around`]).
 //!
 //! Each point not yet removed is kept and grows a ball over its nearest
 //! neighbours, closest first, up to a radius. A neighbour `q` is removed
@@ -34,6 +34,15 @@ pub struct Decimation {
 }
 
 impl Decimation {
+    /// The largest ball radius anywhere (the brush's centre may exceed
+    /// `radius`).
+    pub fn largest_radius(&self) -> f64 {
+        match &self.brush {
+            Some(b) => self.radius.max(b.rho_centre),
+            None => self.radius,
+        }
+    }
+
     /// The decimation ball radius around `p`.
     pub fn radius_at(&self, p: DVec3) -> f64 {
         match &self.brush {
@@ -105,7 +114,7 @@ pub fn redecimate_region(
 
 /// Every undecided point, in input order, is kept and removes its
 /// undecided neighbours by the two criteria.
-fn grow_disks(
+pub(crate) fn grow_disks(
     tree: &KdTree,
     points: &[DVec3],
     normals: &[DVec3],
@@ -118,23 +127,43 @@ fn grow_disks(
             continue;
         }
         decided[p] = true;
-        let mut near = tree.within(points[p], settings.radius_at(points[p]));
-        near.sort_by(|a, b| {
-            a.distance
-                .total_cmp(&b.distance)
-                .then(a.index.cmp(&b.index))
-        });
-        for q in near.into_iter().map(|n| n.index).filter(|&q| q != p) {
-            if decided[q] && keep[q] {
-                // Another kept point: the disk reaches no further this way.
-                continue;
-            }
-            if !removable(points, normals, p, q, settings) {
-                break;
-            }
-            keep[q] = false;
-            decided[q] = true;
+        remove_around(tree, points, normals, settings, p, keep, decided, |_| {});
+    }
+}
+
+/// The kept point `p` grows its disk: undecided neighbours within the
+/// radius, closest first, are removed until one fails a criterion;
+/// `on_remove` hears of each.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn remove_around(
+    tree: &KdTree,
+    points: &[DVec3],
+    normals: &[DVec3],
+    settings: &Decimation,
+    p: usize,
+    keep: &mut [bool],
+    decided: &mut [bool],
+    mut on_remove: impl FnMut(usize),
+) {
+    let mut near = tree.within(points[p], settings.radius_at(points[p]));
+    near.sort_by(|a, b| {
+        a.distance
+            .total_cmp(&b.distance)
+            .then(a.index.cmp(&b.index))
+    });
+    for q in near.into_iter().map(|n| n.index).filter(|&q| q != p) {
+        if decided[q] && keep[q] {
+            // Another kept point: the disk reaches no further this way.
+            continue;
         }
+        if !removable(points, normals, p, q, settings) {
+            break;
+        }
+        if !decided[q] {
+            on_remove(q);
+        }
+        keep[q] = false;
+        decided[q] = true;
     }
 }
 

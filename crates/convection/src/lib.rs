@@ -30,9 +30,11 @@
 //!    fewer pieces.
 //!
 //! With `Params::rho > 0` the input is first decimated by the paper's
-//! geometric and topological-disk criteria ([`decimate`]), before the
-//! triangulation rather than on the fly; a [`decimate::Brush`] varies the
-//! radius locally.
+//! geometric and topological-disk criteria, before the triangulation: in
+//! input order ([`decimate`]), or on the fly in the order a convection
+//! front from the hull reaches the points, without a triangulation
+//! ([`front`], `Params::decimate_on_the_fly`). A [`decimate::Brush`] varies
+//! the radius locally.
 //!
 //! Dynamic correction ([`dynamic`]): a [`DynamicSurface`] inserts and
 //! removes points and updates the Gabriel pseudo-surface locally (the same
@@ -48,16 +50,18 @@
 //! refinement, [`reconstruct`] makes its mesh that way on the refined
 //! triangulation.
 //!
-//! Not done yet (see the paper): decimation on the fly during the
-//! convection, pockets and thin parts updated locally by the dynamic
-//! update itself.
+//! Not done yet (see the paper): pockets and thin parts updated locally by
+//! the dynamic update itself; the front's decimation as the default (it
+//! costs several times the input-order pass at scale, see BENCHMARKS.md).
 
 pub mod decimate;
 pub mod dynamic;
 mod error;
 pub mod flips;
+pub mod front;
 pub mod gabriel;
 pub mod holes;
+mod live_tree;
 pub mod manifold;
 mod reconstruct;
 pub mod refine;

@@ -4,6 +4,7 @@ use crate::decimate::{decimate, Brush, Decimation};
 use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
 use crate::flips::flip_to_lower_bending;
+use crate::front::{decimate_on_the_fly, FrontStats};
 use crate::holes::{open_sampling_holes, HoleRule};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::refine::{refine, Quality, RefineStats};
@@ -45,6 +46,13 @@ pub struct Params {
     pub rho_geometric: f64,
     /// The topological-disk criterion's cosine ρ′ (1: off).
     pub rho_topo: f64,
+    /// Decimate on the fly, in the order a convection front from the
+    /// convex hull reaches the points, without a triangulation of all of
+    /// them ([`crate::front`], the paper's scheme); otherwise in input
+    /// order before the triangulation ([`crate::decimate`]). The front
+    /// keeps the points it meets first (extremes, tips) and fits closer at
+    /// the same `rho`, at several times the cost.
+    pub decimate_on_the_fly: bool,
     /// The paper's brush: the decimation radius varies from `rho_centre`
     /// at the centre to `rho` at the brush's reach. Centre and reach in the
     /// points' units, `rho_centre` like `rho` a fraction of the diagonal.
@@ -80,6 +88,7 @@ impl Default for Params {
             rho: 0.0,
             rho_geometric: 0.9,
             rho_topo: 0.95,
+            decimate_on_the_fly: false,
             brush: None,
             max_hole_edges: 24,
             refine_alpha: 0.0,
@@ -118,6 +127,8 @@ pub struct Report {
     pub points: usize,
     /// Input points removed by the decimation (`rho`), after refinement.
     pub decimated: usize,
+    /// The decimation's convection front (`decimate_on_the_fly`).
+    pub front: Option<FrontStats>,
     /// Triangle-quality refinement (`refine_alpha`, `refine_gamma`).
     pub refine: RefineStats,
     /// Input points that are exact duplicates of an earlier one.
@@ -221,7 +232,13 @@ pub fn reconstruct(
             ..b
         }),
     };
-    let mut keep = decimate(points, &unit, &settings);
+    let (mut keep, front) = match params.decimate_on_the_fly {
+        true => {
+            let (keep, stats) = decimate_on_the_fly(points, &unit, &settings);
+            (keep, Some(stats))
+        }
+        false => (decimate(points, &unit, &settings), None),
+    };
     let seconds = clock.elapsed().as_secs_f64();
     let quality = Quality {
         alpha: params.refine_alpha,
@@ -260,6 +277,7 @@ pub fn reconstruct(
     r.mesh.vertices = points.to_vec();
     r.report.points = points.len();
     r.report.decimated = points.len() - kept.len();
+    r.report.front = front;
     r.report.seconds.decimation = seconds;
     r.report.seconds.refine = refine_seconds;
     r.report.refine = refine_stats;
@@ -366,7 +384,7 @@ impl DynamicSurface {
     }
 }
 
-fn bounding_diagonal(points: &[DVec3]) -> f64 {
+pub(crate) fn bounding_diagonal(points: &[DVec3]) -> f64 {
     let lo = points.iter().fold(DVec3::splat(f64::MAX), |a, &p| a.min(p));
     let hi = points.iter().fold(DVec3::splat(f64::MIN), |a, &p| a.max(p));
     lo.distance(hi)

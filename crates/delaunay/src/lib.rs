@@ -29,5 +29,5 @@ mod validate;
 
 pub use error::{DelaunayError, Result};
 pub use glam::DVec3;
-pub use order::{brio_order, hilbert_index};
+pub use order::{brio_order, hilbert_index, hilbert_keys};
 pub use triangulation::{Changes, Location, TetId, Triangulation, VertexId};

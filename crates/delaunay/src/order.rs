@@ -91,7 +91,7 @@ fn values_with_equal_keys(values: &mut [u64]) -> impl Iterator<Item = &mut [u64]
 }
 
 /// Hilbert key of every point, on a 2^10 grid over the bounding box.
-fn hilbert_keys(points: &[DVec3]) -> Vec<u64> {
+pub fn hilbert_keys(points: &[DVec3]) -> Vec<u64> {
     let (lo, hi) = points.iter().fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         |(lo, hi), &p| (lo.min(p), hi.max(p)),

@@ -199,6 +199,8 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
 ///   model_out=None / model_in=None .svm model file; svm_normal_k=12.
 /// Convection (method="convection"):
 ///   rho=0.0 decimation radius / diagonal; rho_geom=0.9; rho_topo=0.95;
+///   on_the_fly=False decimate in the order a convection front reaches the
+///   points (the paper's scheme; closer fit, slower) instead of input order;
 ///   fill_holes=24 largest hole (edges) closed; no_pockets=False;
 ///   no_thin_parts=False; convection_normal_k=12; open_holes=False leave
 ///   holes in the sampling open (boundary edges) instead of covering them;
@@ -218,7 +220,7 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
     model_out=None, model_in=None, svm_normal_k=None,
     rho=None, rho_geom=None, rho_topo=None, fill_holes=None, no_pockets=false,
     no_thin_parts=false, convection_normal_k=None, open_holes=false,
-    no_edge_flips=false
+    no_edge_flips=false, on_the_fly=false
 ))]
 #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python API
 pub fn reconstruct<'py>(
@@ -262,6 +264,7 @@ pub fn reconstruct<'py>(
     convection_normal_k: Option<usize>,
     open_holes: bool,
     no_edge_flips: bool,
+    on_the_fly: bool,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let input = input_geometry(points, normals, curves, triangles)?;
     let ls = LevelSetOptions::default();
@@ -297,6 +300,7 @@ pub fn reconstruct<'py>(
             rho: rho.unwrap_or(cv.rho),
             rho_geom: rho_geom.unwrap_or(cv.rho_geom),
             rho_topo: rho_topo.unwrap_or(cv.rho_topo),
+            decimate_on_the_fly: on_the_fly,
             fill_holes: fill_holes.unwrap_or(cv.fill_holes),
             pockets: !no_pockets,
             thin_parts: !no_thin_parts,

@@ -102,6 +102,20 @@ def test_other_methods_close_a_sphere(method):
     assert sphere_error(V) < 0.03
 
 
+def test_convection_decimates_on_the_fly_when_asked():
+    points = torus_points(4000)
+    runs = [surfrecon.reconstruct(points, method="convection", report=True,
+                                  rho=0.02, on_the_fly=on) for on in (True, False)]
+    (V, F, front), (W, G, plain) = runs
+    stats = front["convection"]["front"]
+    assert stats["reached"] > 0 and not stats["stopped_early"]
+    assert plain["convection"]["front"] is None
+    kept = len(points) - front["convection"]["decimated"]
+    assert kept < len(points) // 2
+    assert len(np.unique(F)) <= kept
+    check_closed(V, F, 1, points)
+
+
 def test_convection_flips_only_faces_never_points():
     points = torus_points(4000)
     runs = [surfrecon.reconstruct(points, method="convection", report=True,

@@ -24,6 +24,7 @@ pub(crate) fn params(o: &ConvectionOptions) -> Params {
         rho: o.rho,
         rho_geometric: o.rho_geom,
         rho_topo: o.rho_topo,
+        decimate_on_the_fly: o.decimate_on_the_fly,
         refine_alpha: o.refine_alpha,
         refine_gamma: o.refine_gamma,
         open_holes: o.open_holes.then(HoleRule::default),

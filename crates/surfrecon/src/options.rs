@@ -203,6 +203,9 @@ pub struct ConvectionOptions {
     pub rho_geom: f64,
     /// Decimation, topological-disk criterion (cosine; 1: off).
     pub rho_topo: f64,
+    /// Decimate in the order a convection front reaches the points (the
+    /// paper's on-the-fly scheme) instead of input order.
+    pub decimate_on_the_fly: bool,
     /// Close boundary loops of at most this many edges (0: leave open).
     pub fill_holes: usize,
     /// Open pockets with normals after the Gabriel convection.
@@ -233,6 +236,7 @@ impl Default for ConvectionOptions {
             rho: 0.0,
             rho_geom: 0.9,
             rho_topo: 0.95,
+            decimate_on_the_fly: p.decimate_on_the_fly,
             fill_holes: 24,
             pockets: true,
             thin_parts: true,

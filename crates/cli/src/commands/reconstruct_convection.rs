@@ -54,6 +54,12 @@ pub struct ConvectionArgs {
     /// edges. For scans with unseen parts; the output is then not closed.
     #[arg(long)]
     pub open_holes: bool,
+    /// Decimate (--rho) on the fly, in the order a convection front from
+    /// the convex hull reaches the points (the paper's scheme: the points
+    /// met first, tips and extremes, are kept; closer fit at the same
+    /// --rho, several times slower) instead of in input order.
+    #[arg(long)]
+    pub on_the_fly: bool,
     /// Keep the convection's own triangles: do not flip edges where that
     /// lowers the surface's bending (the flips remove bevels across sharp
     /// edges; the vertices are the input points either way).
@@ -71,6 +77,7 @@ impl ConvectionArgs {
             rho: self.rho,
             rho_geom: self.rho_geom,
             rho_topo: self.rho_topo,
+            decimate_on_the_fly: self.on_the_fly,
             fill_holes: self.fill_holes,
             pockets: !self.no_pockets,
             thin_parts: !self.no_thin_parts,

@@ -1,0 +1,242 @@
+//! The points of the decimation's front in a hierarchy of bounding boxes
+//! that knows how many points under each box are still live, for the one
+//! query the front asks: the Delaunay apex behind a facet.
+//!
+//! The apex is the first inner point that the spheres through the facet's
+//! corners meet as they sweep from its outer side to its inner side (centre
+//! `c(t) = c₀ + t·n`, radius `√(r₀² + t²)`, `t` rising). Once a candidate
+//! at `t` is known, only points inside the ball of that sphere and on the
+//! inner side can beat it, so whole boxes drop out: those with no live
+//! point, those wholly on the outer side, those outside the current ball.
+//! Near the apex that ball's inner part is a thin lens on the facet, which
+//! few boxes reach, however many points the facet's diametral ball holds
+//! (a radius query visited them all: 145 s at the Dragon scale).
+//!
+//! Leaves hold `LEAF` points consecutive along a Hilbert curve; the tree is
+//! implicit (node `k` has children `2k`, `2k + 1`; leaves from `leaf_base`).
+
+use surfrecon_delaunay::{hilbert_keys, DVec3};
+
+const LEAF: usize = 8;
+
+pub(crate) struct LiveTree {
+    /// Point indices, leaf by leaf.
+    order: Vec<u32>,
+    /// Their positions and whether they are live, in the same order (the
+    /// search reads leaves whole: no jumps through the input arrays).
+    position: Vec<DVec3>,
+    alive: Vec<bool>,
+    /// Position of each point in `order`.
+    slot: Vec<u32>,
+    /// Box per node, `[lo, hi]` (empty boxes are inverted).
+    boxes: Vec<[DVec3; 2]>,
+    /// Live points under each node.
+    live: Vec<u32>,
+    leaf_base: usize,
+}
+
+/// The sphere pencil through a facet's corners: centre `c₀ + t·n`, squared
+/// radius `r₀² + t²` (`n` the unit inner normal).
+#[derive(Clone, Copy)]
+pub(crate) struct Pencil {
+    pub centre: DVec3,
+    pub radius: f64,
+    pub normal: DVec3,
+    /// Added to every radius and to the half-space test, so that rounding
+    /// (and the front's jitter) never prunes a box holding a candidate.
+    pub slack: f64,
+}
+
+impl Pencil {
+    /// The sphere at `t`, grown by the slack.
+    fn ball(&self, t: f64) -> Ball {
+        let reach = (self.radius * self.radius + t * t).sqrt() + self.slack;
+        Ball {
+            centre: self.centre + t * self.normal,
+            reach2: reach * reach,
+        }
+    }
+
+    /// The pencil parameter at which the sphere passes through `p` (an
+    /// inner point: the lower, the earlier it is met).
+    pub fn t(&self, p: DVec3) -> f64 {
+        let height = self.normal.dot(p - self.centre);
+        let t = (p.distance_squared(self.centre) - self.radius * self.radius) / (2.0 * height);
+        // Points on the facet's plane inside its circle: met first of all.
+        if height > 0.0 {
+            t.max(-1e6 * self.radius)
+        } else {
+            -1e6 * self.radius
+        }
+    }
+
+    /// Whether the box may hold an inner point inside `ball`.
+    fn may_hold(&self, [lo, hi]: [DVec3; 2], ball: Ball) -> bool {
+        let half = (hi - lo) / 2.0;
+        let top = self.normal.dot(lo + half - self.centre) + self.normal.abs().dot(half);
+        top > -self.slack && ball.gap2([lo, hi]) <= ball.reach2
+    }
+}
+
+/// A sphere of the pencil, as a centre and squared radius.
+#[derive(Clone, Copy)]
+struct Ball {
+    centre: DVec3,
+    reach2: f64,
+}
+
+impl Ball {
+    /// Squared distance from the centre to a box.
+    fn gap2(&self, [lo, hi]: [DVec3; 2]) -> f64 {
+        (lo - self.centre)
+            .max(self.centre - hi)
+            .max(DVec3::ZERO)
+            .length_squared()
+    }
+
+    fn holds(&self, p: DVec3) -> bool {
+        p.distance_squared(self.centre) <= self.reach2
+    }
+}
+
+impl LiveTree {
+    /// All `points` live.
+    pub fn new(points: &[DVec3]) -> Self {
+        let keys = hilbert_keys(points);
+        let mut order: Vec<u32> = (0..points.len() as u32).collect();
+        order.sort_unstable_by_key(|&i| (keys[i as usize], i));
+        let mut slot = vec![0u32; points.len()];
+        for (k, &i) in order.iter().enumerate() {
+            slot[i as usize] = k as u32;
+        }
+        let leaf_base = points.len().div_ceil(LEAF).next_power_of_two();
+        let empty = [DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)];
+        let mut boxes = vec![empty; 2 * leaf_base];
+        let mut live = vec![0u32; 2 * leaf_base];
+        for (leaf, chunk) in order.chunks(LEAF).enumerate() {
+            let node = leaf_base + leaf;
+            for &i in chunk {
+                let p = points[i as usize];
+                boxes[node] = [boxes[node][0].min(p), boxes[node][1].max(p)];
+            }
+            live[node] = chunk.len() as u32;
+        }
+        for node in (1..leaf_base).rev() {
+            let (l, r) = (boxes[2 * node], boxes[2 * node + 1]);
+            boxes[node] = [l[0].min(r[0]), l[1].max(r[1])];
+            live[node] = live[2 * node] + live[2 * node + 1];
+        }
+        LiveTree {
+            position: order.iter().map(|&i| points[i as usize]).collect(),
+            alive: vec![true; order.len()],
+            order,
+            slot,
+            boxes,
+            live,
+            leaf_base,
+        }
+    }
+
+    /// Point `i` is no longer live (call once per point).
+    pub fn remove(&mut self, i: usize) {
+        self.alive[self.slot[i] as usize] = false;
+        let mut node = self.leaf_base + self.slot[i] as usize / LEAF;
+        while node >= 1 {
+            self.live[node] -= 1;
+            node /= 2;
+        }
+    }
+
+    /// Live points strictly beyond the plane through `origin` with unit
+    /// normal `normal` (by more than `slack`) and within `reach` of `origin`.
+    pub fn beyond_plane(&self, origin: DVec3, normal: DVec3, reach: f64, slack: f64) -> Vec<usize> {
+        let ball = Ball {
+            centre: origin,
+            reach2: reach * reach,
+        };
+        let mut found = Vec::new();
+        let mut stack = vec![1usize];
+        while let Some(node) = stack.pop() {
+            let [lo, hi] = self.boxes[node];
+            let half = (hi - lo) / 2.0;
+            let top = normal.dot(lo + half - origin) + normal.abs().dot(half);
+            if self.live[node] == 0 || top <= slack || ball.gap2([lo, hi]) > ball.reach2 {
+                continue;
+            }
+            if node < self.leaf_base {
+                stack.extend([2 * node, 2 * node + 1]);
+                continue;
+            }
+            let leaf = node - self.leaf_base;
+            for k in leaf * LEAF..((leaf + 1) * LEAF).min(self.order.len()) {
+                let p = self.position[k];
+                if self.alive[k] && ball.holds(p) && normal.dot(p - origin) > slack {
+                    found.push(self.order[k] as usize);
+                }
+            }
+        }
+        found
+    }
+
+    /// The candidate that `better` prefers among the live points (of those
+    /// given to [`LiveTree::new`]) the pencil
+    /// meets on the inner side before the diametral ball (`t ≤ 0`), or
+    /// `None`. `candidate(i)` says whether a live point may be an apex at
+    /// all (not a corner, exactly on the inner side); `better(q, s)` decides
+    /// exactly whether `q` beats `s` where their `t` nearly tie.
+    pub fn apex(
+        &self,
+        pencil: &Pencil,
+        candidate: impl Fn(usize) -> bool,
+        better: impl Fn(usize, usize) -> bool,
+    ) -> Option<usize> {
+        let mut best: Option<(usize, f64)> = None;
+        // Depth first, the box nearer the current sphere's centre first;
+        // the tree is at most 40 levels deep.
+        let mut stack = [0usize; 64];
+        let (mut depth, mut ball) = (1, pencil.ball(0.0));
+        stack[0] = 1;
+        while depth > 0 {
+            depth -= 1;
+            let node = stack[depth];
+            if self.live[node] == 0 || !pencil.may_hold(self.boxes[node], ball) {
+                continue;
+            }
+            if node < self.leaf_base {
+                let (l, r) = (2 * node, 2 * node + 1);
+                let (near, far) = match ball.gap2(self.boxes[l]) <= ball.gap2(self.boxes[r]) {
+                    true => (l, r),
+                    false => (r, l),
+                };
+                stack[depth] = far;
+                stack[depth + 1] = near;
+                depth += 2;
+                continue;
+            }
+            let leaf = node - self.leaf_base;
+            let end = ((leaf + 1) * LEAF).min(self.order.len());
+            for k in leaf * LEAF..end {
+                let (i, p) = (self.order[k] as usize, self.position[k]);
+                if !self.alive[k] || !ball.holds(p) || !candidate(i) {
+                    continue;
+                }
+
+                let ti = pencil.t(p);
+                let wins = match best {
+                    None => ti <= pencil.slack,
+                    Some((s, ts)) => {
+                        // Rounding cannot swap clearly separated values;
+                        // near-ties go to the exact test.
+                        let tie = 1e-6 * (pencil.radius + ti.abs() + ts.abs());
+                        ti < ts - tie || (ti <= ts + tie && better(i, s))
+                    }
+                };
+                if wins {
+                    best = Some((i, ti));
+                    ball = pencil.ball(ti);
+                }
+            }
+        }
+        best.map(|(i, _)| i)
+    }
+}
