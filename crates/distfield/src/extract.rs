@@ -137,6 +137,9 @@ pub fn extract_split(
 /// [`merge_beside`]); otherwise the cell fans alone.
 pub(crate) fn leans_on_neighbour(field: &impl SampledField, cell: usize, f: DVec3) -> bool {
     let spec = field.spec();
+    if within_moved_corners(field, cell, f) {
+        return false;
+    }
     match cell_of(spec, f) {
         Some(other) if other != cell => {
             let inside = corner_nodes(spec, other).map(|n| field.value(n) < 0.0);
@@ -144,6 +147,29 @@ pub(crate) fn leans_on_neighbour(field: &impl SampledField, cell: usize, f: DVec
         }
         _ => false,
     }
+}
+
+/// Whether `f` lies within the box of `cell`'s samples where they sit:
+/// samples moved into a wall (sculpting) or onto a line widen the cell
+/// beyond its grid box, and a point on its own sheet there (a cap's rim
+/// just above the grid plane, below the samples moved into the wall over
+/// it) belongs to it, not to the neighbour across the grid plane, whose
+/// loop bounds another sheet. Cells without a moved sample keep the rule
+/// by grid boxes.
+fn within_moved_corners(field: &impl SampledField, cell: usize, f: DVec3) -> bool {
+    let spec = field.spec();
+    let nodes = corner_nodes(spec, cell);
+    let positions = nodes.map(|n| field.position(n));
+    let grid = |n: usize| DVec3::from_array(spec.position(spec.unlinear(n)));
+    if nodes.iter().zip(&positions).all(|(&n, &p)| p == grid(n)) {
+        return false; // the grid box: cell_of decides, as before
+    }
+    let lo = positions.iter().copied().fold(DVec3::INFINITY, DVec3::min);
+    let hi = positions
+        .iter()
+        .copied()
+        .fold(DVec3::NEG_INFINITY, DVec3::max);
+    f.cmpge(lo).all() && f.cmple(hi).all()
 }
 
 /// Cells whose feature point lies outside them, in a face neighbour

@@ -171,6 +171,9 @@ pub struct SculptReport {
     /// Samples moved into a wall or gap of the result thinner than a
     /// cell that lay between them and a neighbour (UDF).
     pub thin: usize,
+    /// Samples whose magnitude was raised so that a face with samples of
+    /// alternating sign joins the pair the exact result joins (UDF).
+    pub settled: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -381,6 +384,17 @@ pub fn sculpt_udf(
         cells.extend(cells_around(&spec, n));
     }
     report.thin = walls.len();
+    cells.sort_unstable();
+    cells.dedup();
+    cells.retain(|&c| crosses(&spec, &field.values, c));
+    // Faces whose samples alternate in sign: the decider must join the
+    // pair the result joins, or a hole opens through a wall (or a wall
+    // through a hole) that no crossing or feature point can close.
+    let settled = settle_ambiguous_faces(field, &combined, &cells);
+    for &n in &settled {
+        cells.extend(cells_around(&spec, n));
+    }
+    report.settled = settled.len();
     cells.sort_unstable();
     cells.dedup();
     cells.retain(|&c| crosses(&spec, &field.values, c));
@@ -748,11 +762,19 @@ fn repick(
     corners: &[DVec3],
 ) -> usize {
     let spec = field.spec;
+    let h = spec.spacing;
     let mut changed = 0;
+    let points = field.feature_points();
     for &c in cells {
         let probes = result_features(&spec, combined, c, old_features.get(&c), corners);
         let old_count = old_features.get(&c).map_or(0, |f| f.probes().len());
-        if probes.len() <= old_count {
+        // An old point the tool left may now stand off the sheet the
+        // cell's crossings bound (an old edge just above a new cap): its
+        // fan strays from the result, so it is weighed like a new one.
+        let strays = points.get(&c).is_some_and(|&p| {
+            farthest_off(combined, &cell_triangles(&*field, c, Some(p))) > STRAY_FAN * h
+        });
+        if probes.len() <= old_count && !strays {
             continue; // no new edge or corner here
         }
         let error = |triangles: &[[DVec3; 3]]| {
@@ -763,6 +785,10 @@ fn repick(
     }
     changed
 }
+
+/// A cell's fan farther than this many spacings off the result is
+/// weighed again by [`repick`] even where no new feature crosses it.
+const STRAY_FAN: f64 = 0.25;
 
 /// Points on the sharp features of the result in `cell`: the object's
 /// old features that the tool left, the new corners, and points on the
@@ -1092,6 +1118,150 @@ fn deepest_across(
         .filter(|&(d, _)| (d < 0.0) != inside)
         .map(|(d, p)| (d.abs(), p))
         .max_by(|x, y| x.0.total_cmp(&y.0))
+}
+
+/// A result side counts as known at a face's centre only this many
+/// spacings or more from the surface.
+const FACE_MARGIN: f64 = 0.02;
+/// A raised sample's product exceeds the other diagonal's by this factor.
+const RAISE_MARGIN: f64 = 1.05;
+/// A sample is raised to at most this many spacings.
+const MAX_RAISE: f64 = 1.0;
+
+/// The four samples of a grid face in cyclic order (`0`-`2` and `1`-`3`
+/// are its diagonals): the face through `base` normal to `axis`.
+fn face_nodes(spec: &GridSpec<3>, base: usize, axis: usize) -> [usize; 4] {
+    let s = spec.strides();
+    let (u, v) = (s[(axis + 1) % 3], s[(axis + 2) % 3]);
+    [base, base + u, base + u + v, base + v]
+}
+
+/// The faces a sample is a corner of, as (lowest sample, normal axis).
+fn faces_at(spec: &GridSpec<3>, node: usize) -> Vec<(usize, usize)> {
+    let idx = spec.unlinear(node);
+    let s = spec.strides();
+    let mut out = Vec::new();
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for (du, dv) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let fits = |k: usize, d: usize| idx[k] >= d && idx[k] - d + 1 < spec.dims[k];
+            if fits(u, du) && fits(v, dv) {
+                out.push((node - du * s[u] - dv * s[v], axis));
+            }
+        }
+    }
+    out
+}
+
+/// Whether the grid's asymptotic decider joins the outside samples of a
+/// face whose signs alternate (the same rule as marching cubes').
+fn decider_joins_outside(v: [f64; 4]) -> bool {
+    let (even, odd) = (v[0] * v[2], v[1] * v[3]);
+    if v[0] >= 0.0 {
+        even >= odd
+    } else {
+        odd >= even
+    }
+}
+
+/// For a face whose samples alternate in sign and whose decider joins
+/// the pair the exact result does not: the side (true: outside) the
+/// result joins, judged by its sign at the face's centre (the samples'
+/// mean position), when that lies clearly off the surface.
+fn misjoined(field: &UnifiedField, combined: &Combined, nodes: [usize; 4]) -> Option<bool> {
+    let v = nodes.map(|n| field.values[n]);
+    let outside = v.map(|x| x >= 0.0);
+    if !(outside[0] == outside[2] && outside[1] == outside[3] && outside[0] != outside[1]) {
+        return None;
+    }
+    let centre = nodes.iter().map(|&n| field.position(n)).sum::<DVec3>() / 4.0;
+    let d = combined.signed_distance(centre);
+    let joined = d >= 0.0;
+    (d.abs() >= FACE_MARGIN * field.spec.spacing && joined != decider_joins_outside(v))
+        .then_some(joined)
+}
+
+/// How many faces at `node` are misjoined ([`misjoined`]).
+fn misjoined_at(field: &UnifiedField, combined: &Combined, node: usize) -> usize {
+    faces_at(&field.spec, node)
+        .into_iter()
+        .filter(|&(base, axis)| {
+            misjoined(field, combined, face_nodes(&field.spec, base, axis)).is_some()
+        })
+        .count()
+}
+
+/// Faces of `cells` whose samples alternate in sign, where the decider
+/// joins the other diagonal than the exact result (e.g. a hole and an old
+/// pocket on either side of a wall thinner than a cell, through which the
+/// decider would open a slot: a handle). The sample values are distances
+/// the interpolation reads only between samples, and sculpting stores
+/// exact crossings on the cells' edges afterwards; so one sample of the
+/// diagonal to join has its magnitude raised just enough that its
+/// diagonal's product wins — a plain sample (no moved position or feature
+/// point, whose edges can then store their crossings), the least raise
+/// first, at most [`MAX_RAISE`] spacings, kept only if fewer faces around
+/// it are misjoined afterwards. Returns the samples raised.
+fn settle_ambiguous_faces(
+    field: &mut UnifiedField,
+    combined: &Combined,
+    cells: &[usize],
+) -> Vec<usize> {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let s = spec.strides();
+    let faces: BTreeSet<(usize, usize)> = cells
+        .iter()
+        .flat_map(|&c| (0..3).flat_map(move |axis| [(c, axis), (c + s[axis], axis)]))
+        .collect();
+    let wrong: Vec<[usize; 4]> = faces
+        .par_iter()
+        .map(|&(base, axis)| face_nodes(&spec, base, axis))
+        .filter(|&nodes| misjoined(field, combined, nodes).is_some())
+        .collect();
+    let mut raised = Vec::new();
+    for nodes in wrong {
+        // An earlier raise may have settled it.
+        let Some(outside) = misjoined(field, combined, nodes) else {
+            continue;
+        };
+        let first = usize::from((field.values[nodes[0]] >= 0.0) != outside);
+        let (pair, other) = (
+            [nodes[first], nodes[first + 2]],
+            [nodes[1 - first], nodes[3 - first]],
+        );
+        let beaten = (field.values[other[0]] * field.values[other[1]]).abs();
+        let plain = |n: usize| {
+            !on_outer_layer(&spec, n)
+                && matches!(
+                    field.extras.get(&(n as u32)),
+                    None | Some(Extra::Directed(_))
+                )
+        };
+        let choice = [(pair[0], pair[1]), (pair[1], pair[0])]
+            .into_iter()
+            .filter(|&(n, m)| plain(n) && field.values[n] != 0.0 && field.values[m] != 0.0)
+            .map(|(n, m)| (n, RAISE_MARGIN * beaten / field.values[m].abs()))
+            .filter(|&(_, target)| target <= MAX_RAISE * h)
+            .min_by(|x, y| {
+                let ratio = |&(n, t): &(usize, f64)| t / field.values[n].abs();
+                ratio(x).total_cmp(&ratio(y))
+            });
+        let Some((n, target)) = choice else {
+            continue;
+        };
+        let before = misjoined_at(field, combined, n);
+        let old = field.values[n];
+        field.values[n] = target.copysign(old);
+        if misjoined_at(field, combined, n) < before {
+            raised.push(n);
+        } else {
+            field.values[n] = old;
+        }
+    }
+    raised.sort_unstable();
+    raised.dedup();
+    raised
 }
 
 /// Sculpt an offset field: combine at the samples' positions, then move a

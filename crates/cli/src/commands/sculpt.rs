@@ -57,6 +57,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "feature_points_repicked": r.repicked,
             "feature_points_repaired": r.repaired,
             "samples_moved_into_thin_walls": r.thin,
+            "samples_raised_to_settle_faces": r.settled,
         }));
     }
     field.write(&args.output)?;
