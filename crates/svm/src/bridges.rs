@@ -211,7 +211,8 @@ fn nodes_to_reach_thin_samples(
         .zip(&inward)
         .flat_map(|(&p, &d)| depths.iter().map(move |&t| p + d * (t * spec.spacing)))
         .collect();
-    let values = model.values_grouped(&probes, &[(0..probes.len() as u32).collect()]);
+    let groups = probes_by_block(&missed, depths.len());
+    let values = model.values_grouped(&probes, &groups);
     let mut wanted: Vec<[i64; 3]> = Vec::new();
     for (k, (_, cell)) in missed.iter().enumerate() {
         if inward[k] == DVec3::ZERO {
@@ -338,6 +339,30 @@ fn nodes_of_anchored_pieces(band: &Band, anchors: &FastSet) -> FastSet {
         .into_iter()
         .filter(|&i| roots.contains(&(pieces.find(i) as u64)))
         .map(key)
+        .collect()
+}
+
+/// Cells per edge of the blocks the probes are evaluated in.
+const PROBE_BLOCK: i64 = 4;
+
+/// The probes' indices (`per_sample` consecutive ones per sample) grouped
+/// by the block of cells their sample lies in: the model gathers its
+/// centres once per group, and one group over a whole model's samples
+/// (300k spikes) gathered nearly every centre for each probe.
+fn probes_by_block(missed: &[(DVec3, [i64; 3])], per_sample: usize) -> Vec<Vec<u32>> {
+    let mut keyed: Vec<([i64; 3], usize)> = missed
+        .iter()
+        .enumerate()
+        .map(|(k, (_, cell))| (cell.map(|c| c.div_euclid(PROBE_BLOCK)), k))
+        .collect();
+    keyed.sort_unstable();
+    keyed
+        .chunk_by(|a, b| a.0 == b.0)
+        .map(|same| {
+            same.iter()
+                .flat_map(|&(_, k)| (k * per_sample..(k + 1) * per_sample).map(|i| i as u32))
+                .collect()
+        })
         .collect()
 }
 
