@@ -272,6 +272,9 @@ pub struct SvmMeshReport {
     /// Pieces of the fitted function's inside joined where they are
     /// thinner than a mesh cell (a thin tip the grid would cut into crumbs).
     pub thin_joins: usize,
+    /// Mesh grid nodes set inside so that samples on parts thinner than a
+    /// cell (a fin's rim, a cone's tip) are reached.
+    pub thin_samples_reached: usize,
     /// Vertices moved onto the points' local fit (points used as measured).
     pub snapped: usize,
     /// Of the others, beside sharp edges, onto the nearest point's plane.

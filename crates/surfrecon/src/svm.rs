@@ -117,6 +117,7 @@ pub(crate) fn run(
             nodes_evaluated: m.nodes_evaluated,
             specks_removed: m.specks_removed,
             thin_joins: m.thin_joins,
+            thin_samples_reached: m.thin_samples_reached,
             snapped: refined.map_or(0, |r| r.snapped),
             snapped_to_planes: refined.map_or(0, |r| r.snapped_to_planes),
             vertices: mesh.vertices.len(),

@@ -10,7 +10,7 @@
 //! qualifies). Waves are sorted, so the result does not depend on the
 //! thread count.
 
-use crate::bridges::bridge_thin_parts;
+use crate::bridges::join_and_reach_thin_parts;
 use crate::cells::{FastMap, FastSet};
 use crate::error::{Result, SvmError};
 use crate::model::SvmModel;
@@ -54,6 +54,9 @@ pub struct MeshReport {
     /// Pieces of f's inside joined where they are thinner than a cell
     /// (see [`crate::bridges`]).
     pub thin_joins: usize,
+    /// Grid nodes set inside so that the mesh reaches samples on parts
+    /// thinner than a cell (see [`crate::bridges::join_and_reach_thin_parts`]).
+    pub thin_samples_reached: usize,
 }
 
 /// A closed piece whose bounding-box diagonal is under this many cells is
@@ -107,7 +110,8 @@ pub fn mesh_model(
     )?;
     let mut values = follow_surface(model, seeds, &spec)?;
     let (cells_visited, nodes_evaluated) = (values.cells_visited, values.nodes.len());
-    let thin_joins = bridge_thin_parts(model, &spec, &mut values.nodes);
+    let (thin_joins, thin_samples_reached) =
+        join_and_reach_thin_parts(model, &spec, seeds, &mut values.nodes);
     let background = 2.0 * spec.spacing;
     let nodes = outside_on_the_rim(values.nodes, spec.dims, background);
     let grid = BlockGrid::from_nodes(spec, background, nodes)?;
@@ -128,6 +132,7 @@ pub fn mesh_model(
         nodes_evaluated,
         specks_removed,
         thin_joins,
+        thin_samples_reached,
     };
     mesh.normals = Some(
         model
@@ -511,5 +516,110 @@ mod tests {
         let (mesh, report) = mesh_model(&balls, &seeds, Aabb::from_points(&seeds), &opts).unwrap();
         assert_eq!(report.thin_joins, 0);
         assert_eq!(mesh.piece_count(), 2);
+    }
+
+    /// A ball of radius 0.5 with a flat disc (radius 0.9) through its
+    /// centre, 0.6 cells thick and laid half-way between two layers of
+    /// grid nodes, so that no node lies inside the disc beyond the ball.
+    struct BallAndSheet {
+        /// The disc's mid-plane height and half thickness.
+        middle: f64,
+        half: f64,
+    }
+
+    impl BallAndSheet {
+        const RADIUS: f64 = 0.9;
+
+        fn value(&self, p: DVec3) -> f64 {
+            let across = (p.y - self.middle).abs() - self.half;
+            let outward = DVec3::new(p.x, 0.0, p.z).length() - Self::RADIUS;
+            across.max(outward).min(p.length() - 0.5)
+        }
+
+        /// Samples on the ball and on both faces of the disc outside it.
+        fn seeds(&self, step: f64) -> Vec<DVec3> {
+            let mut seeds = fibonacci_sphere(4000, 0.5);
+            let n = (Self::RADIUS / step).ceil() as i64;
+            for i in -n..=n {
+                for k in -n..=n {
+                    let (x, z) = (i as f64 * step, k as f64 * step);
+                    let r = x.hypot(z);
+                    if r > 0.5 && r < Self::RADIUS - step {
+                        for y in [self.middle - self.half, self.middle + self.half] {
+                            seeds.push(DVec3::new(x, y, z));
+                        }
+                    }
+                }
+            }
+            seeds
+        }
+    }
+
+    impl Implicit for BallAndSheet {
+        fn values_grouped(&self, points: &[DVec3], _: &[Vec<u32>]) -> Vec<f64> {
+            points.iter().map(|&p| self.value(p)).collect()
+        }
+
+        fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
+            let h = 1e-6;
+            points
+                .iter()
+                .map(|&p| {
+                    let d = |e: DVec3| (self.value(p + e * h) - self.value(p - e * h)) / (2.0 * h);
+                    DVec3::new(d(DVec3::X), d(DVec3::Y), d(DVec3::Z))
+                })
+                .collect()
+        }
+    }
+
+    #[test]
+    fn a_sheet_thinner_than_a_cell_between_node_layers_is_reached() {
+        let opts = MeshOptions {
+            resolution: 96,
+            margin: 0.0,
+        };
+        let bounds = Aabb {
+            min: DVec3::splat(-1.0),
+            max: DVec3::splat(1.0),
+        };
+        let spec = GridSpec::<3>::from_bounds(
+            bounds.min.to_array(),
+            bounds.max.to_array(),
+            GridSize::Resolution(opts.resolution),
+            1,
+        )
+        .unwrap();
+        let h = spec.spacing;
+        // Half-way between the node layers next to y = 0.
+        let middle = (spec.to_grid([0.0; 3])[1].floor() + 0.5) * h + spec.origin[1];
+        let sheet = BallAndSheet {
+            middle,
+            half: 0.3 * h,
+        };
+        let seeds = sheet.seeds(0.7 * h);
+        let (mesh, report) = mesh_model(&sheet, &seeds, bounds, &opts).unwrap();
+        assert_eq!(mesh.piece_count(), 1, "{report:?}");
+        // Every sample within 1.5 cells of a vertex (vertices, not the
+        // surface: up to a cell apart): the sheet is there up to its rim
+        // (marching cubes alone ends it at the ball, 19 cells short).
+        let vertices = KdTree::new(&mesh.vertices);
+        let farthest = seeds
+            .iter()
+            .map(|&p| vertices.nearest(p).map_or(f64::INFINITY, |n| n.distance))
+            .fold(0.0, f64::max);
+        assert!(
+            farthest < 1.5 * h,
+            "a sample {:.2} cells from the mesh; {report:?}",
+            farthest / h
+        );
+        // And it stays a sheet, not a slab: no vertex more than a cell off
+        // the disc's mid-plane beyond the ball.
+        let off_plane = mesh
+            .vertices
+            .iter()
+            .filter(|v| DVec3::new(v.x, 0.0, v.z).length() > 0.6)
+            .map(|v| (v.y - middle).abs())
+            .fold(0.0, f64::max);
+        assert!(off_plane < h, "{:.2} cells off the sheet", off_plane / h);
     }
 }
