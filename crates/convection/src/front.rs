@@ -387,6 +387,7 @@ impl<'a> Front<'a> {
         };
         let s = self.live.apex(
             &pencil,
+            f.map(|v| v as usize),
             |i| !f.contains(&(i as u32)) && orient3d(a, b, c, self.geometry[i]) > 0.0,
             |q, s| self.inside_circumsphere(f, s, q),
         )?;
