@@ -183,11 +183,14 @@ impl LiveTree {
     /// meets on the inner side before the diametral ball (`t ≤ 0`), or
     /// `None`. `candidate(i)` says whether a live point may be an apex at
     /// all (not a corner, exactly on the inner side); `better(q, s)` decides
-    /// exactly whether `q` beats `s` where their `t` nearly tie.
+    /// exactly whether `q` beats `s` where their `t` nearly tie. With
+    /// `first_inside`, any point inside the diametral ball will do (the
+    /// question is only whether the facet's Gabriel property fails).
     pub fn apex(
         &self,
         pencil: &Pencil,
         corners: [usize; 3],
+        first_inside: bool,
         candidate: impl Fn(usize) -> bool,
         better: impl Fn(usize, usize) -> bool,
     ) -> Option<usize> {
@@ -197,12 +200,14 @@ impl LiveTree {
             better,
             best: None,
             ball: pencil.ball(0.0),
+            first_inside,
+            done: false,
         };
         // The corners' own leaves first: the apex is usually near them, and
         // a good first candidate shrinks the sphere for the rest.
         let seeds = corners.map(|c| self.slot[c] as usize / LEAF);
         for (n, &leaf) in seeds.iter().enumerate() {
-            if !seeds[..n].contains(&leaf) {
+            if !seeds[..n].contains(&leaf) && !search.done {
                 self.scan_leaf(leaf, &mut search);
             }
         }
@@ -211,7 +216,7 @@ impl LiveTree {
         let mut stack = [0usize; 64];
         let mut depth = 1;
         stack[0] = 1;
-        while depth > 0 {
+        while depth > 0 && !search.done {
             depth -= 1;
             let node = stack[depth];
             let ball = search.ball;
@@ -260,6 +265,9 @@ struct Search<'a, C, B> {
     best: Option<(usize, f64)>,
     /// The sphere of the best so far (the diametral ball before one).
     ball: Ball,
+    /// Stop at the first point clearly inside the diametral ball.
+    first_inside: bool,
+    done: bool,
 }
 
 impl<C, B: Fn(usize, usize) -> bool> Search<'_, C, B> {
@@ -277,6 +285,7 @@ impl<C, B: Fn(usize, usize) -> bool> Search<'_, C, B> {
         if wins {
             self.best = Some((i, ti));
             self.ball = self.pencil.ball(ti);
+            self.done = self.first_inside && ti < -self.pencil.slack;
         }
     }
 }
