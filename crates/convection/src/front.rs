@@ -295,19 +295,28 @@ impl<'a> Front<'a> {
     fn sweep(&mut self, budget: usize) {
         while !self.queue.is_empty() {
             let batch: Vec<[u32; 3]> = self.queue.drain(..self.queue.len().min(BATCH)).collect();
-            let apexes: Vec<Option<usize>> = batch
+            let apexes: Vec<(Option<usize>, bool)> = batch
                 .par_iter()
                 .map(|&f| match self.facets.contains_key(&f) {
-                    true => self.violating_apex(f),
-                    false => None,
+                    true => {
+                        let coupled = self.is_coupled(f);
+                        (self.violating_apex(f, coupled), coupled)
+                    }
+                    false => (None, false),
                 })
                 .collect();
-            for (f, apex) in batch.into_iter().zip(apexes) {
+            for (f, (apex, coupled)) in batch.into_iter().zip(apexes) {
                 if !self.facets.contains_key(&f) {
                     continue; // collapsed since it was queued
                 }
+                // Searched again if its point was removed since, or if only
+                // "violated?" was asked and the facet is no longer coupled.
                 let apex = match apex {
-                    Some(s) if self.decided[s] && !self.keep[s] => self.violating_apex(f),
+                    Some(s)
+                        if self.decided[s] && !self.keep[s] || coupled && !self.is_coupled(f) =>
+                    {
+                        self.violating_apex(f, self.is_coupled(f))
+                    }
                     apex => apex,
                 };
                 let Some(apex) = apex else {
@@ -375,8 +384,9 @@ impl<'a> Front<'a> {
     /// the facet's diametral ball (the Gabriel property fails). The apex is
     /// chosen by the exact in-sphere test with the triangulation's symbolic
     /// perturbation (input indices as ids), so every facet sees the same
-    /// tetrahedra; the ball test is the exact pipeline's own.
-    fn violating_apex(&self, f: [u32; 3]) -> Option<usize> {
+    /// tetrahedra; the ball test is the exact pipeline's own. For a
+    /// `coupled` facet any live inner point in the ball is returned.
+    fn violating_apex(&self, f: [u32; 3], coupled: bool) -> Option<usize> {
         let [a, b, c] = f.map(|v| self.geometry[v as usize]);
         let (centre, radius, normal) = circumcircle(a, b, c)?;
         let pencil = Pencil {
@@ -387,10 +397,18 @@ impl<'a> Front<'a> {
         };
         let s = self.live.apex(
             &pencil,
+            f.map(|v| v as usize),
+            coupled,
             |i| !f.contains(&(i as u32)) && orient3d(a, b, c, self.geometry[i]) > 0.0,
             |q, s| self.inside_circumsphere(f, s, q),
         )?;
         in_diametral_ball(a, b, c, self.geometry[s]).then_some(s)
+    }
+
+    /// Whether the mirror of `f` is on the surface too: then `f` collapses
+    /// if it violates the property, whatever its apex.
+    fn is_coupled(&self, [a, b, c]: [u32; 3]) -> bool {
+        self.facets.contains_key(&key([a, c, b]))
     }
 
     /// Whether `q` is inside the circumsphere of `f` and its inner point

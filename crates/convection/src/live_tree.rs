@@ -183,60 +183,109 @@ impl LiveTree {
     /// meets on the inner side before the diametral ball (`t ≤ 0`), or
     /// `None`. `candidate(i)` says whether a live point may be an apex at
     /// all (not a corner, exactly on the inner side); `better(q, s)` decides
-    /// exactly whether `q` beats `s` where their `t` nearly tie.
+    /// exactly whether `q` beats `s` where their `t` nearly tie. With
+    /// `first_inside`, any point inside the diametral ball will do (the
+    /// question is only whether the facet's Gabriel property fails).
     pub fn apex(
         &self,
         pencil: &Pencil,
+        corners: [usize; 3],
+        first_inside: bool,
         candidate: impl Fn(usize) -> bool,
         better: impl Fn(usize, usize) -> bool,
     ) -> Option<usize> {
-        let mut best: Option<(usize, f64)> = None;
-        // Depth first, the box nearer the current sphere's centre first;
-        // the tree is at most 40 levels deep.
+        let mut search = Search {
+            pencil,
+            candidate,
+            better,
+            best: None,
+            ball: pencil.ball(0.0),
+            first_inside,
+            done: false,
+        };
+        // The corners' own leaves first: the apex is usually near them, and
+        // a good first candidate shrinks the sphere for the rest.
+        let seeds = corners.map(|c| self.slot[c] as usize / LEAF);
+        for (n, &leaf) in seeds.iter().enumerate() {
+            if !seeds[..n].contains(&leaf) && !search.done {
+                self.scan_leaf(leaf, &mut search);
+            }
+        }
+        // Then depth first, the box nearer the current sphere's centre
+        // first; the tree is at most 40 levels deep.
         let mut stack = [0usize; 64];
-        let (mut depth, mut ball) = (1, pencil.ball(0.0));
+        let mut depth = 1;
         stack[0] = 1;
-        while depth > 0 {
+        while depth > 0 && !search.done {
             depth -= 1;
             let node = stack[depth];
+            let ball = search.ball;
             if self.live[node] == 0 || !pencil.may_hold(self.boxes[node], ball) {
                 continue;
             }
-            if node < self.leaf_base {
-                let (l, r) = (2 * node, 2 * node + 1);
-                let (near, far) = match ball.gap2(self.boxes[l]) <= ball.gap2(self.boxes[r]) {
-                    true => (l, r),
-                    false => (r, l),
-                };
-                stack[depth] = far;
-                stack[depth + 1] = near;
-                depth += 2;
+            if node >= self.leaf_base {
+                if !seeds.contains(&(node - self.leaf_base)) {
+                    self.scan_leaf(node - self.leaf_base, &mut search);
+                }
                 continue;
             }
-            let leaf = node - self.leaf_base;
-            let end = ((leaf + 1) * LEAF).min(self.order.len());
-            for k in leaf * LEAF..end {
-                let (i, p) = (self.order[k] as usize, self.position[k]);
-                if !self.alive[k] || !ball.holds(p) || !candidate(i) {
-                    continue;
-                }
+            let (l, r) = (2 * node, 2 * node + 1);
+            let (near, far) = match ball.gap2(self.boxes[l]) <= ball.gap2(self.boxes[r]) {
+                true => (l, r),
+                false => (r, l),
+            };
+            stack[depth] = far;
+            stack[depth + 1] = near;
+            depth += 2;
+        }
+        search.best.map(|(i, _)| i)
+    }
 
-                let ti = pencil.t(p);
-                let wins = match best {
-                    None => ti <= pencil.slack,
-                    Some((s, ts)) => {
-                        // Rounding cannot swap clearly separated values;
-                        // near-ties go to the exact test.
-                        let tie = 1e-6 * (pencil.radius + ti.abs() + ts.abs());
-                        ti < ts - tie || (ti <= ts + tie && better(i, s))
-                    }
-                };
-                if wins {
-                    best = Some((i, ti));
-                    ball = pencil.ball(ti);
-                }
+    /// Offer the leaf's live points inside the current sphere.
+    fn scan_leaf<C, B>(&self, leaf: usize, search: &mut Search<'_, C, B>)
+    where
+        C: Fn(usize) -> bool,
+        B: Fn(usize, usize) -> bool,
+    {
+        let end = ((leaf + 1) * LEAF).min(self.order.len());
+        for k in leaf * LEAF..end {
+            let (i, p) = (self.order[k] as usize, self.position[k]);
+            if self.alive[k] && search.ball.holds(p) && (search.candidate)(i) {
+                search.offer(i, p);
             }
         }
-        best.map(|(i, _)| i)
+    }
+}
+
+/// The state of one apex search.
+struct Search<'a, C, B> {
+    pencil: &'a Pencil,
+    candidate: C,
+    better: B,
+    best: Option<(usize, f64)>,
+    /// The sphere of the best so far (the diametral ball before one).
+    ball: Ball,
+    /// Stop at the first point clearly inside the diametral ball.
+    first_inside: bool,
+    done: bool,
+}
+
+impl<C, B: Fn(usize, usize) -> bool> Search<'_, C, B> {
+    fn offer(&mut self, i: usize, p: DVec3) {
+        let ti = self.pencil.t(p);
+        let wins = match self.best {
+            None => ti <= self.pencil.slack,
+            Some((s, ts)) => {
+                // Rounding cannot swap clearly separated values; near-ties
+                // go to the exact test.
+                let tie = 1e-6 * (self.pencil.radius + ti.abs() + ts.abs());
+                ti < ts - tie || (ti <= ts + tie && (self.better)(i, s))
+            }
+        };
+        if wins {
+            self.best = Some((i, ti));
+            self.ball = self.pencil.ball(ti);
+            self.done = self.first_inside && ti < -self.pencil.slack;
+        }
     }
 }
