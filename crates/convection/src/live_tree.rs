@@ -17,7 +17,7 @@
 
 use surfrecon_delaunay::{hilbert_keys, DVec3};
 
-const LEAF: usize = 8;
+const LEAF: usize = 16;
 
 pub(crate) struct LiveTree {
     /// Point indices, leaf by leaf.
