@@ -369,20 +369,23 @@ mod tests {
         }
     }
 
+    /// Gradients of `value` by central differences.
+    fn central_gradients(points: &[DVec3], value: impl Fn(DVec3) -> f64) -> Vec<DVec3> {
+        let h = 1e-6;
+        let d = |p: DVec3, e: DVec3| (value(p + e * h) - value(p - e * h)) / (2.0 * h);
+        points
+            .iter()
+            .map(|&p| DVec3::new(d(p, DVec3::X), d(p, DVec3::Y), d(p, DVec3::Z)))
+            .collect()
+    }
+
     impl Implicit for TwoBalls {
         fn values_grouped(&self, points: &[DVec3], _: &[Vec<u32>]) -> Vec<f64> {
             points.iter().map(|&p| self.value(p)).collect()
         }
 
         fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
-            let h = 1e-6;
-            points
-                .iter()
-                .map(|&p| {
-                    let d = |e: DVec3| (self.value(p + e * h) - self.value(p - e * h)) / (2.0 * h);
-                    DVec3::new(d(DVec3::X), d(DVec3::Y), d(DVec3::Z))
-                })
-                .collect()
+            central_gradients(points, |p| self.value(p))
         }
     }
 
@@ -561,14 +564,7 @@ mod tests {
         }
 
         fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
-            let h = 1e-6;
-            points
-                .iter()
-                .map(|&p| {
-                    let d = |e: DVec3| (self.value(p + e * h) - self.value(p - e * h)) / (2.0 * h);
-                    DVec3::new(d(DVec3::X), d(DVec3::Y), d(DVec3::Z))
-                })
-                .collect()
+            central_gradients(points, |p| self.value(p))
         }
     }
 
