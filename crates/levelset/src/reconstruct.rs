@@ -24,7 +24,7 @@ use surfrecon_geom::progress::{no_progress, Hook, Progress};
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, Polylines, TriMesh};
 use surfrecon_grid::distance::{self, DataSet};
-use surfrecon_grid::marching::marching_cubes;
+use surfrecon_grid::marching::{marching_cubes, settle_lone_nodes};
 use surfrecon_grid::sparse::{marching_cubes_sparse, Block, BlockGrid, BLOCK};
 use surfrecon_grid::spec::for_each_in_box;
 use surfrecon_grid::{Field, Field2, Field3, GridSize, GridSpec};
@@ -196,6 +196,10 @@ pub struct Report {
     /// finest level re-opened the filled concavities
     /// ([`crate::multires::reopen_near_buried`]).
     pub reopened_near_points: usize,
+    /// Nodes whose six neighbours all lay on the other side, given their
+    /// side before extraction so they leave no speck
+    /// ([`surfrecon_grid::marching::settle_lone_nodes`]).
+    pub lone_nodes: usize,
     /// Nodes the points' oriented normals sealed against the exterior
     /// flood ([`crate::holes`]).
     pub sealed_nodes: usize,
@@ -322,10 +326,14 @@ fn reconstruct_3d_centred(
     let mut report = Report::default();
     check(hook, "cleaning")?;
     let input = cleaned(input, params, 3, &mut report);
-    let (phi, field) = evolve_field::<3>(&input, params, &mut report, hook)?;
+    let (mut phi, field) = evolve_field::<3>(&input, params, &mut report, hook)?;
     check(hook, "extract")?;
     // Straight from the blocks: same triangles as on the dense φ.
-    let mut mesh = report.time("extract", || marching_cubes_sparse(&phi, 0.0));
+    let (mut mesh, lone_nodes) = report.time("extract", || {
+        let lone_nodes = settle_lone_nodes(&mut phi, 0.0);
+        (marching_cubes_sparse(&phi, 0.0), lone_nodes)
+    });
+    report.lone_nodes = lone_nodes;
     if params.refine && !input.points.is_empty() {
         // Gaps are measured from the points: curves and patches bound them
         // elsewhere, so with them present no patch is faired.
