@@ -497,12 +497,16 @@ fn evolve_field<const D: usize>(
     let clean = is_clean_points(input, &report.cleaning);
     let dense;
     let input = match &fits {
-        Some(f) if clean && input.is_oriented() => {
-            let denser = report.time("anchors", || f.densified(&input.normals));
+        Some(f) if is_plain_points(input, &report.cleaning) && input.is_oriented() => {
+            let with_disk = report.time("anchors", || match clean {
+                true => vec![true; input.points.len()],
+                false => f.normals_agree(&input.normals),
+            });
+            let denser = report.time("anchors", || f.densified(&input.normals, &with_disk));
             dense = Input {
                 points: denser.points().to_vec(),
                 // The sealing of holes reads them.
-                normals: with_corners(&input.normals),
+                normals: with_corners(&input.normals, &with_disk),
                 ..Input::default()
             };
             report.densified = dense.points.len() - input.points.len();
@@ -651,15 +655,20 @@ fn coarsest_distance<const D: usize>(
 /// finest level's distance includes the disks (surfels), fitted planes
 /// being too unreliable in sparse parts to add points on (spikes
 /// non-uniform: 5× the error). Either way the surface lies on the sampled
-/// surface between samples instead of bulging around each point. Not for
-/// noisy data or data with outliers (some are kept), whose disks scatter
-/// (1% noise: 5–20% worse; 5% outliers: up to 40% worse), nor beside
-/// curves and patches, which bound gaps themselves.
+/// surface between samples instead of bulging around each point. Where
+/// cleaning dropped outliers some survive, whose disks would scatter: with
+/// given normals only the points whose normals agree with their
+/// neighbours' then get disks, without them none does.
 fn is_clean_points(input: &Input, cleaning: &CleaningStats) -> bool {
-    input.segments.is_empty()
-        && input.triangles.is_empty()
-        && cleaning.projected == 0
+    is_plain_points(input, cleaning)
         && (cleaning.outliers as f64) <= STRAY_SHARE * input.points.len() as f64
+}
+
+/// Points alone (no curves or patches, which bound gaps themselves) that
+/// cleaning did not find noisy: noisy points' disks scatter (1% noise:
+/// 5–20% worse).
+fn is_plain_points(input: &Input, cleaning: &CleaningStats) -> bool {
+    input.segments.is_empty() && input.triangles.is_empty() && cleaning.projected == 0
 }
 
 /// Share of the points that cleaning may drop as outliers with the data
