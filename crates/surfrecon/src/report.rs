@@ -134,6 +134,8 @@ pub struct TaggingReport {
     pub restored_near_points: usize,
     pub reopened_near_points: usize,
     pub sealed_by_normals: usize,
+    /// Lone nodes given their neighbours' side before extraction.
+    pub lone_nodes: usize,
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]
