@@ -1036,12 +1036,16 @@ fn closed_boundary(
         .into_par_iter()
         .map(TetId)
         .filter(|&t| tri.is_live(t) && !tri.is_ghost(t) && solid(t))
-        .flat_map_iter(|t| boundary_faces(t).map(move |f| (f, t)))
+        .flat_map_iter(|t| boundary_faces(t).map(move |f| (rotated_to_smallest(f), t)))
         .collect();
     // The clean-up breaks ties (which fan of a pinched vertex stays, which
     // face goes at a pinched edge) in face order; in an order of their own
     // the faces give the same mesh however the triangulation numbers its
-    // tetrahedra. Faces are distinct, so any sort gives that order.
+    // tetrahedra. Faces are distinct, so any sort gives that order. Each
+    // face starts at its smallest vertex too: the clean-up's rows of
+    // edges follow the corners' order, so at a pinch the rotation (a
+    // tetrahedron's slot order) could change its choice (seen once the
+    // thin parts' solid was uncovered around buried points).
     facets.par_sort_unstable_by_key(|&(f, _)| rotated_to_smallest(f));
     let mut triangles: Vec<[u32; 3]> = facets.iter().map(|&(f, _)| f).collect();
     let removed = make_manifold(&mut triangles);
