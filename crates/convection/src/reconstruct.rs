@@ -760,16 +760,20 @@ fn extract_mesh(
         // a volume that swallows points: keep it only where it pays off as
         // a whole.
         let mut restored = restored;
-        let thick = closed_boundary(surface, tri, &restored, site, params);
-        let thick = uncover_buried(
-            surface,
-            tri,
-            site,
-            params,
-            &best.triangles,
-            &mut restored,
-            thick,
-        );
+        let mut thick = closed_boundary(surface, tri, &restored, site, params);
+        // Uncovering adds no piece or boundary edge: it can only help a
+        // restoring that pays off but for the points it buries.
+        if thick.boundary_edges <= best.boundary_edges && thick.pieces < best.pieces {
+            thick = uncover_buried(
+                surface,
+                tri,
+                site,
+                params,
+                &best.triangles,
+                &mut restored,
+                thick,
+            );
+        }
         if thick.boundary_edges <= best.boundary_edges
             && thick.pieces < best.pieces
             && thick.points_used >= best.points_used
@@ -802,7 +806,7 @@ const UNCOVER_ROUNDS: usize = 3;
 
 /// Groups of restored tetrahedra [`uncover_buried`] tries in all (each
 /// try is one [`closed_boundary`], about 10 ms at 7k points).
-const UNCOVER_TRIALS: usize = 64;
+const UNCOVER_TRIALS: usize = 32;
 
 /// A thin part's restored tetrahedra should not bury a point the surface
 /// already reached (`before`'s faces): where a fin or a cone meets the
