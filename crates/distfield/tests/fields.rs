@@ -731,6 +731,16 @@ fn sculpting_fandisk_keeps_a_box_cut_beside_a_ridge() {
         seconds.len()
     );
     assert!(off < 0.15, "the surface leaves the result by {off} h");
+    // The other way: the box's faces where they cut fandisk (points inside
+    // it) are the result's new faces, and the surface must reach them;
+    // the worst place is where the box's x face meets the ridge.
+    let surface = MeshQuery::new(&mesh).unwrap();
+    let missed = box_face_points(tool_min(&tool), tool_max(&tool), h / 8.0)
+        .filter(|&p| exact.signed_distance(p) < 0.0)
+        .map(|p| surface.signed_distance(p).abs() / h)
+        .fold(0.0, f64::max);
+    eprintln!("box cut: its faces off the surface by {missed} h");
+    assert!(missed < 0.22, "the cut faces lie {missed} h off the surface");
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cut.udf");
     write_udf(&path, &udf).unwrap();
@@ -738,6 +748,41 @@ fn sculpting_fandisk_keeps_a_box_cut_beside_a_ridge() {
     assert_eq!(back, udf);
     assert_eq!(back.second_points(&back.feature_points()), seconds);
     assert_eq!(back.extract().0.triangles, mesh.triangles);
+}
+
+fn tool_min(tool: &surfrecon_distfield::sculpt::Tool) -> DVec3 {
+    match tool {
+        surfrecon_distfield::sculpt::Tool::Box { min, .. } => *min,
+        _ => unreachable!("a box"),
+    }
+}
+
+fn tool_max(tool: &surfrecon_distfield::sculpt::Tool) -> DVec3 {
+    match tool {
+        surfrecon_distfield::sculpt::Tool::Box { max, .. } => *max,
+        _ => unreachable!("a box"),
+    }
+}
+
+/// A lattice of points `step` apart on the six faces of the box
+/// `min`-`max`.
+fn box_face_points(min: DVec3, max: DVec3, step: f64) -> impl Iterator<Item = DVec3> {
+    let size = max - min;
+    let counts = (size / step).ceil().as_uvec3();
+    (0..3).flat_map(move |axis| {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        (0..=counts[u]).flat_map(move |i| {
+            (0..=counts[v]).flat_map(move |j| {
+                [min[axis], max[axis]].map(|side| {
+                    let mut p = min;
+                    p[axis] = side;
+                    p[u] = (min[u] + i as f64 * step).min(max[u]);
+                    p[v] = (min[v] + j as f64 * step).min(max[v]);
+                    p
+                })
+            })
+        })
+    })
 }
 
 /// Fandisk's UDF (64 cells, padding 4) minus a sphere, against the exact
