@@ -12,7 +12,7 @@ use crate::surface::{Opening, OrientedFacet, PseudoSurface};
 use crate::thin::thicken;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::time::Instant;
 use surfrecon_delaunay::{TetId, Triangulation, VertexId};
 use surfrecon_geom::normals::{estimate_normals, estimate_normals_and_spacing};
@@ -759,7 +759,21 @@ fn extract_mesh(
         // rest, or (on noisy samples, whose sheets pass for thin parts) fill
         // a volume that swallows points: keep it only where it pays off as
         // a whole.
-        let thick = closed_boundary(surface, tri, &restored, site, params);
+        let mut restored = restored;
+        let mut thick = closed_boundary(surface, tri, &restored, site, params);
+        // Uncovering adds no piece or boundary edge: it can only help a
+        // restoring that pays off but for the points it buries.
+        if thick.boundary_edges <= best.boundary_edges && thick.pieces < best.pieces {
+            thick = uncover_buried(
+                surface,
+                tri,
+                site,
+                params,
+                &best.triangles,
+                &mut restored,
+                thick,
+            );
+        }
         if thick.boundary_edges <= best.boundary_edges
             && thick.pieces < best.pieces
             && thick.points_used >= best.points_used
@@ -784,6 +798,200 @@ fn extract_mesh(
         triangles,
         normals: None,
     }
+}
+
+/// Rounds of [`uncover_buried`]: freeing one point can leave another
+/// behind it buried (restored tetrahedra two layers deep).
+const UNCOVER_ROUNDS: usize = 3;
+
+/// Groups of restored tetrahedra [`uncover_buried`] tries in all (each
+/// try is one [`closed_boundary`], about 10 ms at 7k points).
+const UNCOVER_TRIALS: usize = 32;
+
+/// A thin part's restored tetrahedra should not bury a point the surface
+/// already reached (`before`'s faces): where a fin or a cone meets the
+/// body, the small swept tetrahedra in the concave corner fill a fillet
+/// over the body's points, and the restoring (which must reach no fewer
+/// points) was then refused, leaving the thin parts in crumbs. Each group
+/// of restored tetrahedra touching buried points (connected through
+/// facets) is taken out again when that frees points without adding
+/// pieces, boundary edges or handles; a group that would (the only link
+/// of a cone to the body, a tunnel opened under a fin's root) is tried
+/// again in halves, within a budget of trials.
+fn uncover_buried(
+    surface: &PseudoSurface,
+    tri: &Triangulation,
+    site: &Sites,
+    params: &Params,
+    before: &[[u32; 3]],
+    restored: &mut [bool],
+    mut thick: Boundary,
+) -> Boundary {
+    let euler = |b: &Boundary| euler_characteristic(&b.triangles);
+    let mut trials = 0;
+    for _ in 0..UNCOVER_ROUNDS {
+        let buried = buried_points(before, &thick.triangles, site.points.len());
+        let mut queue: VecDeque<Group> = restored_groups_at(tri, site, &buried, restored).into();
+        let mut freed = false;
+        while let Some(group) = queue.pop_front() {
+            if trials == UNCOVER_TRIALS {
+                break;
+            }
+            let tets: Vec<TetId> = group
+                .tets
+                .into_iter()
+                .filter(|t| restored[t.index()])
+                .collect();
+            if tets.is_empty() {
+                continue;
+            }
+            trials += 1;
+            set_all(restored, &tets, false);
+            let trial = closed_boundary(surface, tri, restored, site, params);
+            if trial.pieces <= thick.pieces
+                && trial.boundary_edges <= thick.boundary_edges
+                && trial.points_used > thick.points_used
+                && euler(&trial) >= euler(&thick)
+            {
+                thick = trial;
+                freed = true;
+                continue;
+            }
+            set_all(restored, &tets, true);
+            // The whole group cut a cone off or opened a tunnel: each half
+            // of its points (split across their widest extent) may not.
+            if group.buried.len() > 1 {
+                for half in split_in_halves(tri, group.buried) {
+                    let tets = half.iter().flat_map(|&v| restored_at(tri, v, restored));
+                    let mut tets: Vec<TetId> = tets.collect();
+                    tets.sort_unstable();
+                    tets.dedup();
+                    queue.push_back(Group { buried: half, tets });
+                }
+            }
+        }
+        if !freed {
+            break;
+        }
+    }
+    thick
+}
+
+/// Restored tetrahedra around buried points, for [`uncover_buried`].
+struct Group {
+    buried: Vec<VertexId>,
+    tets: Vec<TetId>,
+}
+
+/// The points in two halves along the axis of their widest extent.
+fn split_in_halves(tri: &Triangulation, mut points: Vec<VertexId>) -> [Vec<VertexId>; 2] {
+    let (lo, hi) = points.iter().map(|&v| tri.point(v)).fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(p), hi.max(p)),
+    );
+    let axis = (hi - lo).max_position();
+    points.sort_by(|&a, &b| (tri.point(a)[axis].total_cmp(&tri.point(b)[axis])).then(a.cmp(&b)));
+    let upper = points.split_off(points.len() / 2);
+    [points, upper]
+}
+
+fn restored_at(tri: &Triangulation, v: VertexId, restored: &[bool]) -> Vec<TetId> {
+    tri.incident_tets(v)
+        .into_iter()
+        .filter(|t| restored.get(t.index()).copied().unwrap_or(false))
+        .collect()
+}
+
+/// V − E + F of a closed or bordered triangle mesh (vertices those used).
+fn euler_characteristic(triangles: &[[u32; 3]]) -> i64 {
+    let mut vertices: Vec<u32> = triangles.iter().flatten().copied().collect();
+    vertices.sort_unstable();
+    vertices.dedup();
+    let mut edges: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    vertices.len() as i64 - edges.len() as i64 + triangles.len() as i64
+}
+
+fn set_all(flags: &mut [bool], tets: &[TetId], value: bool) {
+    for t in tets {
+        flags[t.index()] = value;
+    }
+}
+
+/// Per input point: used by the faces `before` but not by `after`.
+fn buried_points(before: &[[u32; 3]], after: &[[u32; 3]], points: usize) -> Vec<bool> {
+    let mut state = vec![0u8; points];
+    for &v in before.iter().flatten() {
+        state[v as usize] = 1;
+    }
+    for &v in after.iter().flatten() {
+        state[v as usize] = 2;
+    }
+    state.iter().map(|&s| s == 1).collect()
+}
+
+/// The restored tetrahedra with a `buried` corner, in groups connected
+/// through facets, with their buried points, ordered by input index (an
+/// order of the points, not of the triangulation's numbering).
+fn restored_groups_at(
+    tri: &Triangulation,
+    site: &Sites,
+    buried: &[bool],
+    restored: &[bool],
+) -> Vec<Group> {
+    let mut points: Vec<(usize, VertexId)> = tri
+        .vertices()
+        .filter_map(|v| (site.of_vertex)(v).filter(|&i| buried[i]).map(|i| (i, v)))
+        .collect();
+    points.sort_unstable();
+    let mut slot: HashMap<TetId, usize> = HashMap::new();
+    let mut tets = Vec::new();
+    for &(_, v) in &points {
+        for t in restored_at(tri, v, restored) {
+            slot.entry(t).or_insert_with(|| {
+                tets.push(t);
+                tets.len() - 1
+            });
+        }
+    }
+    // Points and tetrahedra in one set family: a point joins its
+    // tetrahedra, tetrahedra join their restored neighbours.
+    let mut sets = surfrecon_geom::disjoint_sets::DisjointSets::new(points.len() + tets.len());
+    for (j, &t) in tets.iter().enumerate() {
+        for u in tri.neighbors(t) {
+            if let Some(&m) = slot.get(&u) {
+                sets.union(points.len() + j, points.len() + m);
+            }
+        }
+    }
+    for (k, &(_, v)) in points.iter().enumerate() {
+        for t in restored_at(tri, v, restored) {
+            sets.union(k, points.len() + slot[&t]);
+        }
+    }
+    let mut by_root: HashMap<usize, usize> = HashMap::new();
+    let mut groups: Vec<Group> = Vec::new();
+    for (k, &(_, v)) in points.iter().enumerate() {
+        let g = *by_root.entry(sets.find(k)).or_insert_with(|| {
+            groups.push(Group {
+                buried: Vec::new(),
+                tets: Vec::new(),
+            });
+            groups.len() - 1
+        });
+        groups[g].buried.push(v);
+    }
+    for (j, &t) in tets.iter().enumerate() {
+        let g = by_root[&sets.find(points.len() + j)];
+        groups[g].tets.push(t);
+    }
+    groups.retain(|g| !g.tets.is_empty());
+    groups
 }
 
 /// Output faces by input index and what the clean-up did to them.
@@ -832,12 +1040,16 @@ fn closed_boundary(
         .into_par_iter()
         .map(TetId)
         .filter(|&t| tri.is_live(t) && !tri.is_ghost(t) && solid(t))
-        .flat_map_iter(|t| boundary_faces(t).map(move |f| (f, t)))
+        .flat_map_iter(|t| boundary_faces(t).map(move |f| (rotated_to_smallest(f), t)))
         .collect();
     // The clean-up breaks ties (which fan of a pinched vertex stays, which
     // face goes at a pinched edge) in face order; in an order of their own
     // the faces give the same mesh however the triangulation numbers its
-    // tetrahedra. Faces are distinct, so any sort gives that order.
+    // tetrahedra. Faces are distinct, so any sort gives that order. Each
+    // face starts at its smallest vertex too: the clean-up's rows of
+    // edges follow the corners' order, so at a pinch the rotation (a
+    // tetrahedron's slot order) could change its choice (seen once the
+    // thin parts' solid was uncovered around buried points).
     facets.par_sort_unstable_by_key(|&(f, _)| rotated_to_smallest(f));
     let mut triangles: Vec<[u32; 3]> = facets.iter().map(|&(f, _)| f).collect();
     let removed = make_manifold(&mut triangles);

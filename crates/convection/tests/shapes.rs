@@ -188,13 +188,10 @@ fn thin_fin_is_one_closed_sphere() {
     assert!(thin.report.kept_points * 100 >= points.len() * 95);
 }
 
-/// Points on a unit sphere with a thin elliptic fin (semi-axes 1.8 and
-/// 0.03 through its equator, as the harness `spikes` fin), on the smooth
-/// surfaces (no four points coplanar, as on the facets of a mesh).
-fn sphere_with_elliptic_fin() -> Vec<DVec3> {
-    use rand::{Rng, SeedableRng};
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(31);
-    let mut direction = move || loop {
+/// A uniformly random unit vector (rejection sampling in the unit ball).
+fn random_direction(rng: &mut rand_pcg::Pcg64) -> DVec3 {
+    use rand::Rng;
+    loop {
         let v = DVec3::new(
             rng.random::<f64>() * 2.0 - 1.0,
             rng.random::<f64>() * 2.0 - 1.0,
@@ -203,13 +200,21 @@ fn sphere_with_elliptic_fin() -> Vec<DVec3> {
         if (0.01..=1.0).contains(&v.length_squared()) {
             return v.normalize();
         }
-    };
+    }
+}
+
+/// Points on a unit sphere with a thin elliptic fin (semi-axes 1.8 and
+/// 0.03 through its equator, as the harness `spikes` fin), on the smooth
+/// surfaces (no four points coplanar, as on the facets of a mesh).
+fn sphere_with_elliptic_fin() -> Vec<DVec3> {
+    use rand::SeedableRng;
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(31);
     let mut points: Vec<DVec3> = (0..4000)
-        .map(|_| direction())
+        .map(|_| random_direction(&mut rng))
         .filter(|p| p.z.abs() > 0.03)
         .collect();
     // Uniform in the fin's plane, on both faces.
-    let fin = (0..12000).map(|_| direction() * DVec3::new(1.8, 1.8, 0.03));
+    let fin = (0..12000).map(|_| random_direction(&mut rng) * DVec3::new(1.8, 1.8, 0.03));
     points.extend(fin.filter(|p| p.length() > 1.0));
     points
 }
@@ -512,4 +517,56 @@ fn decimation_on_the_fly_fits_closer_at_the_same_radius() {
         front_cd < input_cd,
         "on the fly {front_cd}, input order {input_cd}"
     );
+}
+
+/// The harness `spikes` fin (an ellipsoid 0.7 × 0.03 × 0.45 centred at
+/// (−0.6, −0.6, 0.75), half buried in a unit sphere), sampled with a
+/// density that falls tenfold along −x (as the harness `nonuniform`
+/// variant), so the fin lies on the sparse side.
+fn sphere_with_sparse_fin(seed: u64) -> Vec<DVec3> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let (centre, axes) = (DVec3::new(-0.6, -0.6, 0.75), DVec3::new(0.7, 0.03, 0.45));
+    let in_fin = |p: DVec3| ((p - centre) / axes).length_squared() <= 1.0;
+    let mut points: Vec<DVec3> = (0..30_000)
+        .map(|_| random_direction(&mut rng))
+        .filter(|&p| !in_fin(p))
+        .collect();
+    let fin: Vec<DVec3> = (0..12_000)
+        .map(|_| centre + random_direction(&mut rng) * axes)
+        .filter(|p| p.length() > 1.0)
+        .collect();
+    points.extend(fin);
+    points.retain(|p| {
+        let t = (p.x + 1.3) / 2.6;
+        rng.random::<f64>() < 10f64.powf(t - 1.0)
+    });
+    points
+}
+
+/// Decimated at ρ = 0.005, in input order and on the fly, a sparse fin on
+/// a dense sphere stays one closed sphere. The thickened fin's tetrahedra
+/// filled the corner where it meets the sphere, over sphere points the
+/// surface had reached; the thickening, which must reach no fewer points,
+/// was then refused and the fin left in 12 to 28 crumbs.
+#[test]
+fn sparse_fin_stays_one_piece_when_decimated() {
+    for seed in [2, 3] {
+        let points = sphere_with_sparse_fin(seed);
+        for on_the_fly in [false, true] {
+            let params = Params {
+                rho: 0.005,
+                decimate_on_the_fly: on_the_fly,
+                ..Params::default()
+            };
+            let r = reconstruct(&points, None, &params).unwrap();
+            let topo = topology(&r.mesh);
+            eprintln!(
+                "seed {seed}, on the fly {on_the_fly}: {:?}\n{topo:?}",
+                r.report
+            );
+            assert!(r.report.thin_tets_restored > 0, "{:?}", r.report);
+            assert_closed_genus(&r, points.len(), 0);
+        }
+    }
 }

@@ -132,7 +132,7 @@ pub fn extract_split(
     (mesh, report)
 }
 
-/// Whether `cell`'s feature point `f` lies in another cell that the
+/// Whether `cell`'s feature point `f` lies in a face neighbour that the
 /// surface crosses: then the two patches are fanned together (see
 /// [`merge_beside`]); otherwise the cell fans alone.
 pub(crate) fn leans_on_neighbour(field: &impl SampledField, cell: usize, f: DVec3) -> bool {
@@ -141,12 +141,23 @@ pub(crate) fn leans_on_neighbour(field: &impl SampledField, cell: usize, f: DVec
         return false;
     }
     match cell_of(spec, f) {
-        Some(other) if other != cell => {
+        Some(other) if other != cell && shares_face(spec, cell, other) => {
             let inside = corner_nodes(spec, other).map(|n| field.value(n) < 0.0);
             inside.iter().any(|&s| s) && inside.iter().any(|&s| !s)
         }
         _ => false,
     }
+}
+
+/// Whether cells `a` and `b` are face neighbours. Only across a face can
+/// two crossing loops merge into one (see [`merge_beside`]): a point just
+/// past a cell's edge or corner (a feature corner 0.004 h below the cell,
+/// in the diagonal neighbour) would make a merge of two separate loops,
+/// which never fans, and leave the cell's table triangles.
+fn shares_face(spec: &GridSpec<3>, a: usize, b: usize) -> bool {
+    let (a, b) = (spec.unlinear(a), spec.unlinear(b));
+    let steps: usize = (0..3).map(|k| a[k].abs_diff(b[k])).sum();
+    steps == 1
 }
 
 /// Whether `f` lies within the box of `cell`'s samples where they sit:

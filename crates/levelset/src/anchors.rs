@@ -136,24 +136,46 @@ impl PointPlanes {
     }
 
     /// The points with the corners of their tangent disks (see
-    /// [`crate::holes::tangent_disks`]) added: four times as many, in the
-    /// planes of the given unit `normals` (one per point). Each corner
-    /// keeps its point's fitted plane (the fits anchor thin parts better
-    /// than the given normals: spikes CD 0.164 against 0.185‰).
-    pub fn densified(&self, normals: &[DVec3]) -> Self {
+    /// [`crate::holes::tangent_disks`]) added for the points where
+    /// `with_disk` holds (up to four times as many), in the planes of the
+    /// given unit `normals` (one per point). Each corner keeps its point's
+    /// fitted plane (the fits anchor thin parts better than the given
+    /// normals: spikes CD 0.164 against 0.185‰).
+    pub fn densified(&self, normals: &[DVec3], with_disk: &[bool]) -> Self {
         let corners = crate::holes::tangent_disks(&self.points, normals, &self.tree);
         let points: Vec<DVec3> = self
             .points
             .iter()
             .copied()
-            .chain(corners.iter().flatten().copied())
+            .chain(kept(&corners, with_disk).flatten())
             .collect();
         let tree = KdTree::new(&points);
         PointPlanes {
             points,
-            planes: with_corners(&self.planes),
+            planes: with_corners(&self.planes, with_disk),
             tree,
         }
+    }
+
+    /// Whether each point's given unit normal agrees with those of at least
+    /// [`AGREEING_NEIGHBOURS`] of its [`AGREEMENT_NEIGHBOURS`] nearest
+    /// points (cosine ≥ [`AGREEMENT_COSINE`]). On a sampled surface nearly
+    /// every point's does, beside a sharp edge with those of its own face;
+    /// a stray point's normal says nothing of the surface it lies near.
+    pub fn normals_agree(&self, normals: &[DVec3]) -> Vec<bool> {
+        self.points
+            .par_iter()
+            .zip(normals)
+            .map(|(&p, &n)| {
+                let near = self.tree.knn(p, AGREEMENT_NEIGHBOURS + 1);
+                let agreeing = near
+                    .iter()
+                    .filter(|x| normals[x.index].dot(n) >= AGREEMENT_COSINE)
+                    .count();
+                // The point itself is among its nearest.
+                agreeing > AGREEING_NEIGHBOURS
+            })
+            .collect()
     }
 
     /// The points the planes were fitted to.
@@ -162,15 +184,34 @@ impl PointPlanes {
     }
 }
 
-/// Per-point values followed by each repeated for the point's three disk
-/// corners, in the order [`PointPlanes::densified`] adds them.
-pub(crate) fn with_corners(values: &[DVec3]) -> Vec<DVec3> {
+/// Per-point values followed by each repeated for the three disk corners
+/// of the points where `with_disk` holds, in the order
+/// [`PointPlanes::densified`] adds them.
+pub(crate) fn with_corners(values: &[DVec3], with_disk: &[bool]) -> Vec<DVec3> {
+    let repeated = values.iter().map(|&v| [v; 3]).collect::<Vec<_>>();
     values
         .iter()
         .copied()
-        .chain(values.iter().flat_map(|&v| [v; 3]))
+        .chain(kept(&repeated, with_disk).flatten())
         .collect()
 }
+
+/// The items where `with_disk` holds.
+fn kept<'a, T: Copy>(items: &'a [T], with_disk: &'a [bool]) -> impl Iterator<Item = T> + 'a {
+    items
+        .iter()
+        .zip(with_disk)
+        .filter(|(_, &k)| k)
+        .map(|(&t, _)| t)
+}
+
+/// Neighbours whose given normals a point's is compared with, and how many
+/// must agree, within about 26°, for its disk to be trusted
+/// ([`PointPlanes::normals_agree`]): a random normal agrees with a given
+/// one with probability 0.05, so with 3 of 8 about 0.6% of the time.
+const AGREEMENT_NEIGHBOURS: usize = 8;
+const AGREEING_NEIGHBOURS: usize = 3;
+const AGREEMENT_COSINE: f64 = 0.9;
 
 /// Oriented tangent planes of the points, for the side test.
 pub struct TangentSides<'a> {

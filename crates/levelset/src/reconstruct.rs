@@ -24,7 +24,7 @@ use surfrecon_geom::progress::{no_progress, Hook, Progress};
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, Polylines, TriMesh};
 use surfrecon_grid::distance::{self, DataSet};
-use surfrecon_grid::marching::marching_cubes;
+use surfrecon_grid::marching::{marching_cubes, settle_lone_nodes};
 use surfrecon_grid::sparse::{marching_cubes_sparse, Block, BlockGrid, BLOCK};
 use surfrecon_grid::spec::for_each_in_box;
 use surfrecon_grid::{Field, Field2, Field3, GridSize, GridSpec};
@@ -192,10 +192,15 @@ pub struct Report {
     /// Points the coarsest evolution left outside, around which the tagged
     /// inside was put back ([`crate::multires::restore_near_missed`]).
     pub restored_near_points: usize,
-    /// Points the coarser levels' surface buried inside, around which the
-    /// finest level re-opened the filled concavities
+    /// Points a coarser level's surface buried inside, around which the
+    /// next finer level re-opened the filled concavities, summed over the
+    /// levels
     /// ([`crate::multires::reopen_near_buried`]).
     pub reopened_near_points: usize,
+    /// Nodes whose six neighbours all lay on the other side, given their
+    /// side before extraction so they leave no speck
+    /// ([`surfrecon_grid::marching::settle_lone_nodes`]).
+    pub lone_nodes: usize,
     /// Nodes the points' oriented normals sealed against the exterior
     /// flood ([`crate::holes`]).
     pub sealed_nodes: usize,
@@ -322,10 +327,14 @@ fn reconstruct_3d_centred(
     let mut report = Report::default();
     check(hook, "cleaning")?;
     let input = cleaned(input, params, 3, &mut report);
-    let (phi, field) = evolve_field::<3>(&input, params, &mut report, hook)?;
+    let (mut phi, field) = evolve_field::<3>(&input, params, &mut report, hook)?;
     check(hook, "extract")?;
     // Straight from the blocks: same triangles as on the dense φ.
-    let mut mesh = report.time("extract", || marching_cubes_sparse(&phi, 0.0));
+    let (mut mesh, lone_nodes) = report.time("extract", || {
+        let lone_nodes = settle_lone_nodes(&mut phi, 0.0);
+        (marching_cubes_sparse(&phi, 0.0), lone_nodes)
+    });
+    report.lone_nodes = lone_nodes;
     if params.refine && !input.points.is_empty() {
         // Gaps are measured from the points: curves and patches bound them
         // elsewhere, so with them present no patch is faired.
@@ -489,12 +498,16 @@ fn evolve_field<const D: usize>(
     let clean = is_clean_points(input, &report.cleaning);
     let dense;
     let input = match &fits {
-        Some(f) if clean && input.is_oriented() => {
-            let denser = report.time("anchors", || f.densified(&input.normals));
+        Some(f) if is_plain_points(input, &report.cleaning) && input.is_oriented() => {
+            let with_disk = report.time("anchors", || match clean {
+                true => vec![true; input.points.len()],
+                false => f.normals_agree(&input.normals),
+            });
+            let denser = report.time("anchors", || f.densified(&input.normals, &with_disk));
             dense = Input {
                 points: denser.points().to_vec(),
                 // The sealing of holes reads them.
-                normals: with_corners(&input.normals),
+                normals: with_corners(&input.normals, &with_disk),
                 ..Input::default()
             };
             report.densified = dense.points.len() - input.points.len();
@@ -548,15 +561,13 @@ fn evolve_field<const D: usize>(
         let (grown, missed) = report.time("grow", || grow_to_points(band, &input.points, radius));
         band = grown;
         report.grown_to_points += missed;
-    }
-    if levels > 1 {
-        // The coarse levels filled concavities narrower than their cells.
-        let epsilon = report.epsilon;
+        // The coarser level filled concavities narrower than its cells.
+        let reach = report.epsilon.min(REOPEN_CELLS * spec.spacing);
         let (reopened, buried) = report.time("reopen", || {
-            reopen_near_buried(band, &input.points, epsilon, params.keep_topology)
+            reopen_near_buried(band, &input.points, reach, params.keep_topology)
         });
         band = reopened;
-        report.reopened_near_points = buried;
+        report.reopened_near_points += buried;
     }
     check(hook, "distance")?;
     let mut d = if levels == 1 {
@@ -615,6 +626,14 @@ fn evolve_coarsest<const D: usize>(
     Ok(band)
 }
 
+/// How far around a buried point a level re-opens, in its cells, at most
+/// (else ε): what the next coarser level filled lies within a few of its
+/// cells of the data. ε alone is the coarsest level's, and at three
+/// levels its balls around tens of thousands of buried points cost
+/// minutes (437k points at 400 cells: reopening 316 s, with 8 cells
+/// 9 s, the same fit).
+const REOPEN_CELLS: f64 = 8.0;
+
 /// Points farther outside the coarse evolved surface than this many coarse
 /// cells get the tagged inside back around them (measured on the spikes
 /// shape: 2 cells leaves the thin cones eroded and spurious handles).
@@ -643,15 +662,20 @@ fn coarsest_distance<const D: usize>(
 /// finest level's distance includes the disks (surfels), fitted planes
 /// being too unreliable in sparse parts to add points on (spikes
 /// non-uniform: 5× the error). Either way the surface lies on the sampled
-/// surface between samples instead of bulging around each point. Not for
-/// noisy data or data with outliers (some are kept), whose disks scatter
-/// (1% noise: 5–20% worse; 5% outliers: up to 40% worse), nor beside
-/// curves and patches, which bound gaps themselves.
+/// surface between samples instead of bulging around each point. Where
+/// cleaning dropped outliers some survive, whose disks would scatter: with
+/// given normals only the points whose normals agree with their
+/// neighbours' then get disks, without them none does.
 fn is_clean_points(input: &Input, cleaning: &CleaningStats) -> bool {
-    input.segments.is_empty()
-        && input.triangles.is_empty()
-        && cleaning.projected == 0
+    is_plain_points(input, cleaning)
         && (cleaning.outliers as f64) <= STRAY_SHARE * input.points.len() as f64
+}
+
+/// Points alone (no curves or patches, which bound gaps themselves) that
+/// cleaning did not find noisy: noisy points' disks scatter (1% noise:
+/// 5–20% worse).
+fn is_plain_points(input: &Input, cleaning: &CleaningStats) -> bool {
+    input.segments.is_empty() && input.triangles.is_empty() && cleaning.projected == 0
 }
 
 /// Share of the points that cleaning may drop as outliers with the data

@@ -799,14 +799,19 @@ fn the_fine_level_reopens_a_wedge_the_coarse_level_filled() {
     // sphere a coarse cell deep and the fine convection stalls on its
     // bisector: the points at its apex were 2.71% of the diagonal off the
     // surface. The fine level re-tags around them: 1.85%.
+    // On three levels each finer level re-tags what its coarser one
+    // filled (only the finest did: 2.99%; now 2.27%).
     let input = Input::from_points(sphere_and_plate(16000, 4000, |_| true).points);
-    let params = ReconstructParams {
-        levels: Some(2),
-        ..Default::default()
-    };
-    let r = reconstruct_3d(&input, &params).unwrap();
-    assert_one_closed_sphere_reaching(&r, &input.points, 0.022);
-    assert!(r.report.reopened_near_points > 0, "points were buried");
+    for levels in [2, 3] {
+        let params = ReconstructParams {
+            levels: Some(levels),
+            ..Default::default()
+        };
+        let r = reconstruct_3d(&input, &params).unwrap();
+        let bound = if levels == 2 { 0.022 } else { 0.026 };
+        assert_one_closed_sphere_reaching(&r, &input.points, bound);
+        assert!(r.report.reopened_near_points > 0, "points were buried");
+    }
 }
 
 #[test]
@@ -944,14 +949,11 @@ fn sparse_clean_points_are_joined_along_their_tangent_planes() {
     );
 }
 
-/// A plate about two sampling gaps thick, sampled with normals: the
-/// corners of the points' tangent disks join them, so the faces crumple
-/// less at grid scale.
-#[test]
-fn a_sparsely_sampled_thin_plate_keeps_flat_faces() {
+/// A plate of half width 1 and thickness 0.08 (about two sampling gaps),
+/// 6000 area-uniform samples with their normals.
+fn thin_plate_with_normals(g: &mut rand_pcg::Pcg64) -> Input {
     use rand::Rng;
-    let mut g = rng(5);
-    let (half, thickness) = (1.0, 0.08);
+    let (half, thickness) = (1.0, PLATE_THICKNESS);
     let mut input = Input::default();
     // Area-uniform samples of the plate's box: the two faces and the rim.
     let rim = 8.0 * half * thickness;
@@ -976,29 +978,73 @@ fn a_sparsely_sampled_thin_plate_keeps_flat_faces() {
         input.points.push(p);
         input.normals.push(n);
     }
-    let r = reconstruct_3d(&input, &ReconstructParams::default()).unwrap();
+    input
+}
+
+const PLATE_THICKNESS: f64 = 0.08;
+
+/// One closed piece whose vertices away from the rim lie on the plate's
+/// faces: the mean distance, in cells.
+fn plate_face_offset(r: &Reconstruction3) -> f64 {
     let (watertight, euler, comps) = topology(&r.mesh);
     assert!(
         watertight && euler == 2 && comps == 1,
         "{:?}",
         (watertight, euler, comps)
     );
-    assert!(r.report.densified >= 3 * 5990);
-    // Away from the rim every vertex lies on one of the two faces.
     let off: Vec<f64> = r
         .mesh
         .vertices
         .iter()
-        .filter(|v| v.x.abs().max(v.y.abs()) < 0.8 * half)
-        .map(|v| (v.z.abs() - 0.5 * thickness).abs())
+        .filter(|v| v.x.abs().max(v.y.abs()) < 0.8)
+        .map(|v| (v.z.abs() - 0.5 * PLATE_THICKNESS).abs())
         .collect();
-    let mean = off.iter().sum::<f64>() / off.len() as f64;
-    // Without the corners: 0.67 h (0.49 h with them).
-    let h = r.report.spacing;
-    assert!(mean < 0.55 * h, "mean {mean}, h {h}");
+    off.iter().sum::<f64>() / off.len() as f64 / r.report.spacing
 }
 
-/// Signed distance to the axis box of half sizes `half` about the origin.
+/// A plate about two sampling gaps thick, sampled with normals: the
+/// corners of the points' tangent disks join them, so the faces crumple
+/// less at grid scale.
+#[test]
+fn a_sparsely_sampled_thin_plate_keeps_flat_faces() {
+    let input = thin_plate_with_normals(&mut rng(5));
+    let r = reconstruct_3d(&input, &ReconstructParams::default()).unwrap();
+    assert!(r.report.densified >= 3 * 5990);
+    // Without the corners: 0.67 h (0.49 h with them).
+    let mean = plate_face_offset(&r);
+    eprintln!("plate faces: mean offset {mean} h");
+    assert!(mean < 0.55, "mean {mean} h");
+}
+
+/// The same plate with 5% stray points (random normals) in a box around
+/// it: cleaning drops most, and the points whose normals agree with their
+/// neighbours' keep their disks, so the faces stay as flat as without
+/// strays; the strays that survive get none.
+#[test]
+fn stray_points_do_not_cost_the_clean_points_their_disks() {
+    use rand::Rng;
+    let mut g = rng(5);
+    let mut input = thin_plate_with_normals(&mut g);
+    for _ in 0..300 {
+        let p = DVec3::new(g.random(), g.random(), g.random()) * 2.0 - DVec3::ONE;
+        input.points.push(p * DVec3::new(1.1, 1.1, 0.3));
+        let n = DVec3::new(gauss(&mut g), gauss(&mut g), gauss(&mut g));
+        input.normals.push(n.normalize());
+    }
+    let r = reconstruct_3d(&input, &ReconstructParams::default()).unwrap();
+    let stats = &r.report.cleaning;
+    let kept = input.points.len() - stats.outliers;
+    eprintln!("strays: {stats:?}, densified {}", r.report.densified);
+    let mean = plate_face_offset(&r);
+    eprintln!("plate faces: mean offset {mean} h");
+    assert!(stats.outliers > 6, "cleaning counts the data clean");
+    // Without per-point disks none at all, and 0.120 h (0.045 h with).
+    assert!(r.report.densified >= 3 * 5900, "{}", r.report.densified);
+    let strays_kept = kept.saturating_sub(6000);
+    assert!(r.report.densified <= 3 * (6000 + strays_kept / 4));
+    assert!(mean < 0.08, "mean {mean} h");
+}
+
 fn box_distance(p: DVec3, half: DVec3) -> f64 {
     let q = p.abs() - half;
     q.max(DVec3::ZERO).length() + q.max_element().min(0.0)

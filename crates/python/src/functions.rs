@@ -200,7 +200,8 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
 /// Convection (method="convection"):
 ///   rho=0.0 decimation radius / diagonal; rho_geom=0.9; rho_topo=0.95;
 ///   on_the_fly=False decimate in the order a convection front reaches the
-///   points (the paper's scheme; closer fit, slower) instead of input order;
+///   points (the paper's scheme; closer fit, slower) instead of input order
+///   (noisy points: input order still);
 ///   fill_holes=24 largest hole (edges) closed; no_pockets=False;
 ///   no_thin_parts=False; convection_normal_k=12; open_holes=False leave
 ///   holes in the sampling open (boundary edges) instead of covering them;

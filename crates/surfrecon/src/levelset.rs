@@ -113,6 +113,7 @@ fn report(
             restored_near_points: r.restored_near_points,
             reopened_near_points: r.reopened_near_points,
             sealed_by_normals: r.sealed_nodes,
+            lone_nodes: r.lone_nodes,
         },
         band_nodes: r.band_nodes,
         band: BandReport {

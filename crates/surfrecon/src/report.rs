@@ -134,6 +134,8 @@ pub struct TaggingReport {
     pub restored_near_points: usize,
     pub reopened_near_points: usize,
     pub sealed_by_normals: usize,
+    /// Lone nodes given their neighbours' side before extraction.
+    pub lone_nodes: usize,
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -288,8 +290,9 @@ pub struct SvmMeshReport {
 pub struct ConvectionReport {
     pub method: &'static str,
     pub convection: surfrecon_convection::Report,
-    /// The input was found noisy, so no edges were flipped (tested only
-    /// when flips are on).
+    /// The input was found noisy, so no edges were flipped and the
+    /// decimation ran in input order, not on the fly (tested only when
+    /// flips or the decimation on the fly are on).
     pub noisy_input: bool,
     pub output_counts: OutputCounts,
     pub data_fit: Option<DataFitReport>,

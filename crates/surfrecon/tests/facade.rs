@@ -369,3 +369,36 @@ fn svm_fills_torus_slices_between_and_past_them_from_their_normals() {
     // between slices: 0.0060 (with the stack's samples 0.00033).
     assert!(error < 0.001, "Chamfer-L1 {error} to the torus");
 }
+
+/// The decimation's front keeps the first points it meets, on a noisy
+/// sheet the outermost ones: noisy points (1% radial noise) are decimated
+/// in input order even when the front is asked for; clean ones on the fly.
+#[test]
+fn convection_decimates_noisy_points_in_input_order() {
+    let clean = sample_surface(&icosphere(DVec3::ZERO, RADIUS, 5), 8000, 11);
+    let mut noisy = clean.clone();
+    for (i, p) in noisy.positions.iter_mut().enumerate() {
+        let u = ((i as f64 * 12.9898).sin() * 43_758.545).fract().abs() * 2.0 - 1.0;
+        *p *= 1.0 + 0.01 * 3f64.sqrt() * u;
+    }
+    let run = |cloud: &surfrecon::geom::PointCloud| {
+        let convection = ConvectionOptions {
+            rho: 0.02,
+            decimate_on_the_fly: true,
+            ..ConvectionOptions::default()
+        };
+        let options = Options::with_method(Method::Convection(convection));
+        let out = reconstruct(&Geometry::from_points(cloud.clone()), &options).unwrap();
+        serde_json::to_value(&out.report).unwrap()
+    };
+    let (clean, noisy) = (run(&clean), run(&noisy));
+    assert_eq!(clean["noisy_input"], false);
+    assert!(clean["convection"]["front"]["reached"].as_u64().unwrap() > 0);
+    assert_eq!(noisy["noisy_input"], true);
+    assert!(
+        noisy["convection"]["front"].is_null(),
+        "{}",
+        noisy["convection"]
+    );
+    assert!(noisy["convection"]["decimated"].as_u64().unwrap() > 4000);
+}

@@ -110,7 +110,13 @@ pub fn cell_case(v: &[f64; 8], iso: f64) -> (u8, u8) {
 /// face decide alike.
 #[inline]
 fn positive_connected(v: &[f64; 8], iso: f64, face: [u8; 4]) -> bool {
-    let d = face.map(|c| v[c as usize] - iso);
+    positive_corners_joined(face.map(|c| v[c as usize] - iso))
+}
+
+/// The asymptotic decider on a face's four offsets from iso in cyclic
+/// order: whether its positive corners are joined.
+#[inline]
+pub(crate) fn positive_corners_joined(d: [f64; 4]) -> bool {
     let (diag_a, diag_b) = (d[0] * d[2], d[1] * d[3]);
     if d[0] >= 0.0 {
         diag_a >= diag_b

@@ -10,11 +10,13 @@
 //! generated and why the result is watertight and edge-manifold.
 
 mod cubes;
+mod lone;
 mod squares;
 pub mod tables;
 
 pub use cubes::{cell_case, crossing_fraction, marching_cubes};
 pub(crate) use cubes::{edge_vertex, loop_centre, Samples3};
+pub use lone::settle_lone_nodes;
 pub use squares::marching_squares;
 
 #[cfg(test)]
