@@ -11,7 +11,10 @@
 //!
 //! Only straight joins are checked: between two inside nodes of a convex
 //! part (a cone, a cylinder) the segment stays inside, while for separate
-//! parts (two bodies, a stray blob) f turns positive on the way.
+//! parts (two bodies, a stray blob) f turns positive on the way. Where f
+//! pinches a sampled part (a cone's tip beyond a positive blip), the join
+//! is also allowed if the data run on across the pinch: an input point
+//! lies within half a cell of every check point where f is not negative.
 //!
 //! A part thinner than a cell can also lie between the nodes altogether
 //! (a fin's rim, a cone's tip): [`join_and_reach_thin_parts`] then sets
