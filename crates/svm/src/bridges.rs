@@ -11,7 +11,10 @@
 //!
 //! Only straight joins are checked: between two inside nodes of a convex
 //! part (a cone, a cylinder) the segment stays inside, while for separate
-//! parts (two bodies, a stray blob) f turns positive on the way.
+//! parts (two bodies, a stray blob) f turns positive on the way. Where f
+//! pinches a sampled part (a cone's tip beyond a positive blip), the join
+//! is also allowed if the data run on across the pinch: an input point
+//! lies within half a cell of every check point where f is not negative.
 //!
 //! A part thinner than a cell can also lie between the nodes altogether
 //! (a fin's rim, a cone's tip): [`join_and_reach_thin_parts`] then sets
@@ -23,6 +26,7 @@ use crate::mesh::Implicit;
 use crate::mesh::SPECK_CELLS;
 use glam::DVec3;
 use surfrecon_geom::disjoint_sets::DisjointSets;
+use surfrecon_geom::spatial::KdTree;
 use surfrecon_grid::GridSpec;
 
 /// Farthest two inside nodes may be apart, in cells, to be joined (4:
@@ -89,12 +93,22 @@ fn pack(n: [i64; 3]) -> u64 {
     n[0] as u64 | (n[1] as u64) << 21 | (n[2] as u64) << 42
 }
 
+/// Where f turns positive on a join, a sample within this many cells of
+/// every such point still allows it: the data run on across the gap, so
+/// f pinches a sampled part there (harness spikes outliers: the +x cone's
+/// tip a crumb beyond such a pinch, samples within 0.2 cells of its
+/// axis). Two separate bodies two cells apart leave the gap's middle a
+/// cell from their samples, so they stay apart.
+const SAMPLED_GAP_CELLS: f64 = 0.5;
+
 /// Join the pieces of inside nodes of `nodes` that `model` joins below the
-/// grid's resolution (see the module doc); returns the number of joins.
-/// Nodes added by a join are appended (the caller sorts).
+/// grid's resolution (see the module doc), or that the data `seeds` join
+/// across a pinch of f ([`SAMPLED_GAP_CELLS`]); returns the number of
+/// joins. Nodes added by a join are appended (the caller sorts).
 pub fn bridge_thin_parts(
     model: &(impl Implicit + ?Sized),
     spec: &GridSpec<3>,
+    seeds: &KdTree,
     nodes: &mut Vec<([usize; 3], f64)>,
 ) -> usize {
     let mut band = Band::new(nodes, spec.dims);
@@ -115,7 +129,17 @@ pub fn bridge_thin_parts(
         ranges.push(start..samples.len());
     }
     let values = model.values_grouped(&samples, &[(0..samples.len() as u32).collect()]);
-    let inside_all_along = |k: usize| values[ranges[k].clone()].iter().all(|&f| f < 0.0);
+    let sampled = |p: DVec3| {
+        seeds
+            .nearest(p)
+            .is_some_and(|n| n.distance <= SAMPLED_GAP_CELLS * spec.spacing)
+    };
+    // Inside all along, or sampled wherever f is not.
+    let inside_all_along = |k: usize| {
+        ranges[k]
+            .clone()
+            .all(|i| values[i] < 0.0 || sampled(samples[i]))
+    };
     // Pairs of pieces nearest first; per pair the shortest join inside.
     let mut order: Vec<usize> = (0..candidates.len()).collect();
     order.sort_by_key(|&k| (candidates[k].nearest, candidates[k].squared, k));
@@ -175,7 +199,7 @@ pub fn join_and_reach_thin_parts(
         .collect();
     let depth = BRIDGE_DEPTH * spec.spacing;
     grow_from_inside(&mut band, set.iter().map(|(n, _)| *n).collect(), depth);
-    let joins = bridge_thin_parts(model, spec, nodes);
+    let joins = bridge_thin_parts(model, spec, &KdTree::new(seeds), nodes);
     let reached = keep_where_anchored(&mut Band::new(nodes, spec.dims), &anchors, &set);
     (joins, reached)
 }

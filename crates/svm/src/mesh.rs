@@ -618,4 +618,80 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(off_plane < h, "{:.2} cells off the sheet", off_plane / h);
     }
+
+    /// A ball of radius 0.5 with a rod of radius 0.4 cells along x through
+    /// a row of grid nodes, which f pinches: positive within 0.75 cells of
+    /// a node on the axis, so one node of the row lies outside and the rod
+    /// beyond is a piece of its own, although samples run on along it.
+    struct PinchedRod {
+        start: DVec3,
+        cell: f64,
+    }
+
+    impl PinchedRod {
+        const LENGTH_CELLS: f64 = 20.0;
+        const PINCH_CELLS: f64 = 8.0;
+
+        fn value(&self, p: DVec3) -> f64 {
+            let length = Self::LENGTH_CELLS * self.cell;
+            let along = (p.x - self.start.x).clamp(0.0, length);
+            let rod = p.distance(self.start + DVec3::X * along) - 0.4 * self.cell;
+            let pinch_x = self.start.x + Self::PINCH_CELLS * self.cell;
+            let pinch = 0.75 * self.cell - (p.x - pinch_x).abs();
+            rod.max(pinch).min(p.length() - 0.5)
+        }
+
+        fn seeds(&self, samples_in_the_pinch: bool) -> Vec<DVec3> {
+            let pinch_x = self.start.x + Self::PINCH_CELLS * self.cell;
+            let rod = (0..200)
+                .map(|i| {
+                    self.start + DVec3::X * (Self::LENGTH_CELLS * self.cell * i as f64 / 200.0)
+                })
+                .filter(|p| samples_in_the_pinch || (p.x - pinch_x).abs() > 1.5 * self.cell);
+            fibonacci_sphere(2000, 0.5).into_iter().chain(rod).collect()
+        }
+    }
+
+    impl Implicit for PinchedRod {
+        fn values_grouped(&self, points: &[DVec3], _: &[Vec<u32>]) -> Vec<f64> {
+            points.iter().map(|&p| self.value(p)).collect()
+        }
+
+        fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
+            central_gradients(points, |p| self.value(p))
+        }
+    }
+
+    #[test]
+    fn a_sampled_part_pinched_by_f_stays_one_piece() {
+        let opts = MeshOptions {
+            resolution: 96,
+            margin: 0.0,
+        };
+        let bounds = Aabb {
+            min: DVec3::new(-0.6, -0.6, -0.6),
+            max: DVec3::new(1.0, 0.6, 0.6),
+        };
+        let spec = GridSpec::<3>::from_bounds(
+            bounds.min.to_array(),
+            bounds.max.to_array(),
+            GridSize::Resolution(opts.resolution),
+            1,
+        )
+        .unwrap();
+        let node = |p: DVec3| DVec3::from_array(spec.position(cell_of(&spec, p).unwrap()));
+        let shape = PinchedRod {
+            start: node(DVec3::new(0.45, 0.0, 0.0)),
+            cell: spec.spacing,
+        };
+        // Samples run on through the pinch: the data say it is one part.
+        let (mesh, report) = mesh_model(&shape, &shape.seeds(true), bounds, &opts).unwrap();
+        assert_eq!(mesh.piece_count(), 1, "{report:?}");
+        let farthest = mesh.vertices.iter().map(|v| v.x).fold(f64::MIN, f64::max);
+        let end = shape.start.x + 0.9 * PinchedRod::LENGTH_CELLS * spec.spacing;
+        assert!(farthest > end, "the rod ends at x = {farthest}, not {end}");
+        // Without samples in the pinch f's gap stands: two pieces.
+        let (mesh, report) = mesh_model(&shape, &shape.seeds(false), bounds, &opts).unwrap();
+        assert_eq!(mesh.piece_count(), 2, "{report:?}");
+    }
 }
