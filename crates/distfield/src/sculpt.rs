@@ -314,6 +314,47 @@ fn edge_point_in(spec: &GridSpec<3>, combined: &Combined, cell: usize) -> Option
         .map(|p| nudge_into(spec, cell, p))
 }
 
+/// The feature point of a cell whose moved samples widen it past its grid
+/// box (into a wall above a cap's rim): the QEF point of its crossings,
+/// where it lies on the result's edge (`on_edge`, the rim) within
+/// [`WIDENED_MARGIN`] of the box of the samples where they sit, moved
+/// into the grid box (where [`owner_cell`] gives it to the cell), if the
+/// cell's fan around it fits there. On the rim itself the fan folds: the
+/// crossing on the face of the moved samples lies on the cap, the one on
+/// the wall below the rim, and the fan triangle between them stands
+/// across the hole; so [`sharp_point`] gives the cell nothing. (A cap's
+/// rim is the tool's own edge, which [`edge_point_in`], searching where
+/// object and tool meet, never finds.)
+fn widened_point(
+    field: &UnifiedField,
+    cell: usize,
+    tangents: &[Tangent],
+    cos_limit: f64,
+    on_edge: impl Fn(DVec3) -> bool,
+) -> Option<DVec3> {
+    let spec = &field.spec;
+    let positions = corner_nodes(spec, cell).map(|n| field.position(n));
+    let lo = positions.iter().copied().fold(DVec3::INFINITY, DVec3::min);
+    let hi = (positions.iter().copied()).fold(DVec3::NEG_INFINITY, DVec3::max);
+    let grid = node_position(spec, cell);
+    let widened = lo != grid || hi != grid + DVec3::splat(spec.spacing);
+    if !widened || !crate::sharp::is_sharp(tangents, cos_limit) {
+        return None;
+    }
+    let rim = crate::sharp::qef_minimizer(tangents)?;
+    let margin = DVec3::splat(WIDENED_MARGIN * spec.spacing);
+    if !(on_edge(rim) && rim.cmpge(lo - margin).all() && rim.cmple(hi + margin).all()) {
+        return None;
+    }
+    let point = nudge_into(spec, cell, rim);
+    fan_fits(field, cell, point).then_some(point)
+}
+
+/// How far past the box of its samples (spacings) a widened cell's rim
+/// point may lie: the corner where an old edge passes over a cap's rim
+/// lies 0.05 h below the cell on fandisk − cylinder.
+const WIDENED_MARGIN: f64 = 0.1;
+
 /// A point fitted to a cell's crossings counts as on the new edge within
 /// this many spacings of both the tool and the result.
 const ON_EDGE: f64 = 0.02;
@@ -472,8 +513,9 @@ pub fn sculpt_udf(
             .map(|&q| clamp_near(&spec, c, q, 0.5 * h))
             .filter(|&q| on_both(q) && storage_for(field, c, q).is_some())
             .find(|&q| fan_fits(&*field, c, q));
-        let fitted =
-            corner.or_else(|| sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q)));
+        let fitted = corner
+            .or_else(|| sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q)))
+            .or_else(|| widened_point(field, c, &tangents, cos_limit, on_both));
         let Some(p) = fitted.or_else(|| edge_point_in(&spec, &combined, c)) else {
             continue;
         };

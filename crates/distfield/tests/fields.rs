@@ -895,9 +895,15 @@ fn sculpting_fandisk_cuts_a_hole_under_a_pocket_without_a_handle() {
     let cut = fandisk_minus_cylinder(4);
     assert_closed_manifold(&cut.mesh, 2);
     assert!(cut.settled > 0, "no face settled");
-    assert!(cut.cap < 0.4, "the cap lies {} h from the surface", cut.cap);
+    // (main before session 27: cap 0.280 h, surface 0.419 h, at the rim
+    // cell with no point)
     assert!(
-        cut.off < 0.43,
+        cut.cap < 0.25,
+        "the cap lies {} h from the surface",
+        cut.cap
+    );
+    assert!(
+        cut.off < 0.39,
         "the surface leaves the result by {} h",
         cut.off
     );
