@@ -3,7 +3,8 @@
 //! surface lies from a reference both ways (every vertex and 16 points per
 //! triangle, as `examples/sculpt_check.rs`), with the worst cells.
 //! cargo run --release -p surfrecon-distfield --example try_points -- FIELD.udf REF H [SET ...]
-//! SET: `i,j,k=x,y,z;i,j,k=none;...` (changes applied together; an empty
+//! SET: `i,j,k=x,y,z;i,j,k=none;i,j,k=x,y,z+x,y,z;...` (a cell's point,
+//! none, or a first and second point; changes applied together; an empty
 //! SET measures the field as it is).
 use std::collections::BTreeMap;
 use surfrecon_distfield::extract::extract_split;
@@ -30,16 +31,25 @@ fn main() {
         vec![String::new()]
     };
     for set in &sets {
-        let mut features = first.clone();
+        let (mut features, mut second) = (first.clone(), seconds.clone());
         for item in set.split(';').filter(|s| !s.is_empty()) {
             let (cell, point) = item.split_once('=').unwrap();
             let cell = field.spec.linear(triple(cell).map(|x| x as usize));
-            match point {
-                "none" => features.remove(&cell),
-                _ => features.insert(cell, DVec3::from_array(triple(point))),
-            };
+            second.remove(&cell);
+            match point.split_once('+') {
+                _ if point == "none" => {
+                    features.remove(&cell);
+                }
+                Some((a, b)) => {
+                    features.insert(cell, DVec3::from_array(triple(a)));
+                    second.insert(cell, DVec3::from_array(triple(b)));
+                }
+                None => {
+                    features.insert(cell, DVec3::from_array(triple(point)));
+                }
+            }
         }
-        let (out, report) = extract_split(&field, &features, &seconds);
+        let (out, report) = extract_split(&field, &features, &second);
         let to_out = MeshQuery::new(&out).unwrap();
         let there = deviation(&out, &to_ref, 16);
         let back = deviation(&reference, &to_out, 16);
