@@ -899,14 +899,15 @@ fn sculpting_fandisk_cuts_a_hole_under_a_pocket_without_a_handle() {
     // (before session 27: cap 0.280 h, surface 0.419 h at the rim cell
     // with no point; with its point, 0.377 h above the wall, where an
     // edge from a floating sample interpolated the pocket's floor 0.46 h
-    // too high)
+    // too high; with that straightened, 0.206 h where a rim cell holding
+    // the floor too, two loops, kept its table triangles)
     assert!(
         cut.cap < 0.25,
         "the cap lies {} h from the surface",
         cut.cap
     );
     assert!(
-        cut.off < 0.22,
+        cut.off < 0.2,
         "the surface leaves the result by {} h",
         cut.off
     );
