@@ -7,7 +7,8 @@
 //! puts it. A cell with a feature point gets, instead of its table
 //! triangles, a fan from the feature point to the cell's crossing loop
 //! (extended marching cubes); the loop is the patch's boundary, shared
-//! with the neighbours, so the mesh stays closed and manifold. Finally an
+//! with the neighbours, so the mesh stays closed and manifold (of a
+//! cell's several loops, the one nearest the point is fanned). Finally an
 //! edge whose two opposite vertices are feature points of neighbouring
 //! cells is flipped to join them, which traces the feature line.
 
@@ -50,8 +51,9 @@ pub trait SampledField: Sync {
 pub struct ExtractReport {
     /// Cells whose patch became a fan around their feature point.
     pub fans: usize,
-    /// Feature cells left with their table triangles (several loops, or a
-    /// fan that would fold over).
+    /// Feature cells left with their table triangles (a fan that would
+    /// fold over, or several loops of which the nearest cannot be fanned
+    /// alone).
     pub fans_refused: usize,
     /// Edges flipped to join feature points.
     pub flips: usize,
