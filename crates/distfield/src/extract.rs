@@ -7,7 +7,8 @@
 //! puts it. A cell with a feature point gets, instead of its table
 //! triangles, a fan from the feature point to the cell's crossing loop
 //! (extended marching cubes); the loop is the patch's boundary, shared
-//! with the neighbours, so the mesh stays closed and manifold. Finally an
+//! with the neighbours, so the mesh stays closed and manifold (of a
+//! cell's several loops, the one nearest the point is fanned). Finally an
 //! edge whose two opposite vertices are feature points of neighbouring
 //! cells is flipped to join them, which traces the feature line.
 
@@ -50,8 +51,9 @@ pub trait SampledField: Sync {
 pub struct ExtractReport {
     /// Cells whose patch became a fan around their feature point.
     pub fans: usize,
-    /// Feature cells left with their table triangles (several loops, or a
-    /// fan that would fold over).
+    /// Feature cells left with their table triangles (a fan that would
+    /// fold over, or several loops of which the nearest cannot be fanned
+    /// alone).
     pub fans_refused: usize,
     /// Edges flipped to join feature points.
     pub flips: usize,
@@ -485,13 +487,80 @@ impl Patch {
         keys: &[u64],
         field: &impl SampledField,
     ) -> Patch {
-        match fan_over(&self.boundary(), feature, vertices, keys, field) {
+        let fan = fan_over(&self.boundary(), feature, vertices, keys, field)
+            .or_else(|| self.fan_nearest_sheet(feature, vertices, keys, field));
+        match fan {
             Some(fan) => fan,
             None => Patch {
                 fanned: Some(false),
                 ..self
             },
         }
+    }
+
+    /// Where the cell holds several sheets (crossing loops), the fan of
+    /// the one whose crossings lie nearest `feature` (their mean), the
+    /// others keeping their table triangles: a cap's rim under a pocket's
+    /// floor 0.7 h above it. Only where those triangles need no loop
+    /// centre (the fan's point is the patch's one extra vertex).
+    fn fan_nearest_sheet(
+        &self,
+        feature: DVec3,
+        vertices: &[DVec3],
+        keys: &[u64],
+        field: &impl SampledField,
+    ) -> Option<Patch> {
+        let sheets = self.sheets();
+        let at = |v: Vertex| match v {
+            Vertex::Edge(i) => Some(vertices[i as usize]),
+            Vertex::Extra(_) => None,
+        };
+        let distance = |sheet: &Vec<[Vertex; 3]>| {
+            let points: Vec<DVec3> = sheet.iter().flatten().filter_map(|&v| at(v)).collect();
+            let mean = points.iter().sum::<DVec3>() / points.len().max(1) as f64;
+            mean.distance(feature)
+        };
+        if sheets.len() < 2 {
+            return None;
+        }
+        let nearest = (0..sheets.len())
+            .min_by(|&a, &b| distance(&sheets[a]).total_cmp(&distance(&sheets[b])))?;
+        let others: Vec<[Vertex; 3]> = (sheets.iter().enumerate())
+            .filter(|&(k, _)| k != nearest)
+            .flat_map(|(_, sheet)| sheet.iter().copied())
+            .collect();
+        if others
+            .iter()
+            .flatten()
+            .any(|v| matches!(v, Vertex::Extra(_)))
+        {
+            return None;
+        }
+        let own = Patch {
+            triangles: sheets[nearest].clone(),
+            extra: Vec::new(),
+            fanned: None,
+        };
+        let mut fan = fan_over(&own.boundary(), feature, vertices, keys, field)?;
+        fan.triangles.extend(others);
+        Some(fan)
+    }
+
+    /// The patch's triangles grouped into sheets: triangles sharing a
+    /// vertex, transitively.
+    fn sheets(&self) -> Vec<Vec<[Vertex; 3]>> {
+        let mut sheets: Vec<Vec<[Vertex; 3]>> = Vec::new();
+        for &t in &self.triangles {
+            let touching: Vec<usize> = (0..sheets.len())
+                .filter(|&k| sheets[k].iter().flatten().any(|v| t.contains(v)))
+                .collect();
+            let mut merged = vec![t];
+            for &k in touching.iter().rev() {
+                merged.extend(sheets.swap_remove(k));
+            }
+            sheets.push(merged);
+        }
+        sheets
     }
 }
 

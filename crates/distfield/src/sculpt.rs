@@ -19,7 +19,7 @@ use crate::offset::{
     cells_around, may_take, node_position, on_outer_layer, stays_convex, OffsetField,
 };
 use crate::query::MeshQuery;
-use crate::refine::{mesh_points, Exact, MeshSamples};
+use crate::refine::{hand_over, mesh_points, Exact, MeshSamples};
 use crate::sharp::Tangent;
 use crate::sharp::{clamp_near, owner_cell};
 use crate::unified::{
@@ -29,8 +29,8 @@ use crate::DistFieldError;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use surfrecon_geom::{DVec3, TriMesh};
-use surfrecon_grid::marching::crossing_fraction;
 use surfrecon_grid::marching::tables::EDGE_CORNERS;
+use surfrecon_grid::marching::{cell_case, crossing_fraction};
 use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_grid::{Field3, GridSpec};
 
@@ -174,6 +174,9 @@ pub struct SculptReport {
     /// Samples whose magnitude was raised so that a face with samples of
     /// alternating sign joins the pair the exact result joins (UDF).
     pub settled: usize,
+    /// Samples given the value that makes the interpolated crossing on an
+    /// edge from a sample floating in a thin wall exact (UDF).
+    pub straightened: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -314,6 +317,47 @@ fn edge_point_in(spec: &GridSpec<3>, combined: &Combined, cell: usize) -> Option
         .map(|p| nudge_into(spec, cell, p))
 }
 
+/// The feature point of a cell whose moved samples widen it past its grid
+/// box (into a wall above a cap's rim): the QEF point of its crossings,
+/// where it lies on the result's edge (`on_edge`, the rim) within
+/// [`WIDENED_MARGIN`] of the box of the samples where they sit, moved
+/// into the grid box (where [`owner_cell`] gives it to the cell), if the
+/// cell's fan around it fits there. On the rim itself the fan folds: the
+/// crossing on the face of the moved samples lies on the cap, the one on
+/// the wall below the rim, and the fan triangle between them stands
+/// across the hole; so [`sharp_point`] gives the cell nothing. (A cap's
+/// rim is the tool's own edge, which [`edge_point_in`], searching where
+/// object and tool meet, never finds.)
+fn widened_point(
+    field: &UnifiedField,
+    cell: usize,
+    tangents: &[Tangent],
+    cos_limit: f64,
+    on_edge: impl Fn(DVec3) -> bool,
+) -> Option<DVec3> {
+    let spec = &field.spec;
+    let positions = corner_nodes(spec, cell).map(|n| field.position(n));
+    let lo = positions.iter().copied().fold(DVec3::INFINITY, DVec3::min);
+    let hi = (positions.iter().copied()).fold(DVec3::NEG_INFINITY, DVec3::max);
+    let grid = node_position(spec, cell);
+    let widened = lo != grid || hi != grid + DVec3::splat(spec.spacing);
+    if !widened || !crate::sharp::is_sharp(tangents, cos_limit) {
+        return None;
+    }
+    let rim = crate::sharp::qef_minimizer(tangents)?;
+    let margin = DVec3::splat(WIDENED_MARGIN * spec.spacing);
+    if !(on_edge(rim) && rim.cmpge(lo - margin).all() && rim.cmple(hi + margin).all()) {
+        return None;
+    }
+    let point = nudge_into(spec, cell, rim);
+    fan_fits(field, cell, point).then_some(point)
+}
+
+/// How far past the box of its samples (spacings) a widened cell's rim
+/// point may lie: the corner where an old edge passes over a cap's rim
+/// lies 0.05 h below the cell on fandisk − cylinder.
+const WIDENED_MARGIN: f64 = 0.1;
+
 /// A point fitted to a cell's crossings counts as on the new edge within
 /// this many spacings of both the tool and the result.
 const ON_EDGE: f64 = 0.02;
@@ -414,41 +458,15 @@ pub fn sculpt_udf(
             Some(((n, axis), (p, combined.normal(p, h)?)))
         })
         .collect();
-    let found: Vec<(usize, usize, f64)> = crossings
-        .par_iter()
-        .filter_map(|(&(n, axis), &(p, _))| {
-            let m = n + spec.strides()[axis];
-            let regular = !field.extras.contains_key(&(n as u32))
-                || matches!(field.extras[&(n as u32)], Extra::Directed(_));
-            let on_surface = matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_)))
-                && !field.floats(m);
-            if !regular || on_surface {
-                return None;
-            }
-            // To a floating sample the edge leaves the grid line: the
-            // distance stored is the crossing's fraction of it, times h.
-            let d = if field.floats(m) {
-                let from = field.position(n);
-                p.distance(from) / field.position(m).distance(from) * h
-            } else {
-                p[axis] - node_position(&spec, n)[axis]
-            };
-            let (a, b) = (field.values[n], field.values[m]);
-            ((d - crossing_fraction(a, b, 0.0) * h).abs() > threshold * h).then_some((n, axis, d))
-        })
-        .collect();
-    for (n, axis, d) in found {
-        let entry = field
-            .extras
-            .entry(n as u32)
-            .or_insert(Extra::Directed([f64::INFINITY; 3]));
-        if let Extra::Directed(dirs) = entry {
-            if dirs[axis] == f64::INFINITY {
-                report.directed += 1;
-            }
-            dirs[axis] = d;
-        }
+    report.directed = store_directed(field, &crossings, threshold);
+    // Edges from a sample floating in a thin wall take no directed
+    // distance: the sample at their other end is set to what makes the
+    // interpolation exact, and its own edges take theirs.
+    let straightened = straighten_floating_edges(field, &crossings, threshold);
+    if !straightened.is_empty() {
+        report.directed += store_directed(field, &crossings, threshold);
     }
+    report.straightened = straightened.len();
     // Feature points on the new edges: where the crossings' tangent
     // planes meet on both the tool and the result (a corner where the new
     // edge meets an old one), that point, else one on the new edge.
@@ -472,8 +490,9 @@ pub fn sculpt_udf(
             .map(|&q| clamp_near(&spec, c, q, 0.5 * h))
             .filter(|&q| on_both(q) && storage_for(field, c, q).is_some())
             .find(|&q| fan_fits(&*field, c, q));
-        let fitted =
-            corner.or_else(|| sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q)));
+        let fitted = corner
+            .or_else(|| sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q)))
+            .or_else(|| widened_point(field, c, &tangents, cos_limit, on_both));
         let Some(p) = fitted.or_else(|| edge_point_in(&spec, &combined, c)) else {
             continue;
         };
@@ -516,6 +535,182 @@ pub fn sculpt_udf(
     report.repicked = repick(field, &combined, &cells, &old_features, &corners);
     report.repaired = repair(field, &combined, &surface, &cells, &old_features, &corners);
     Ok(report)
+}
+
+/// Directed distances for the edges whose exact crossing (`crossings`,
+/// by edge) the interpolation between their samples misses by more than
+/// `threshold` spacings, where the edge's lower sample can store one.
+/// Returns the number stored anew.
+fn store_directed(
+    field: &mut UnifiedField,
+    crossings: &HashMap<(usize, usize), Tangent>,
+    threshold: f64,
+) -> usize {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let mut stored = 0;
+    let found: Vec<(usize, usize, f64)> = crossings
+        .par_iter()
+        .filter_map(|(&(n, axis), &(p, _))| {
+            let m = n + spec.strides()[axis];
+            let regular = !field.extras.contains_key(&(n as u32))
+                || matches!(field.extras[&(n as u32)], Extra::Directed(_));
+            let on_surface = matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_)))
+                && !field.floats(m);
+            if !regular || on_surface {
+                return None;
+            }
+            // To a floating sample the edge leaves the grid line: the
+            // distance stored is the crossing's fraction of it, times h.
+            let d = if field.floats(m) {
+                let from = field.position(n);
+                p.distance(from) / field.position(m).distance(from) * h
+            } else {
+                p[axis] - node_position(&spec, n)[axis]
+            };
+            let (a, b) = (field.values[n], field.values[m]);
+            ((d - crossing_fraction(a, b, 0.0) * h).abs() > threshold * h).then_some((n, axis, d))
+        })
+        .collect();
+    for (n, axis, d) in found {
+        let entry = field
+            .extras
+            .entry(n as u32)
+            .or_insert(Extra::Directed([f64::INFINITY; 3]));
+        if let Extra::Directed(dirs) = entry {
+            if dirs[axis] == f64::INFINITY {
+                stored += 1;
+            }
+            dirs[axis] = d;
+        }
+    }
+    stored
+}
+
+/// For each edge from a sample floating in a thin wall
+/// ([`fill_thin_walls`]) to a sample not moved whose interpolated crossing
+/// misses the exact one by more than `threshold` spacings (that sample's
+/// distance is to another sheet, e.g. a pocket's side face above the
+/// wall's floor, so the interpolation puts the floor 0.46 h too high on
+/// fandisk − cylinder): the floating sample cannot store a directed
+/// distance (it stores its position), so the other sample takes the value
+/// that makes the interpolation exact — of the same sign, at most
+/// [`MAX_STRAIGHTEN`] spacings, only where each of its edges that the
+/// surface crosses will have its exact crossing or needs none
+/// ([`edge_exact_after`]; the other floating edges into it within
+/// `threshold`), and no cell around it changes its case (signs and the
+/// faces' deciders). Returns the samples changed.
+fn straighten_floating_edges(
+    field: &mut UnifiedField,
+    crossings: &HashMap<(usize, usize), Tangent>,
+    threshold: f64,
+) -> Vec<usize> {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let strides = spec.strides();
+    let mut targets: BTreeMap<usize, f64> = BTreeMap::new();
+    // In edge order: of several floating edges into one sample, the first
+    // sets its value (the others must then stay within the threshold).
+    let mut edges: Vec<(&(usize, usize), &Tangent)> = crossings.iter().collect();
+    edges.sort_unstable_by_key(|e| *e.0);
+    for (&(n, axis), &(p, _)) in edges {
+        let m = n + strides[axis];
+        let moved = matches!(field.extras.get(&(m as u32)), Some(Extra::Position(_)));
+        if !field.floats(n) || moved {
+            continue;
+        }
+        if floating_edge_error(field, n, m, p, field.values[m]) <= threshold * h {
+            continue;
+        }
+        let (from, to) = (field.position(n), field.position(m));
+        let t = p.distance(from) / to.distance(from);
+        let v = field.values[n];
+        targets.entry(m).or_insert(v * (t - 1.0) / t);
+    }
+    let mut changed = Vec::new();
+    for (m, value) in targets {
+        if value.abs() > MAX_STRAIGHTEN * h || (value < 0.0) != (field.values[m] < 0.0) {
+            continue;
+        }
+        let cases = |field: &UnifiedField| {
+            cells_around(&spec, m)
+                .map(|c| cell_case(&corner_nodes(&spec, c).map(|k| field.values[k]), 0.0))
+                .collect::<Vec<_>>()
+        };
+        let before = cases(field);
+        let (old, stored) = (field.values[m], field.extras.clone());
+        field.values[m] = value;
+        let fits = cases(field) == before
+            && (edges_at(&spec, m).into_iter())
+                .all(|edge| edge_exact_after(field, crossings, edge, threshold));
+        if fits {
+            changed.push(m);
+        } else {
+            field.values[m] = old;
+            field.extras = stored;
+        }
+    }
+    changed
+}
+
+/// The grid edges at sample `m`, as (lower sample, axis).
+fn edges_at(spec: &GridSpec<3>, m: usize) -> Vec<(usize, usize)> {
+    let (idx, strides) = (spec.unlinear(m), spec.strides());
+    let mut out = Vec::new();
+    for axis in 0..3 {
+        if idx[axis] + 1 < spec.dims[axis] {
+            out.push((m, axis));
+        }
+        if idx[axis] > 0 {
+            out.push((m - strides[axis], axis));
+        }
+    }
+    out
+}
+
+/// Most a sample's value may be set to by [`straighten_floating_edges`]
+/// (spacings; fandisk − cylinder needs 1.05 h where the distance is
+/// 0.26 h).
+const MAX_STRAIGHTEN: f64 = 1.5;
+
+/// How far (length) the interpolated crossing on the edge from floating
+/// sample `n` to `m`, with `m` at `value`, lies from the exact crossing `p`.
+fn floating_edge_error(field: &UnifiedField, n: usize, m: usize, p: DVec3, value: f64) -> f64 {
+    let t = crossing_fraction(field.values[n], value, 0.0);
+    field.position(n).lerp(field.position(m), t).distance(p)
+}
+
+/// Whether edge `(n, axis)` (an edge of a sample whose value changed) will
+/// have an exact crossing after [`store_directed`], or needs none: its
+/// samples on one side, a sample moved onto the surface at its end, a
+/// floating lower sample whose interpolation stays within `threshold`, or
+/// the exact crossing known and the lower sample free to store it (a
+/// feature point it holds handed to another sample of the point's cell,
+/// see [`hand_over`]).
+fn edge_exact_after(
+    field: &mut UnifiedField,
+    crossings: &HashMap<(usize, usize), Tangent>,
+    (n, axis): (usize, usize),
+    threshold: f64,
+) -> bool {
+    let m = n + field.spec.strides()[axis];
+    if (field.values[n] >= 0.0) == (field.values[m] >= 0.0) {
+        return true;
+    }
+    let on_surface = |k: usize| {
+        matches!(field.extras.get(&(k as u32)), Some(Extra::Position(_))) && !field.floats(k)
+    };
+    if on_surface(n) || on_surface(m) {
+        return true;
+    }
+    let Some(&(p, _)) = crossings.get(&(n, axis)) else {
+        return false;
+    };
+    if field.floats(n) {
+        return floating_edge_error(field, n, m, p, field.values[m])
+            <= threshold * field.spec.spacing;
+    }
+    hand_over(field, n)
 }
 
 /// Construction's error-driven repair ([`crate::refine::repair`]) around

@@ -58,6 +58,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "feature_points_repaired": r.repaired,
             "samples_moved_into_thin_walls": r.thin,
             "samples_raised_to_settle_faces": r.settled,
+            "samples_set_to_straighten_floating_edges": r.straightened,
         }));
     }
     field.write(&args.output)?;

@@ -1,0 +1,101 @@
+//! Diagnostics (not part of the crate's API): extract a unified field with
+//! some cells' feature points replaced or removed, and report how far the
+//! surface lies from a reference both ways (every vertex and 16 points per
+//! triangle, as `examples/sculpt_check.rs`), with the worst cells.
+//! cargo run --release -p surfrecon-distfield --example try_points -- FIELD.udf REF H [SET ...]
+//! SET: `i,j,k=x,y,z;i,j,k=none;i,j,k=x,y,z+x,y,z;...` (a cell's point,
+//! none, or a first and second point; changes applied together; an empty
+//! SET measures the field as it is).
+use std::collections::BTreeMap;
+use surfrecon_distfield::extract::extract_split;
+use surfrecon_distfield::features::cell_of;
+use surfrecon_distfield::format::read_udf;
+use surfrecon_distfield::query::{deviation, lattice_points, MeshQuery};
+use surfrecon_distfield::unified::UnifiedField;
+use surfrecon_geom::{io, DVec3, TriMesh};
+
+/// Cells listed per direction.
+const WORST_CELLS: usize = 6;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let field = read_udf(std::path::Path::new(&args[0])).unwrap();
+    let reference = io::read(std::path::Path::new(&args[1])).unwrap().to_mesh();
+    let h: f64 = args[2].parse().unwrap();
+    let to_ref = MeshQuery::new(&reference).unwrap();
+    let first = field.feature_points();
+    let seconds = field.second_points(&first);
+    let sets = if args.len() > 3 {
+        args[3..].to_vec()
+    } else {
+        vec![String::new()]
+    };
+    for set in &sets {
+        let (mut features, mut second) = (first.clone(), seconds.clone());
+        for item in set.split(';').filter(|s| !s.is_empty()) {
+            let (cell, point) = item.split_once('=').unwrap();
+            let cell = field.spec.linear(triple(cell).map(|x| x as usize));
+            second.remove(&cell);
+            match point.split_once('+') {
+                _ if point == "none" => {
+                    features.remove(&cell);
+                }
+                Some((a, b)) => {
+                    features.insert(cell, DVec3::from_array(triple(a)));
+                    second.insert(cell, DVec3::from_array(triple(b)));
+                }
+                None => {
+                    features.insert(cell, DVec3::from_array(triple(point)));
+                }
+            }
+        }
+        let (out, report) = extract_split(&field, &features, &second);
+        let to_out = MeshQuery::new(&out).unwrap();
+        let there = deviation(&out, &to_ref, 16);
+        let back = deviation(&reference, &to_out, 16);
+        println!(
+            "[{set}]: fans {} refused {} merged {}; out->ref max {:.3} h at {:.3}; ref->out max {:.3} h at {:.3}",
+            report.fans,
+            report.fans_refused,
+            report.merged,
+            there.max / h,
+            there.worst,
+            back.max / h,
+            back.worst
+        );
+        for (name, from, to) in [
+            ("out->ref", &out, &to_ref),
+            ("ref->out", &reference, &to_out),
+        ] {
+            println!("  {name}: {}", worst_cells(&field, from, to, h).join("; "));
+        }
+    }
+}
+
+fn triple(s: &str) -> [f64; 3] {
+    let v: Vec<f64> = s.split(',').map(|x| x.parse().unwrap()).collect();
+    [v[0], v[1], v[2]]
+}
+
+/// The cells where `from` lies farthest from `to` (16 points per
+/// triangle and its corners), worst first.
+fn worst_cells(field: &UnifiedField, from: &TriMesh, to: &MeshQuery, h: f64) -> Vec<String> {
+    let mut by_cell: BTreeMap<usize, (f64, DVec3)> = BTreeMap::new();
+    for t in 0..from.triangles.len() {
+        for q in lattice_points(from.corners(t), 4).chain(from.corners(t)) {
+            let d = to.signed_distance(q).abs() / h;
+            if let Some(c) = cell_of(&field.spec, q) {
+                let entry = by_cell.entry(c).or_insert((0.0, q));
+                if d > entry.0 {
+                    *entry = (d, q);
+                }
+            }
+        }
+    }
+    let mut list: Vec<_> = by_cell.into_iter().collect();
+    list.sort_by(|a, b| b.1 .0.total_cmp(&a.1 .0));
+    list.iter()
+        .take(WORST_CELLS)
+        .map(|(c, (d, q))| format!("{:?} {d:.3} h at {q:.3}", field.spec.unlinear(*c)))
+        .collect()
+}
