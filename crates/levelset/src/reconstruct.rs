@@ -366,9 +366,20 @@ fn reconstruct_stack(stack: &SliceStack, params: &ReconstructParams) -> Result<R
     let field = report.time("slices", || interpolate_slices(stack, params))?;
     report.dims = field.spec.dims.to_vec();
     report.spacing = field.spec.spacing;
-    let mesh = report.time("extract", || marching_cubes(&field, 0.0));
-    let phi = BlockGrid::from_dense_band(&field, params.band * field.spec.spacing)?;
+    let mut field = field;
+    let mut phi = BlockGrid::from_dense_band(&field, params.band * field.spec.spacing)?;
     report.band_blocks = phi.blocks().len();
+    let (mesh, lone_nodes) = report.time("extract", || {
+        // The cubic blend can dip a single node across zero (a one-node
+        // speck). It is no distance, so the band may miss a crossing: the
+        // dense field is extracted, with the settled nodes.
+        let lone_nodes = settle_lone_nodes(&mut phi, 0.0);
+        for (idx, value) in phi.iter_nodes() {
+            field.values[field.spec.linear(idx)] = value;
+        }
+        (marching_cubes(&field, 0.0), lone_nodes)
+    });
+    report.lone_nodes = lone_nodes;
     Ok(Reconstruction3 {
         mesh,
         phi,

@@ -331,7 +331,11 @@ fn blend(levels: &[f64], sections: &[Section], gap: f64, at: usize, s: f64) -> f
     // they disagree. (The slopes of the nearest points, which may lie on
     // another part, otherwise carved pits and joined nearby parts by
     // handles: the sliced bunny had genus 3.)
-    if (va < 0.0) == (vb < 0.0) && (cubic < 0.0) != (va < 0.0) {
+    // Except where both slopes lead the surface towards the node from
+    // both slices: a tilted part whose sections do not overlap from one
+    // slice to the next (an ear, a cone) is crossed outside both.
+    let joins_a_tilted_part = va >= 0.0 && ma < 0.0 && mb > 0.0;
+    if (va < 0.0) == (vb < 0.0) && (cubic < 0.0) != (va < 0.0) && !joins_a_tilted_part {
         linear
     } else {
         cubic
@@ -646,9 +650,51 @@ mod tests {
         let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
         let off = |v: &DVec3| (v.length() - 1.0).abs();
         let cap = |v: &&DVec3| v.z.abs() > 0.9;
-        let worst_cap = mesh.vertices.iter().filter(cap).map(off).fold(0.0, f64::max);
+        let worst_cap = mesh
+            .vertices
+            .iter()
+            .filter(cap)
+            .map(off)
+            .fold(0.0, f64::max);
         let worst = mesh.vertices.iter().map(off).fold(0.0, f64::max);
-        assert!(worst_cap < 0.01 && worst < 0.01, "cap {worst_cap}, all {worst}");
+        assert!(
+            worst_cap < 0.01 && worst < 0.01,
+            "cap {worst_cap}, all {worst}"
+        );
+    }
+
+    #[test]
+    fn a_tilted_rod_whose_sections_do_not_overlap_stays_one_piece() {
+        // Radius 0.05, 60° from the stacking axis: each section (an
+        // ellipse 0.2 wide) lies 0.35 beside the previous one.
+        let (r, tilt) = (0.05, 60f64.to_radians());
+        let axis = DVec3::new(tilt.sin(), 0.0, tilt.cos());
+        let mut input = Input::default();
+        for k in 0..6 {
+            let z = 0.2 * k as f64;
+            for i in 0..120 {
+                let t = i as f64 / 120.0 * std::f64::consts::TAU;
+                let p = DVec3::new(z * tilt.tan() + r / tilt.cos() * t.cos(), r * t.sin(), z);
+                input.points.push(p);
+                input.normals.push((p - p.dot(axis) * axis).normalize());
+            }
+        }
+        let stack = detect_slices(&input).expect("a stack");
+        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
+        let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
+        let topology = surfrecon_geom::metrics::topology(&mesh);
+        assert!(topology.watertight && topology.edge_manifold);
+        assert_eq!((topology.components, topology.euler), (1, 2));
+        // Between the end slices the tube follows the rod.
+        let off = |v: &DVec3| ((*v - v.dot(axis) * axis).length() - r).abs();
+        let between = |v: &&DVec3| v.z > 0.05 && v.z < 0.95;
+        let worst = mesh
+            .vertices
+            .iter()
+            .filter(between)
+            .map(off)
+            .fold(0.0, f64::max);
+        assert!(worst < 0.035, "worst {worst}");
     }
 
     #[test]
