@@ -530,6 +530,7 @@ fn level_set_section(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use surfrecon_geom::TriMesh;
 
     fn sphere_slices(count: usize, per_slice: usize) -> Vec<DVec3> {
         let mut points = Vec::new();
@@ -542,6 +543,14 @@ mod tests {
             }
         }
         points
+    }
+
+    /// The stack `input` forms, its blended field and that field's zero set.
+    fn blended(input: &Input) -> (SliceStack, Field<3>, TriMesh) {
+        let stack = detect_slices(input).expect("a stack");
+        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
+        let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
+        (stack, field, mesh)
     }
 
     #[test]
@@ -613,9 +622,7 @@ mod tests {
     }
 
     fn check_sliced_sphere(input: &Input) {
-        let stack = detect_slices(input).expect("a stack");
-        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
-        let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
+        let (stack, field, mesh) = blended(input);
         let topology = surfrecon_geom::metrics::topology(&mesh);
         assert!(topology.watertight && topology.edge_manifold);
         assert_eq!((topology.components, topology.euler), (1, 2));
@@ -645,9 +652,7 @@ mod tests {
         let points = sphere_slices(10, 300);
         let mut input = Input::from_points(points.clone());
         input.normals = points;
-        let stack = detect_slices(&input).expect("a stack");
-        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
-        let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
+        let (_, _, mesh) = blended(&input);
         let off = |v: &DVec3| (v.length() - 1.0).abs();
         let cap = |v: &&DVec3| v.z.abs() > 0.9;
         let worst_cap = mesh
@@ -679,9 +684,7 @@ mod tests {
                 input.normals.push((p - p.dot(axis) * axis).normalize());
             }
         }
-        let stack = detect_slices(&input).expect("a stack");
-        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
-        let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
+        let (_, _, mesh) = blended(&input);
         let topology = surfrecon_geom::metrics::topology(&mesh);
         assert!(topology.watertight && topology.edge_manifold);
         assert_eq!((topology.components, topology.euler), (1, 2));
@@ -709,9 +712,7 @@ mod tests {
                 points.push(DVec3::new(radius(z) * t.cos(), radius(z) * t.sin(), z));
             }
         }
-        let stack = detect_slices(&Input::from_points(points)).expect("a stack");
-        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
-        let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
+        let (_, field, mesh) = blended(&Input::from_points(points));
         // Nothing tells a tilt but the slices: the side wall is straight
         // between them (zero slopes at the slices bulged it by up to 0.011).
         let worst = mesh
@@ -749,9 +750,7 @@ mod tests {
     fn normals_keep_the_hole_of_a_sliced_torus_and_its_tilt() {
         let r = 0.35;
         let input = sliced_torus(10, r);
-        let stack = detect_slices(&input).expect("a stack");
-        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
-        let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
+        let (_, _, mesh) = blended(&input);
         let topology = surfrecon_geom::metrics::topology(&mesh);
         assert!(topology.watertight && topology.edge_manifold);
         // The end slices' annuli are thinner than the band that separates

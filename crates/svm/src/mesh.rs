@@ -469,17 +469,16 @@ mod tests {
             .collect()
     }
 
-    #[test]
-    fn a_rod_thinner_than_a_cell_stays_joined_to_its_body() {
+    /// Mesh options, fixed bounds reaching `max_x` and the grid that
+    /// `mesh_model` builds for them, so a rod can be laid out against it.
+    fn rod_layout(max_x: f64) -> (MeshOptions, Aabb, GridSpec<3>) {
         let opts = MeshOptions {
             resolution: 96,
             margin: 0.0,
         };
-        // Fixed bounds, so the rod can be laid out against the grid that
-        // `mesh_model` builds for them.
         let bounds = Aabb {
             min: DVec3::new(-0.6, -0.6, -0.6),
-            max: DVec3::new(1.8, 0.6, 0.6),
+            max: DVec3::new(max_x, 0.6, 0.6),
         };
         let spec = GridSpec::<3>::from_bounds(
             bounds.min.to_array(),
@@ -488,6 +487,12 @@ mod tests {
             1,
         )
         .unwrap();
+        (opts, bounds, spec)
+    }
+
+    #[test]
+    fn a_rod_thinner_than_a_cell_stays_joined_to_its_body() {
+        let (opts, bounds, spec) = rod_layout(1.8);
         let node = |p: DVec3| DVec3::from_array(spec.position(cell_of(&spec, p).unwrap()));
         let shape = BallAndRod {
             start: node(DVec3::new(0.2, 0.0, 0.0)),
@@ -664,21 +669,7 @@ mod tests {
 
     #[test]
     fn a_sampled_part_pinched_by_f_stays_one_piece() {
-        let opts = MeshOptions {
-            resolution: 96,
-            margin: 0.0,
-        };
-        let bounds = Aabb {
-            min: DVec3::new(-0.6, -0.6, -0.6),
-            max: DVec3::new(1.0, 0.6, 0.6),
-        };
-        let spec = GridSpec::<3>::from_bounds(
-            bounds.min.to_array(),
-            bounds.max.to_array(),
-            GridSize::Resolution(opts.resolution),
-            1,
-        )
-        .unwrap();
+        let (opts, bounds, spec) = rod_layout(1.0);
         let node = |p: DVec3| DVec3::from_array(spec.position(cell_of(&spec, p).unwrap()));
         let shape = PinchedRod {
             start: node(DVec3::new(0.45, 0.0, 0.0)),
