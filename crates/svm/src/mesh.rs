@@ -379,15 +379,23 @@ mod tests {
             .collect()
     }
 
-    impl Implicit for TwoBalls {
-        fn values_grouped(&self, points: &[DVec3], _: &[Vec<u32>]) -> Vec<f64> {
-            points.iter().map(|&p| self.value(p)).collect()
-        }
+    /// `Implicit` for a test shape from its `value`, with gradients by
+    /// central differences.
+    macro_rules! implicit_from_value {
+        ($($shape:ty),*) => {$(
+            impl Implicit for $shape {
+                fn values_grouped(&self, points: &[DVec3], _: &[Vec<u32>]) -> Vec<f64> {
+                    points.iter().map(|&p| self.value(p)).collect()
+                }
 
-        fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
-            central_gradients(points, |p| self.value(p))
-        }
+                fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
+                    central_gradients(points, |p| self.value(p))
+                }
+            }
+        )*};
     }
+
+    implicit_from_value!(TwoBalls, BallAndSheet, PinchedRod);
 
     #[test]
     fn a_piece_away_from_the_data_is_dropped() {
@@ -563,16 +571,6 @@ mod tests {
         }
     }
 
-    impl Implicit for BallAndSheet {
-        fn values_grouped(&self, points: &[DVec3], _: &[Vec<u32>]) -> Vec<f64> {
-            points.iter().map(|&p| self.value(p)).collect()
-        }
-
-        fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
-            central_gradients(points, |p| self.value(p))
-        }
-    }
-
     #[test]
     fn a_sheet_thinner_than_a_cell_between_node_layers_is_reached() {
         let opts = MeshOptions {
@@ -654,16 +652,6 @@ mod tests {
                 })
                 .filter(|p| samples_in_the_pinch || (p.x - pinch_x).abs() > 1.5 * self.cell);
             fibonacci_sphere(2000, 0.5).into_iter().chain(rod).collect()
-        }
-    }
-
-    impl Implicit for PinchedRod {
-        fn values_grouped(&self, points: &[DVec3], _: &[Vec<u32>]) -> Vec<f64> {
-            points.iter().map(|&p| self.value(p)).collect()
-        }
-
-        fn gradients(&self, points: &[DVec3]) -> Vec<DVec3> {
-            central_gradients(points, |p| self.value(p))
         }
     }
 
