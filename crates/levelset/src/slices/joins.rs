@@ -62,9 +62,12 @@ pub(crate) fn join_lost_parts(field: &mut Field<3>, stack: &SliceStack) -> usize
     }
     let shown_by = slices_showing(field, &pieces, &stack.levels, stack.axis);
     let h = field.spec.spacing;
+    // Node distances come in exact multiples of h; rounding must not
+    // decide.
+    let near = NEAR_CELLS * h * (1.0 + 1e-9);
     let oriented = stack.slices.iter().all(Input::is_oriented);
     let lean = if oriented { 1.0 + MAX_SLOPE } else { 1.0 };
-    let alone = (lean * stack.gap()).max(NEAR_CELLS * h);
+    let alone = (lean * stack.gap()).max(near);
     let depths = depths(field, &pieces);
     let mut joins: Vec<Join> = (0..pieces.sizes.len() as u32)
         .filter(|&p| p != largest)
@@ -72,7 +75,7 @@ pub(crate) fn join_lost_parts(field: &mut Field<3>, stack: &SliceStack) -> usize
             let reach = if shown_by[p as usize] <= 1 {
                 alone
             } else {
-                NEAR_CELLS * h
+                near
             };
             nearest_other_piece(
                 &pieces,
@@ -94,7 +97,7 @@ pub(crate) fn join_lost_parts(field: &mut Field<3>, stack: &SliceStack) -> usize
         }
         joined.union(a, b);
         set_path_inside(field, join.from.1, join.to.1, JOIN_DEPTH * h);
-        if join.distance > NEAR_CELLS * h {
+        if join.distance > near {
             let radius = depths[a].min(depths[b]);
             add_tube(
                 field,
@@ -232,5 +235,96 @@ fn add_tube(field: &mut Field<3>, a: DVec3, b: DVec3, radius: f64) {
                 field.values[l] = field.values[l].min(off);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use surfrecon_geom::metrics::topology;
+    use surfrecon_grid::marching::marching_cubes;
+    use surfrecon_grid::GridSpec;
+
+    /// Slices at z = -1, -0.7, ..., 1.1 (gap 0.3), one point each, with
+    /// normals or not (only the planes and the orientation matter here).
+    fn stack(oriented: bool) -> SliceStack {
+        let levels: Vec<f64> = (0..8).map(|k| -1.0 + 0.3 * k as f64).collect();
+        let slice = |_| Input {
+            points: vec![DVec3::ZERO],
+            normals: if oriented { vec![DVec3::Z] } else { vec![] },
+            ..Input::default()
+        };
+        SliceStack {
+            axis: 2,
+            slices: levels.iter().map(slice).collect(),
+            levels,
+        }
+    }
+
+    /// The union of a unit ball at the origin and `others` (centre, radius)
+    /// as a signed distance on a grid of spacing 0.05.
+    fn balls(others: &[(DVec3, f64)]) -> Field<3> {
+        let spec = GridSpec::<3> {
+            origin: [-2.0; 3],
+            spacing: 0.05,
+            dims: [81; 3],
+        };
+        let mut field = Field::filled(spec, f64::INFINITY);
+        for l in 0..spec.node_count() {
+            let p = DVec3::from_array(spec.position(spec.unlinear(l)));
+            field.values[l] = others
+                .iter()
+                .fold(p.length() - 1.0, |v, &(c, r)| v.min(p.distance(c) - r));
+        }
+        field
+    }
+
+    fn pieces_after_joins(field: &mut Field<3>, stack: &SliceStack) -> (usize, usize) {
+        let made = join_lost_parts(field, stack);
+        let t = topology(&marching_cubes(field, 0.0));
+        assert!(t.watertight && t.edge_manifold);
+        (made, t.components)
+    }
+
+    #[test]
+    fn a_tip_only_one_slice_shows_is_joined_by_a_tube_of_its_thickness() {
+        // A ball of radius 0.06 on the slice z = 1.1, 0.5 (1.7 gaps) from
+        // the body's surface: a leaning cone's tip.
+        let tip = DVec3::new(0.9, 0.0, 1.1);
+        let mut field = balls(&[(tip, 0.06)]);
+        assert_eq!(pieces_after_joins(&mut field, &stack(true)), (1, 1));
+        // The tube runs from the tip towards the body, no thicker than the
+        // tip: halfway, inside within 0.06 (and a cell) of the axis only.
+        let spec = field.spec;
+        let towards = tip - tip.normalize();
+        let halfway = tip - 0.5 * towards;
+        let inside_off_axis = (0..spec.node_count())
+            .filter(|&l| field.values[l] < 0.0)
+            .map(|l| DVec3::from_array(spec.position(spec.unlinear(l))))
+            .filter(|p| (*p - halfway).dot(towards.normalize()).abs() < 0.03)
+            .map(|p| {
+                let axis = towards.normalize();
+                (p - halfway - (p - halfway).dot(axis) * axis).length()
+            })
+            .fold(0.0, f64::max);
+        assert!(
+            inside_off_axis > 0.0 && inside_off_axis < 0.06 + 0.05,
+            "{inside_off_axis}"
+        );
+    }
+
+    #[test]
+    fn bodies_that_several_slices_show_or_far_tips_stay_apart() {
+        // A second body across three slices, half a gap from the first.
+        let mut field = balls(&[(DVec3::new(1.5, 0.0, 0.0), 0.35)]);
+        assert_eq!(pieces_after_joins(&mut field, &stack(true)), (0, 2));
+        // Without normals a lone tip joins only within one gap.
+        let far_tip = [(DVec3::new(0.9, 0.0, 1.1), 0.06)];
+        let mut field = balls(&far_tip);
+        assert_eq!(pieces_after_joins(&mut field, &stack(false)), (0, 2));
+        // A piece whose inside nodes lie two cells from the body's (0.95,
+        // 1.05) is joined whatever shows it.
+        let mut field = balls(&[(DVec3::new(1.38, 0.0, 0.0), 0.35)]);
+        assert_eq!(pieces_after_joins(&mut field, &stack(true)), (1, 1));
     }
 }
