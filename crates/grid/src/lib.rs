@@ -4,14 +4,15 @@
 //! `origin + spacing * index`, [`Field<D>`] stores one `f64` per node.
 //! Tools over grids (each in its own module): fast-sweeping distance,
 //! unsigned distance to points/segments/triangles, signed distance of a
-//! closed mesh, marching squares/cubes, sparse narrow-band storage, field
-//! files (NRRD, VTK), thin shells, and the simple point test of digital
-//! topology.
+//! closed mesh, marching squares/cubes, inside pieces and the paths that
+//! join them, sparse narrow-band storage, field files (NRRD, VTK), thin
+//! shells, and the simple point test of digital topology.
 
 pub mod distance;
 pub mod error;
 pub mod field_io;
 pub mod marching;
+pub mod pieces;
 pub mod sdf;
 pub mod shell;
 mod simd;

@@ -16,7 +16,7 @@ use crate::multires::{
 };
 use crate::refine::{refine_surface, RefineOptions, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
-use crate::slices::{detect_slices, interpolate_slices, SliceStack};
+use crate::slices::{detect_slices, interpolate_slices, join_lost_parts, SliceStack};
 use crate::tagging::{remove_unsupported, tag, BoundingBox, Tagging};
 use std::sync::Arc;
 use std::time::Instant;
@@ -201,6 +201,9 @@ pub struct Report {
     /// side before extraction so they leave no speck
     /// ([`surfrecon_grid::marching::settle_lone_nodes`]).
     pub lone_nodes: usize,
+    /// Pieces of a stack of slices joined to the body
+    /// ([`crate::slices::join_lost_parts`]).
+    pub joined_parts: usize,
     /// Nodes the points' oriented normals sealed against the exterior
     /// flood ([`crate::holes`]).
     pub sealed_nodes: usize,
@@ -367,6 +370,7 @@ fn reconstruct_stack(stack: &SliceStack, params: &ReconstructParams) -> Result<R
     report.dims = field.spec.dims.to_vec();
     report.spacing = field.spec.spacing;
     let mut field = field;
+    report.joined_parts = join_lost_parts(&mut field, stack);
     let mut phi = BlockGrid::from_dense_band(&field, params.band * field.spec.spacing)?;
     report.band_blocks = phi.blocks().len();
     let (mesh, lone_nodes) = report.time("extract", || {

@@ -114,6 +114,7 @@ fn report(
             reopened_near_points: r.reopened_near_points,
             sealed_by_normals: r.sealed_nodes,
             lone_nodes: r.lone_nodes,
+            joined_parts: r.joined_parts,
         },
         band_nodes: r.band_nodes,
         band: BandReport {

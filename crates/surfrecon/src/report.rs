@@ -136,6 +136,8 @@ pub struct TaggingReport {
     pub sealed_by_normals: usize,
     /// Lone nodes given their neighbours' side before extraction.
     pub lone_nodes: usize,
+    /// Pieces of a stack of slices joined to the body.
+    pub joined_parts: usize,
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]

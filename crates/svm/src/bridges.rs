@@ -27,6 +27,7 @@ use crate::mesh::SPECK_CELLS;
 use glam::DVec3;
 use surfrecon_geom::disjoint_sets::DisjointSets;
 use surfrecon_geom::spatial::KdTree;
+use surfrecon_grid::pieces::node_path;
 use surfrecon_grid::GridSpec;
 
 /// Farthest two inside nodes may be apart, in cells, to be joined (4:
@@ -151,7 +152,7 @@ pub fn bridge_thin_parts(
         }
         pieces.union(c.from, c.to);
         let (na, nb) = (band.nodes[c.from].0, band.nodes[c.to].0);
-        for n in chain(na.map(|v| v as i64), nb.map(|v| v as i64)) {
+        for n in node_path(na.map(|v| v as i64), nb.map(|v| v as i64)) {
             band.set_inside(n, BRIDGE_DEPTH * spec.spacing);
         }
         joins += 1;
@@ -493,36 +494,4 @@ fn join_candidates(band: &Band, inside: &[usize], pieces: &mut DisjointSets) -> 
         );
     }
     out
-}
-
-/// Nodes from `a` to `b`, each a face neighbour of the one before: steps
-/// along the axis with the most left to go.
-fn chain(a: [i64; 3], b: [i64; 3]) -> Vec<[i64; 3]> {
-    let mut out = vec![a];
-    let mut at = a;
-    while at != b {
-        let axis = (0..3)
-            .max_by_key(|&k| ((b[k] - at[k]).abs(), std::cmp::Reverse(k)))
-            .unwrap_or(0);
-        at[axis] += (b[axis] - at[axis]).signum();
-        out.push(at);
-    }
-    out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn chains_are_face_connected_and_end_at_both_nodes() {
-        let c = chain([0, 0, 0], [3, -2, 1]);
-        assert_eq!(c.first(), Some(&[0, 0, 0]));
-        assert_eq!(c.last(), Some(&[3, -2, 1]));
-        assert_eq!(c.len(), 7);
-        for w in c.windows(2) {
-            let steps: i64 = (0..3).map(|k| (w[1][k] - w[0][k]).abs()).sum();
-            assert_eq!(steps, 1);
-        }
-    }
 }

@@ -11,6 +11,10 @@
 //! axis. A cross-section thus morphs from one contour into the next. Past
 //! the end slices the field closes the surface within half a slice gap.
 
+mod joins;
+
+pub(crate) use joins::join_lost_parts;
+
 use crate::reconstruct::{reconstruct_field, Input, ReconstructParams};
 use crate::Result;
 use rayon::prelude::*;
@@ -548,7 +552,8 @@ mod tests {
     /// The stack `input` forms, its blended field and that field's zero set.
     fn blended(input: &Input) -> (SliceStack, Field<3>, TriMesh) {
         let stack = detect_slices(input).expect("a stack");
-        let field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
+        let mut field = interpolate_slices(&stack, &ReconstructParams::default()).unwrap();
+        join_lost_parts(&mut field, &stack);
         let mesh = surfrecon_grid::marching::marching_cubes(&field, 0.0);
         (stack, field, mesh)
     }
