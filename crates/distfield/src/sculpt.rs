@@ -11,7 +11,10 @@
 //! edge (where the two surfaces meet) in each cell it crosses; an offset
 //! field gets a sample moved onto that edge instead.
 
-use crate::extract::{cell_triangles, corner_nodes, crosses, fan_fits, SampledField};
+use crate::extract::{
+    cell_triangles, corner_nodes, crosses, fan_fits, leans_on_neighbour, other_sheets,
+    two_sheet_triangles, SampledField,
+};
 use crate::features::{
     cells_with_features, nudge_into, CellFeatures, Features, DEFAULT_FEATURE_ANGLE_DEG,
 };
@@ -177,6 +180,9 @@ pub struct SculptReport {
     /// Samples given the value that makes the interpolated crossing on an
     /// edge from a sample floating in a thin wall exact (UDF).
     pub straightened: usize,
+    /// Cells holding two sheets (a cap's rim under a pocket's floor) whose
+    /// second sheet took a point on the new edge of its own (UDF).
+    pub second_sheets: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -534,8 +540,90 @@ pub fn sculpt_udf(
     report.turned = choose_sides(field, &combined, &snapped, &old_features, &corners);
     report.repicked = repick(field, &combined, &cells, &old_features, &corners);
     report.repaired = repair(field, &combined, &surface, &cells, &old_features, &corners);
+    // Cells of two sheets whose point keeps one: the new edge on the
+    // other takes a second point. (After the repair, which weighs one
+    // point per cell: before it, the repair reacted to the second
+    // point elsewhere, fandisk − sphere 0.096 → 0.151 h.)
+    let on_edge = |q: DVec3| {
+        combined.signed_distance(q).abs() < ON_EDGE * h
+            && combined.tool.signed_distance(q).abs() < ON_EDGE * h
+    };
+    report.second_sheets =
+        second_sheet_points(field, &combined, &crossings, &cells, cos_limit, on_edge);
     Ok(report)
 }
+
+/// Second feature points for the cells among `cells` that hold two
+/// sheets, one fanned around the cell's point, the other crossed by a new
+/// edge: a cap's rim 0.2 h above the grid plane under a pocket's floor
+/// whose concave edge holds the cell's point. The other sheet kept its
+/// table triangles, which cut the rim by up to 0.23 h. Its point is the
+/// QEF point of that sheet's exact crossings where it lies on the new
+/// edge (`on_edge`) within [`SECOND_SHEET_MARGIN`] of the cell, moved
+/// into it, if extraction then fans both sheets (in either order of the
+/// two points). Returns the number of points added.
+fn second_sheet_points(
+    field: &mut UnifiedField,
+    combined: &Combined,
+    crossings: &HashMap<(usize, usize), Tangent>,
+    cells: &[usize],
+    cos_limit: f64,
+    on_edge: impl Fn(DVec3) -> bool,
+) -> usize {
+    let spec = field.spec;
+    let firsts = field.feature_points();
+    let seconds = field.second_points(&firsts);
+    let mut added = 0;
+    for &c in cells {
+        let Some(&first) = firsts.get(&c) else {
+            continue;
+        };
+        if seconds.contains_key(&c) || leans_on_neighbour(&*field, c, first) {
+            continue;
+        }
+        let point = other_sheets(&*field, c, first)
+            .into_iter()
+            .find_map(|edges| {
+                let tangents: Vec<Tangent> = (edges.iter())
+                    .filter_map(|edge| crossings.get(edge).copied())
+                    .collect();
+                if tangents.len() < edges.len() || !crate::sharp::is_sharp(&tangents, cos_limit) {
+                    return None;
+                }
+                let q = crate::sharp::qef_minimizer(&tangents)?;
+                let q = combined.tool.closest_point(q);
+                let point = nudge_into(&spec, c, q);
+                let near = point.distance(q) <= SECOND_SHEET_MARGIN * spec.spacing;
+                (near && on_edge(q)).then_some(point)
+            });
+        let Some(point) = point else { continue };
+        // The cell's surface now lies near both sheets but cuts the
+        // edge: measured both ways (the edge's point to the surface).
+        // Either point may come first (the sample storing it decides):
+        // both ways the two fans must lie nearer the result.
+        let old = cell_triangles(&*field, c, Some(first));
+        let now = farthest_off(combined, &old).max(farthest_from(&old, &[point]));
+        let better = [(first, point), (point, first)].iter().all(|&(a, b)| {
+            two_sheet_triangles(&*field, c, a, b).is_some_and(|t| {
+                farthest_off(combined, &t) < now - SECOND_SHEET_GAIN * spec.spacing
+            })
+        });
+        if let (Some(n), true) = (storage_for(field, c, point), better) {
+            field.extras.insert(n, Extra::FeaturePoint(point));
+            added += 1;
+        }
+    }
+    added
+}
+
+/// How far outside its cell (spacings) a second sheet's point may lie
+/// before it is moved in (the rim's QEF point where fandisk's concave
+/// edge passes over it lies 0.004 past a cell's face).
+const SECOND_SHEET_MARGIN: f64 = 0.1;
+
+/// What a second sheet's point must lower its cell's distance from the
+/// result by (spacings) to be kept.
+const SECOND_SHEET_GAIN: f64 = 0.05;
 
 /// Directed distances for the edges whose exact crossing (`crossings`,
 /// by edge) the interpolation between their samples misses by more than

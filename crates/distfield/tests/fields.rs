@@ -896,6 +896,7 @@ fn sculpting_fandisk_cuts_a_hole_under_a_pocket_without_a_handle() {
     assert_closed_manifold(&cut.mesh, 2);
     assert!(cut.settled > 0, "no face settled");
     assert!(cut.straightened > 0, "no floating edge straightened");
+    assert!(cut.second_sheets > 0, "no rim point under the floor");
     // (before session 27: cap 0.280 h, surface 0.419 h at the rim cell
     // with no point; with its point, 0.377 h above the wall, where an
     // edge from a floating sample interpolated the pocket's floor 0.46 h
@@ -921,6 +922,8 @@ struct CylinderCut {
     settled: usize,
     /// Samples set so that edges from floating samples interpolate exactly.
     straightened: usize,
+    /// Cells whose second sheet took a point on the rim.
+    second_sheets: usize,
     /// Largest distance (h) from the cap (a disc, on the exact result) to
     /// the surface.
     cap: f64,
@@ -980,6 +983,7 @@ fn fandisk_minus_cylinder(padding: usize) -> CylinderCut {
         thin: report.thin,
         settled: report.settled,
         straightened: report.straightened,
+        second_sheets: report.second_sheets,
         cap,
         off,
     }
