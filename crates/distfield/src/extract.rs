@@ -88,12 +88,11 @@ pub fn extract_split(
             let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
             match features.get(&cell) {
                 Some(&f) if !leans_on_neighbour(field, cell, f) => {
-                    let second = seconds.get(&cell).copied();
-                    let split = second
-                        .and_then(|g| fan_two(&patch.boundary(), f, g, &vertices, &keys, field));
+                    let split = (seconds.get(&cell))
+                        .and_then(|&g| fan_two(&patch.boundary(), f, g, &vertices, &keys, field));
                     match split {
                         Some(two) => two,
-                        None => patch.fan(f, second, &vertices, &keys, field),
+                        None => patch.fan(f, &vertices, &keys, field),
                     }
                 }
                 Some(_) => Patch {
@@ -362,27 +361,29 @@ pub(crate) fn fan_triangles(
     point: DVec3,
 ) -> Option<Vec<[DVec3; 3]>> {
     let (patch, keys, vertices) = cell_patch(field, cell)?;
-    let fan = patch.fan(point, None, &vertices, &keys, field);
+    let fan = patch.fan(point, &vertices, &keys, field);
     (fan.fanned == Some(true)).then(|| fan.positions(&vertices))
 }
 
 /// The crossing edges, as (lower node, axis), of each sheet of `cell`'s
-/// table patch other than the one whose crossings lie nearest `first`
-/// (the sheet extraction fans around `first`, see [`Patch::fan_sheets`]).
-/// Empty where the cell holds one sheet.
-pub(crate) fn other_sheets(
-    field: &impl SampledField,
-    cell: usize,
-    first: DVec3,
-) -> Vec<Vec<(usize, usize)>> {
-    let Some((patch, keys, vertices)) = cell_patch(field, cell) else {
+/// table patch (its triangles joined by shared vertices, see
+/// [`Patch::fan_nearest_sheet`]), where it holds several; else empty.
+pub(crate) fn cell_sheets(field: &impl SampledField, cell: usize) -> Vec<Vec<(usize, usize)>> {
+    let Some((patch, keys, _)) = cell_patch(field, cell) else {
         return Vec::new();
     };
-    let sheets: Vec<Vec<usize>> = (patch.sheets().iter())
+    let sheets = patch.sheets();
+    if sheets.len() < 2 {
+        return Vec::new();
+    }
+    (sheets.iter())
         .map(|sheet| {
-            let mut edges: Vec<usize> = (sheet.iter().flatten())
+            let mut edges: Vec<(usize, usize)> = (sheet.iter().flatten())
                 .filter_map(|&v| match v {
-                    Vertex::Edge(i) => Some(i as usize),
+                    Vertex::Edge(i) => {
+                        let key = keys[i as usize];
+                        Some(((key / 3) as usize, (key % 3) as usize))
+                    }
                     Vertex::Extra(_) => None,
                 })
                 .collect();
@@ -390,41 +391,7 @@ pub(crate) fn other_sheets(
             edges.dedup();
             edges
         })
-        .collect();
-    let distance = |edges: &Vec<usize>| {
-        let mean = edges.iter().map(|&i| vertices[i]).sum::<DVec3>() / edges.len().max(1) as f64;
-        mean.distance(first)
-    };
-    let Some(nearest) =
-        (0..sheets.len()).min_by(|&a, &b| distance(&sheets[a]).total_cmp(&distance(&sheets[b])))
-    else {
-        return Vec::new();
-    };
-    (sheets.iter().enumerate())
-        .filter(|&(k, _)| k != nearest && sheets.len() > 1)
-        .map(|(_, edges)| {
-            (edges.iter())
-                .map(|&i| ((keys[i] / 3) as usize, (keys[i] % 3) as usize))
-                .collect()
-        })
         .collect()
-}
-
-/// The triangles extraction gives `cell` where it fans two of its sheets,
-/// one around `first` and one around `second` (see
-/// [`Patch::fan_sheets`]); `None` where it would not.
-pub(crate) fn two_sheet_triangles(
-    field: &impl SampledField,
-    cell: usize,
-    first: DVec3,
-    second: DVec3,
-) -> Option<Vec<[DVec3; 3]>> {
-    let (patch, keys, vertices) = cell_patch(field, cell)?;
-    if fan_over(&patch.boundary(), first, &vertices, &keys, field).is_some() {
-        return None; // one loop: the first point's fan covers the cell
-    }
-    let fan = patch.fan_sheets(first, Some(second), &vertices, &keys, field)?;
-    (fan.extra.len() == 2).then(|| fan.positions(&vertices))
 }
 
 /// The table patch of `cell` alone, if the surface crosses it, with its
@@ -541,19 +508,16 @@ impl Patch {
     }
 
     /// The patch as a fan around `feature` when [`fan_over`] allows it
-    /// (`fanned` says whether it was); where the cell holds several
-    /// sheets, see [`Self::fan_sheets`] (`second`: the cell's second
-    /// point, if it has one).
+    /// (`fanned` says whether it was).
     fn fan(
         self,
         feature: DVec3,
-        second: Option<DVec3>,
         vertices: &[DVec3],
         keys: &[u64],
         field: &impl SampledField,
     ) -> Patch {
         let fan = fan_over(&self.boundary(), feature, vertices, keys, field)
-            .or_else(|| self.fan_sheets(feature, second, vertices, keys, field));
+            .or_else(|| self.fan_nearest_sheet(feature, vertices, keys, field));
         match fan {
             Some(fan) => fan,
             None => Patch {
@@ -564,68 +528,34 @@ impl Patch {
     }
 
     /// Where the cell holds several sheets (crossing loops), the fan of
-    /// the one whose crossings lie nearest `feature` (their mean): a cap's
-    /// rim under a pocket's floor 0.7 h above it. A `second` point fans
-    /// the other sheet nearest it where that fits (the pocket's concave
-    /// edge above, the cap's rim below: one point per cell kept only one
-    /// of them, the other sheet's table triangles cut its edge by 0.23
-    /// h). The remaining sheets keep their table triangles, only where
-    /// those need no loop centre (the fans' points are the patch's extra
-    /// vertices).
-    fn fan_sheets(
+    /// the one whose crossings lie nearest `feature` (their mean), the
+    /// others keeping their table triangles: a cap's rim under a pocket's
+    /// floor 0.7 h above it. Only where those triangles need no loop
+    /// centre (the fan's point is the patch's one extra vertex).
+    fn fan_nearest_sheet(
         &self,
         feature: DVec3,
-        second: Option<DVec3>,
         vertices: &[DVec3],
         keys: &[u64],
         field: &impl SampledField,
     ) -> Option<Patch> {
         let sheets = self.sheets();
-        if sheets.len() < 2 {
-            return None;
-        }
         let at = |v: Vertex| match v {
             Vertex::Edge(i) => Some(vertices[i as usize]),
             Vertex::Extra(_) => None,
         };
-        let distance = |sheet: &Vec<[Vertex; 3]>, point: DVec3| {
+        let distance = |sheet: &Vec<[Vertex; 3]>| {
             let points: Vec<DVec3> = sheet.iter().flatten().filter_map(|&v| at(v)).collect();
             let mean = points.iter().sum::<DVec3>() / points.len().max(1) as f64;
-            mean.distance(point)
+            mean.distance(feature)
         };
-        let nearest_to = |point: DVec3, except: Option<usize>| {
-            (0..sheets.len())
-                .filter(|&k| Some(k) != except)
-                .min_by(|&a, &b| {
-                    distance(&sheets[a], point).total_cmp(&distance(&sheets[b], point))
-                })
-        };
-        let fan_of = |k: usize, point: DVec3| {
-            let own = Patch {
-                triangles: sheets[k].clone(),
-                extra: Vec::new(),
-                fanned: None,
-            };
-            fan_over(&own.boundary(), point, vertices, keys, field)
-        };
-        let nearest = nearest_to(feature, None)?;
-        let mut fan = fan_of(nearest, feature)?;
-        let other = second.and_then(|g| {
-            let k = nearest_to(g, Some(nearest))?;
-            Some((k, fan_of(k, g)?))
-        });
-        if let Some((_, second_fan)) = &other {
-            let index = fan.extra.len() as u32;
-            fan.extra.extend_from_slice(&second_fan.extra);
-            fan.triangles.extend(second_fan.triangles.iter().map(|t| {
-                t.map(|v| match v {
-                    Vertex::Extra(i) => Vertex::Extra(index + i),
-                    edge => edge,
-                })
-            }));
+        if sheets.len() < 2 {
+            return None;
         }
+        let nearest = (0..sheets.len())
+            .min_by(|&a, &b| distance(&sheets[a]).total_cmp(&distance(&sheets[b])))?;
         let others: Vec<[Vertex; 3]> = (sheets.iter().enumerate())
-            .filter(|&(k, _)| k != nearest && other.as_ref().is_none_or(|o| o.0 != k))
+            .filter(|&(k, _)| k != nearest)
             .flat_map(|(_, sheet)| sheet.iter().copied())
             .collect();
         if others
@@ -635,6 +565,12 @@ impl Patch {
         {
             return None;
         }
+        let own = Patch {
+            triangles: sheets[nearest].clone(),
+            extra: Vec::new(),
+            fanned: None,
+        };
+        let mut fan = fan_over(&own.boundary(), feature, vertices, keys, field)?;
         fan.triangles.extend(others);
         Some(fan)
     }

@@ -11,10 +11,7 @@
 //! edge (where the two surfaces meet) in each cell it crosses; an offset
 //! field gets a sample moved onto that edge instead.
 
-use crate::extract::{
-    cell_triangles, corner_nodes, crosses, fan_fits, leans_on_neighbour, other_sheets,
-    two_sheet_triangles, SampledField,
-};
+use crate::extract::{cell_sheets, cell_triangles, corner_nodes, crosses, fan_fits, SampledField};
 use crate::features::{
     cells_with_features, nudge_into, CellFeatures, Features, DEFAULT_FEATURE_ANGLE_DEG,
 };
@@ -180,9 +177,6 @@ pub struct SculptReport {
     /// Samples given the value that makes the interpolated crossing on an
     /// edge from a sample floating in a thin wall exact (UDF).
     pub straightened: usize,
-    /// Cells holding two sheets (a cap's rim under a pocket's floor) whose
-    /// second sheet took a point on the new edge of its own (UDF).
-    pub second_sheets: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -498,7 +492,14 @@ pub fn sculpt_udf(
             .find(|&q| fan_fits(&*field, c, q));
         let fitted = corner
             .or_else(|| sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q)))
-            .or_else(|| widened_point(field, c, &tangents, cos_limit, on_both));
+            .or_else(|| widened_point(field, c, &tangents, cos_limit, on_both))
+            .or_else(|| {
+                // A cell of several sheets: the new edge on one of them.
+                cell_sheets(&*field, c).iter().find_map(|edges| {
+                    sheet_edge_point(&spec, &combined, &crossings, c, edges, cos_limit, on_both)
+                        .filter(|&p| fan_fits(&*field, c, p))
+                })
+            });
         let Some(p) = fitted.or_else(|| edge_point_in(&spec, &combined, c)) else {
             continue;
         };
@@ -510,14 +511,15 @@ pub fn sculpt_udf(
         }
     }
     // Cells beside the new edges: feature points from the crossings'
-    // tangent planes.
+    // tangent planes (of one sheet at a time).
     let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
     let sharp: Vec<(usize, DVec3)> = cells
         .par_iter()
         .filter(|c| !taken.contains(c))
         .filter_map(|&c| {
-            let tangents = cell_tangents(&spec, &crossings, c);
-            sharp_point(field, c, &tangents, cos_limit).map(|p| (c, p))
+            (sheet_tangents(field, &crossings, c).iter())
+                .find_map(|tangents| sharp_point(field, c, tangents, cos_limit))
+                .map(|p| (c, p))
         })
         .collect();
     for (c, p) in sharp {
@@ -540,90 +542,64 @@ pub fn sculpt_udf(
     report.turned = choose_sides(field, &combined, &snapped, &old_features, &corners);
     report.repicked = repick(field, &combined, &cells, &old_features, &corners);
     report.repaired = repair(field, &combined, &surface, &cells, &old_features, &corners);
-    // Cells of two sheets whose point keeps one: the new edge on the
-    // other takes a second point. (After the repair, which weighs one
-    // point per cell: before it, the repair reacted to the second
-    // point elsewhere, fandisk − sphere 0.096 → 0.151 h.)
-    let on_edge = |q: DVec3| {
-        combined.signed_distance(q).abs() < ON_EDGE * h
-            && combined.tool.signed_distance(q).abs() < ON_EDGE * h
-    };
-    report.second_sheets =
-        second_sheet_points(field, &combined, &crossings, &cells, cos_limit, on_edge);
     Ok(report)
 }
 
-/// Second feature points for the cells among `cells` that hold two
-/// sheets, one fanned around the cell's point, the other crossed by a new
-/// edge: a cap's rim 0.2 h above the grid plane under a pocket's floor
-/// whose concave edge holds the cell's point. The other sheet kept its
-/// table triangles, which cut the rim by up to 0.23 h. Its point is the
-/// QEF point of that sheet's exact crossings where it lies on the new
-/// edge (`on_edge`) within [`SECOND_SHEET_MARGIN`] of the cell, moved
-/// into it, if extraction then fans both sheets (in either order of the
-/// two points). Returns the number of points added.
-fn second_sheet_points(
-    field: &mut UnifiedField,
+/// The point on the new edge of one sheet of `cell` (its crossing
+/// `edges`): the QEF point of the sheet's exact crossings alone (those of
+/// all sheets mix a cap's rim with the pocket's floor 0.7 h above it),
+/// moved onto the tool (on a cap's rim, whose tangent planes' QEF lies
+/// 0.06 h outside the circle), where it lies on the new edge (`on_edge`)
+/// within [`SHEET_POINT_MARGIN`] of the cell, moved into it.
+fn sheet_edge_point(
+    spec: &GridSpec<3>,
     combined: &Combined,
     crossings: &HashMap<(usize, usize), Tangent>,
-    cells: &[usize],
+    cell: usize,
+    edges: &[(usize, usize)],
     cos_limit: f64,
     on_edge: impl Fn(DVec3) -> bool,
-) -> usize {
-    let spec = field.spec;
-    let firsts = field.feature_points();
-    let seconds = field.second_points(&firsts);
-    let mut added = 0;
-    for &c in cells {
-        let Some(&first) = firsts.get(&c) else {
-            continue;
-        };
-        if seconds.contains_key(&c) || leans_on_neighbour(&*field, c, first) {
-            continue;
-        }
-        let point = other_sheets(&*field, c, first)
-            .into_iter()
-            .find_map(|edges| {
-                let tangents: Vec<Tangent> = (edges.iter())
-                    .filter_map(|edge| crossings.get(edge).copied())
-                    .collect();
-                if tangents.len() < edges.len() || !crate::sharp::is_sharp(&tangents, cos_limit) {
-                    return None;
-                }
-                let q = crate::sharp::qef_minimizer(&tangents)?;
-                let q = combined.tool.closest_point(q);
-                let point = nudge_into(&spec, c, q);
-                let near = point.distance(q) <= SECOND_SHEET_MARGIN * spec.spacing;
-                (near && on_edge(q)).then_some(point)
-            });
-        let Some(point) = point else { continue };
-        // The cell's surface now lies near both sheets but cuts the
-        // edge: measured both ways (the edge's point to the surface).
-        // Either point may come first (the sample storing it decides):
-        // both ways the two fans must lie nearer the result.
-        let old = cell_triangles(&*field, c, Some(first));
-        let now = farthest_off(combined, &old).max(farthest_from(&old, &[point]));
-        let better = [(first, point), (point, first)].iter().all(|&(a, b)| {
-            two_sheet_triangles(&*field, c, a, b).is_some_and(|t| {
-                farthest_off(combined, &t) < now - SECOND_SHEET_GAIN * spec.spacing
-            })
-        });
-        if let (Some(n), true) = (storage_for(field, c, point), better) {
-            field.extras.insert(n, Extra::FeaturePoint(point));
-            added += 1;
-        }
+) -> Option<DVec3> {
+    let tangents: Vec<Tangent> = (edges.iter())
+        .filter_map(|edge| crossings.get(edge).copied())
+        .collect();
+    if tangents.len() < edges.len() || !crate::sharp::is_sharp(&tangents, cos_limit) {
+        return None;
     }
-    added
+    let q = combined
+        .tool
+        .closest_point(crate::sharp::qef_minimizer(&tangents)?);
+    let point = nudge_into(spec, cell, q);
+    let near = point.distance(q) <= SHEET_POINT_MARGIN * spec.spacing;
+    (near && on_edge(q)).then_some(point)
 }
 
-/// How far outside its cell (spacings) a second sheet's point may lie
-/// before it is moved in (the rim's QEF point where fandisk's concave
-/// edge passes over it lies 0.004 past a cell's face).
-const SECOND_SHEET_MARGIN: f64 = 0.1;
+/// The exact crossings of `cell`, one list per sheet where it holds
+/// several: the tangent planes of a cap and of a pocket's floor 0.7 h
+/// above it (opposite normals) have a QEF point between the two, 0.3 h
+/// off both, whose fan ran across.
+fn sheet_tangents(
+    field: &UnifiedField,
+    crossings: &HashMap<(usize, usize), Tangent>,
+    cell: usize,
+) -> Vec<Vec<Tangent>> {
+    let sheets = cell_sheets(field, cell);
+    if sheets.is_empty() {
+        return vec![cell_tangents(&field.spec, crossings, cell)];
+    }
+    (sheets.iter())
+        .map(|edges| {
+            (edges.iter())
+                .filter_map(|e| crossings.get(e).copied())
+                .collect()
+        })
+        .collect()
+}
 
-/// What a second sheet's point must lower its cell's distance from the
-/// result by (spacings) to be kept.
-const SECOND_SHEET_GAIN: f64 = 0.05;
+/// How far outside its cell (spacings) a sheet's point on the new edge
+/// may lie to be moved in (as [`WIDENED_MARGIN`]: a corner where an old
+/// edge passes over a cap's rim lies just past a cell's face).
+const SHEET_POINT_MARGIN: f64 = 0.1;
 
 /// Directed distances for the edges whose exact crossing (`crossings`,
 /// by edge) the interpolation between their samples misses by more than

@@ -59,7 +59,6 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "samples_moved_into_thin_walls": r.thin,
             "samples_raised_to_settle_faces": r.settled,
             "samples_set_to_straighten_floating_edges": r.straightened,
-            "second_sheet_points": r.second_sheets,
         }));
     }
     field.write(&args.output)?;
