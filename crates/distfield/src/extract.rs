@@ -365,6 +365,35 @@ pub(crate) fn fan_triangles(
     (fan.fanned == Some(true)).then(|| fan.positions(&vertices))
 }
 
+/// The crossing edges, as (lower node, axis), of each sheet of `cell`'s
+/// table patch (its triangles joined by shared vertices, see
+/// [`Patch::fan_nearest_sheet`]), where it holds several; else empty.
+pub(crate) fn cell_sheets(field: &impl SampledField, cell: usize) -> Vec<Vec<(usize, usize)>> {
+    let Some((patch, keys, _)) = cell_patch(field, cell) else {
+        return Vec::new();
+    };
+    let sheets = patch.sheets();
+    if sheets.len() < 2 {
+        return Vec::new();
+    }
+    (sheets.iter())
+        .map(|sheet| {
+            let mut edges: Vec<(usize, usize)> = (sheet.iter().flatten())
+                .filter_map(|&v| match v {
+                    Vertex::Edge(i) => {
+                        let key = keys[i as usize];
+                        Some(((key / 3) as usize, (key % 3) as usize))
+                    }
+                    Vertex::Extra(_) => None,
+                })
+                .collect();
+            edges.sort_unstable();
+            edges.dedup();
+            edges
+        })
+        .collect()
+}
+
 /// The table patch of `cell` alone, if the surface crosses it, with its
 /// edges' keys and crossings.
 fn cell_patch(field: &impl SampledField, cell: usize) -> Option<(Patch, Vec<u64>, Vec<DVec3>)> {

@@ -11,7 +11,7 @@
 //! edge (where the two surfaces meet) in each cell it crosses; an offset
 //! field gets a sample moved onto that edge instead.
 
-use crate::extract::{cell_triangles, corner_nodes, crosses, fan_fits, SampledField};
+use crate::extract::{cell_sheets, cell_triangles, corner_nodes, crosses, fan_fits, SampledField};
 use crate::features::{
     cells_with_features, nudge_into, CellFeatures, Features, DEFAULT_FEATURE_ANGLE_DEG,
 };
@@ -492,7 +492,14 @@ pub fn sculpt_udf(
             .find(|&q| fan_fits(&*field, c, q));
         let fitted = corner
             .or_else(|| sharp_point(field, c, &tangents, cos_limit).filter(|&q| on_both(q)))
-            .or_else(|| widened_point(field, c, &tangents, cos_limit, on_both));
+            .or_else(|| widened_point(field, c, &tangents, cos_limit, on_both))
+            .or_else(|| {
+                // A cell of several sheets: the new edge on one of them.
+                cell_sheets(&*field, c).iter().find_map(|edges| {
+                    sheet_edge_point(&spec, &combined, &crossings, c, edges, cos_limit, on_both)
+                        .filter(|&p| fan_fits(&*field, c, p))
+                })
+            });
         let Some(p) = fitted.or_else(|| edge_point_in(&spec, &combined, c)) else {
             continue;
         };
@@ -504,14 +511,15 @@ pub fn sculpt_udf(
         }
     }
     // Cells beside the new edges: feature points from the crossings'
-    // tangent planes.
+    // tangent planes (of one sheet at a time).
     let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
     let sharp: Vec<(usize, DVec3)> = cells
         .par_iter()
         .filter(|c| !taken.contains(c))
         .filter_map(|&c| {
-            let tangents = cell_tangents(&spec, &crossings, c);
-            sharp_point(field, c, &tangents, cos_limit).map(|p| (c, p))
+            (sheet_tangents(field, &crossings, c).iter())
+                .find_map(|tangents| sharp_point(field, c, tangents, cos_limit))
+                .map(|p| (c, p))
         })
         .collect();
     for (c, p) in sharp {
@@ -536,6 +544,62 @@ pub fn sculpt_udf(
     report.repaired = repair(field, &combined, &surface, &cells, &old_features, &corners);
     Ok(report)
 }
+
+/// The point on the new edge of one sheet of `cell` (its crossing
+/// `edges`): the QEF point of the sheet's exact crossings alone (those of
+/// all sheets mix a cap's rim with the pocket's floor 0.7 h above it),
+/// moved onto the tool (on a cap's rim, whose tangent planes' QEF lies
+/// 0.06 h outside the circle), where it lies on the new edge (`on_edge`)
+/// within [`SHEET_POINT_MARGIN`] of the cell, moved into it.
+fn sheet_edge_point(
+    spec: &GridSpec<3>,
+    combined: &Combined,
+    crossings: &HashMap<(usize, usize), Tangent>,
+    cell: usize,
+    edges: &[(usize, usize)],
+    cos_limit: f64,
+    on_edge: impl Fn(DVec3) -> bool,
+) -> Option<DVec3> {
+    let tangents: Vec<Tangent> = (edges.iter())
+        .filter_map(|edge| crossings.get(edge).copied())
+        .collect();
+    if tangents.len() < edges.len() || !crate::sharp::is_sharp(&tangents, cos_limit) {
+        return None;
+    }
+    let q = combined
+        .tool
+        .closest_point(crate::sharp::qef_minimizer(&tangents)?);
+    let point = nudge_into(spec, cell, q);
+    let near = point.distance(q) <= SHEET_POINT_MARGIN * spec.spacing;
+    (near && on_edge(q)).then_some(point)
+}
+
+/// The exact crossings of `cell`, one list per sheet where it holds
+/// several: the tangent planes of a cap and of a pocket's floor 0.7 h
+/// above it (opposite normals) have a QEF point between the two, 0.3 h
+/// off both, whose fan ran across.
+fn sheet_tangents(
+    field: &UnifiedField,
+    crossings: &HashMap<(usize, usize), Tangent>,
+    cell: usize,
+) -> Vec<Vec<Tangent>> {
+    let sheets = cell_sheets(field, cell);
+    if sheets.is_empty() {
+        return vec![cell_tangents(&field.spec, crossings, cell)];
+    }
+    (sheets.iter())
+        .map(|edges| {
+            (edges.iter())
+                .filter_map(|e| crossings.get(e).copied())
+                .collect()
+        })
+        .collect()
+}
+
+/// How far outside its cell (spacings) a sheet's point on the new edge
+/// may lie to be moved in (as [`WIDENED_MARGIN`]: a corner where an old
+/// edge passes over a cap's rim lies just past a cell's face).
+const SHEET_POINT_MARGIN: f64 = 0.1;
 
 /// Directed distances for the edges whose exact crossing (`crossings`,
 /// by edge) the interpolation between their samples misses by more than

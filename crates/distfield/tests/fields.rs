@@ -900,9 +900,12 @@ fn sculpting_fandisk_cuts_a_hole_under_a_pocket_without_a_handle() {
     // with no point; with its point, 0.377 h above the wall, where an
     // edge from a floating sample interpolated the pocket's floor 0.46 h
     // too high; with that straightened, 0.206 h where a rim cell holding
-    // the floor too, two loops, kept its table triangles)
+    // the floor too, two loops, kept its table triangles; before session
+    // 28 the cap 0.228 h, where rim cells under the floor took no point
+    // or one between cap and floor; now 0.2225 h, at the corner where
+    // fandisk's concave edge passes over the rim)
     assert!(
-        cut.cap < 0.25,
+        cut.cap < 0.225,
         "the cap lies {} h from the surface",
         cut.cap
     );
@@ -1108,4 +1111,61 @@ fn error_along_edge(surface: &MeshQuery, a: DVec3, b: DVec3, h: f64) -> f64 {
         .filter(|p| p.distance(a).min(p.distance(b)) > 1.5 * h)
         .map(|p| surface.signed_distance(p).abs() / h)
         .fold(0.0, f64::max)
+}
+
+/// A blind hole drilled into a cube from below, its flat end (the cap)
+/// 0.22 h above a grid plane and 0.7 h under the cube's top face: the
+/// cells around the cap's rim hold two sheets, cap and top face. Their
+/// feature points come from one sheet's crossings at a time: the tangent
+/// planes of both sheets (opposite normals) put the point between them,
+/// and the rim's cells kept their table triangles, which cut the rim.
+#[test]
+fn sculpting_keeps_a_blind_holes_rim_under_a_thin_roof() {
+    use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
+    let cube = cuboid(DVec3::ZERO, DVec3::ONE);
+    let (mut udf, _) = udf_of(&cube, GridSize::Resolution(24));
+    let h = udf.spec.spacing;
+    // The highest grid plane whose cap lies at least 0.5 h under the top.
+    let oy = udf.spec.origin[1];
+    let plane = oy + ((1.0 - 0.72 * h - oy) / h).floor() * h;
+    let cap = plane + 0.22 * h;
+    let (radius, centre) = (0.23, DVec3::new(0.47, cap, 0.52));
+    let tool = Tool::Cylinder {
+        a: DVec3::new(centre.x, -0.5, centre.z),
+        b: centre,
+        radius,
+    };
+    sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
+    let (mesh, _) = udf.extract();
+    assert_closed_manifold(&mesh, 2);
+    let surface = MeshQuery::new(&mesh).unwrap();
+    let rim = (0..360)
+        .map(|i| {
+            let angle = std::f64::consts::TAU * i as f64 / 360.0;
+            let p = centre + DVec3::new(angle.cos(), 0.0, angle.sin()) * radius;
+            surface.signed_distance(p).abs() / h
+        })
+        .fold(0.0, f64::max);
+    // The surface around the hole's end (the cube's own corners are not
+    // at stake here).
+    let near_end = |p: &DVec3| {
+        let across = DVec3::new(p.x - centre.x, 0.0, p.z - centre.z).length();
+        across < radius + 2.0 * h && p.y > cap - 3.0 * h
+    };
+    let (off, at) = dense_points(&mesh)
+        .filter(near_end)
+        .map(|p| {
+            let exact = (p - DVec3::splat(0.5)).abs() - DVec3::splat(0.5);
+            let cube = exact.max(DVec3::ZERO).length() + exact.max_element().min(0.0);
+            (cube.max(-tool.signed_distance(p)).abs() / h, p)
+        })
+        .fold((0.0, DVec3::ZERO), |a, b| if b.0 > a.0 { b } else { a });
+    eprintln!(
+        "roof {} h thick: rim off the surface by {rim} h, surface off by {off} h at {at}",
+        (1.0 - cap) / h
+    );
+    // (before session 28: rim 0.235 h, surface 0.384 h; now 0.037 h and
+    // 0.071 h)
+    assert!(rim < 0.1, "the rim lies {rim} h from the surface");
+    assert!(off < 0.1, "the surface leaves the result by {off} h");
 }
