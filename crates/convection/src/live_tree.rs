@@ -28,11 +28,65 @@ pub(crate) struct LiveTree {
     alive: Vec<bool>,
     /// Position of each point in `order`.
     slot: Vec<u32>,
-    /// Box per node, `[lo, hi]` (empty boxes are inverted).
-    boxes: Vec<[DVec3; 2]>,
-    /// Live points under each node.
-    live: Vec<u32>,
+    /// Box and live count per node, in single precision: the search walks
+    /// ~270 nodes per facet and is bound by memory, and two siblings then
+    /// share a cache line.
+    nodes: Vec<Node>,
     leaf_base: usize,
+}
+
+/// A node's box (rounded outward to `f32`; empty boxes are inverted) and
+/// the number of live points under it.
+#[derive(Clone, Copy, PartialEq)]
+#[repr(C, align(32))]
+struct Node {
+    lo: [f32; 3],
+    live: u32,
+    hi: [f32; 3],
+}
+
+impl Node {
+    fn new([lo, hi]: [DVec3; 2], live: u32) -> Self {
+        Node {
+            lo: lo.to_array().map(round_down),
+            live,
+            hi: hi.to_array().map(round_up),
+        }
+    }
+
+    fn bounds(&self) -> [DVec3; 2] {
+        [
+            DVec3::from_array(self.lo.map(f64::from)),
+            DVec3::from_array(self.hi.map(f64::from)),
+        ]
+    }
+
+    /// The box holding both boxes.
+    fn union_box(&self, other: &Node) -> ([f32; 3], [f32; 3]) {
+        let lo = std::array::from_fn(|k| self.lo[k].min(other.lo[k]));
+        let hi = std::array::from_fn(|k| self.hi[k].max(other.hi[k]));
+        (lo, hi)
+    }
+}
+
+/// The largest `f32` not above `x` (a box only ever grows by rounding).
+fn round_down(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) > x {
+        y.next_down()
+    } else {
+        y
+    }
+}
+
+/// The smallest `f32` not below `x`.
+fn round_up(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) < x {
+        y.next_up()
+    } else {
+        y
+    }
 }
 
 /// The sphere pencil through a facet's corners: centre `c₀ + t·n`, squared
@@ -111,40 +165,62 @@ impl LiveTree {
         }
         let leaf_base = points.len().div_ceil(LEAF).next_power_of_two();
         let empty = [DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)];
-        let mut boxes = vec![empty; 2 * leaf_base];
-        let mut live = vec![0u32; 2 * leaf_base];
-        for (leaf, chunk) in order.chunks(LEAF).enumerate() {
-            let node = leaf_base + leaf;
-            for &i in chunk {
-                let p = points[i as usize];
-                boxes[node] = [boxes[node][0].min(p), boxes[node][1].max(p)];
-            }
-            live[node] = chunk.len() as u32;
-        }
-        for node in (1..leaf_base).rev() {
-            let (l, r) = (boxes[2 * node], boxes[2 * node + 1]);
-            boxes[node] = [l[0].min(r[0]), l[1].max(r[1])];
-            live[node] = live[2 * node] + live[2 * node + 1];
-        }
-        LiveTree {
+        let mut tree = LiveTree {
             position: order.iter().map(|&i| points[i as usize]).collect(),
             alive: vec![true; order.len()],
             order,
             slot,
-            boxes,
-            live,
+            nodes: vec![Node::new(empty, 0); 2 * leaf_base],
             leaf_base,
+        };
+        for leaf in 0..points.len().div_ceil(LEAF) {
+            let live = (points.len() - leaf * LEAF).min(LEAF) as u32;
+            tree.nodes[leaf_base + leaf] = Node::new(tree.live_box(leaf), live);
+        }
+        for node in (1..leaf_base).rev() {
+            let (l, r) = (tree.nodes[2 * node], tree.nodes[2 * node + 1]);
+            let (lo, hi) = l.union_box(&r);
+            tree.nodes[node] = Node {
+                lo,
+                live: l.live + r.live,
+                hi,
+            };
+        }
+        tree
+    }
+
+    /// Point `i` is no longer live (call once per point). The boxes shrink
+    /// to the live points left: most points of a decimated front die, and a
+    /// box kept at its full size would keep meeting balls it holds nothing
+    /// for.
+    pub fn remove(&mut self, i: usize) {
+        self.alive[self.slot[i] as usize] = false;
+        let leaf = self.slot[i] as usize / LEAF;
+        let mut node = self.leaf_base + leaf;
+        self.nodes[node] = Node::new(self.live_box(leaf), self.nodes[node].live - 1);
+        let mut boxes_changed = true;
+        while node > 1 {
+            node /= 2;
+            self.nodes[node].live -= 1;
+            if boxes_changed {
+                let (l, r) = (self.nodes[2 * node], self.nodes[2 * node + 1]);
+                let (lo, hi) = l.union_box(&r);
+                // Once a box stays, its ancestors' unions do too.
+                boxes_changed = (lo, hi) != (self.nodes[node].lo, self.nodes[node].hi);
+                (self.nodes[node].lo, self.nodes[node].hi) = (lo, hi);
+            }
         }
     }
 
-    /// Point `i` is no longer live (call once per point).
-    pub fn remove(&mut self, i: usize) {
-        self.alive[self.slot[i] as usize] = false;
-        let mut node = self.leaf_base + self.slot[i] as usize / LEAF;
-        while node >= 1 {
-            self.live[node] -= 1;
-            node /= 2;
+    /// The box of the leaf's live points (inverted when none is left).
+    fn live_box(&self, leaf: usize) -> [DVec3; 2] {
+        let mut bounds = [DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)];
+        for k in leaf * LEAF..((leaf + 1) * LEAF).min(self.order.len()) {
+            if self.alive[k] {
+                bounds = [bounds[0].min(self.position[k]), bounds[1].max(self.position[k])];
+            }
         }
+        bounds
     }
 
     /// Live points strictly beyond the plane through `origin` with unit
@@ -157,10 +233,10 @@ impl LiveTree {
         let mut found = Vec::new();
         let mut stack = vec![1usize];
         while let Some(node) = stack.pop() {
-            let [lo, hi] = self.boxes[node];
+            let [lo, hi] = self.nodes[node].bounds();
             let half = (hi - lo) / 2.0;
             let top = normal.dot(lo + half - origin) + normal.abs().dot(half);
-            if self.live[node] == 0 || top <= slack || ball.gap2([lo, hi]) > ball.reach2 {
+            if self.nodes[node].live == 0 || top <= slack || ball.gap2([lo, hi]) > ball.reach2 {
                 continue;
             }
             if node < self.leaf_base {
@@ -220,7 +296,8 @@ impl LiveTree {
             depth -= 1;
             let node = stack[depth];
             let ball = search.ball;
-            if self.live[node] == 0 || !pencil.may_hold(self.boxes[node], ball) {
+            let here = &self.nodes[node];
+            if here.live == 0 || !pencil.may_hold(here.bounds(), ball) {
                 continue;
             }
             if node >= self.leaf_base {
@@ -230,7 +307,8 @@ impl LiveTree {
                 continue;
             }
             let (l, r) = (2 * node, 2 * node + 1);
-            let (near, far) = match ball.gap2(self.boxes[l]) <= ball.gap2(self.boxes[r]) {
+            let gap2 = |n: usize| ball.gap2(self.nodes[n].bounds());
+            let (near, far) = match gap2(l) <= gap2(r) {
                 true => (l, r),
                 false => (r, l),
             };
