@@ -396,3 +396,77 @@ impl<C, B: Fn(usize, usize) -> bool> Search<'_, C, B> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// Points in a slab (so the k-d splits are uneven), three quarters of
+    /// them removed: the boxes shrink, and every query must still see
+    /// exactly the live points a scan of all of them sees.
+    fn thinned_tree(rng: &mut rand_pcg::Pcg64) -> (Vec<DVec3>, Vec<bool>, LiveTree) {
+        let points: Vec<DVec3> = (0..3001)
+            .map(|_| {
+                let mut coordinate = || rng.random_range(-1.0..1.0);
+                DVec3::new(coordinate(), 0.3 * coordinate(), 0.05 * coordinate()) * 0.123_456_7
+            })
+            .collect();
+        let mut tree = LiveTree::new(&points);
+        let mut alive = vec![true; points.len()];
+        for i in 0..points.len() {
+            if rng.random_range(0..4) != 0 {
+                tree.remove(i);
+                alive[i] = false;
+            }
+        }
+        (points, alive, tree)
+    }
+
+    #[test]
+    fn queries_after_removals_match_a_scan_of_the_live_points() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let (points, alive, tree) = thinned_tree(&mut rng);
+        let live = || (0..points.len()).filter(|&i| alive[i]);
+        let mut apexes = 0;
+        for _ in 0..200 {
+            let [a, b, c] = [0, 1, 2].map(|_| points[rng.random_range(0..points.len())]);
+            let (u, v) = (b - a, c - a);
+            let normal = u.cross(v).normalize();
+            let centre = a
+                + (u.length_squared() * v.cross(u.cross(v))
+                    + v.length_squared() * u.cross(v).cross(u))
+                    / (2.0 * u.cross(v).length_squared());
+            let radius = centre.distance(a);
+            if !radius.is_finite() || radius > 0.1 {
+                continue;
+            }
+            // The slab query.
+            let mut expected: Vec<usize> = live()
+                .filter(|&i| {
+                    points[i].distance(centre) <= 2.0 * radius
+                        && normal.dot(points[i] - centre) > 0.0
+                })
+                .collect();
+            let mut found = tree.beyond_plane(centre, normal, 2.0 * radius, 0.0);
+            found.sort_unstable();
+            expected.sort_unstable();
+            assert_eq!(found, expected);
+            // The apex: the lowest pencil parameter among live inner points.
+            let pencil = Pencil {
+                centre,
+                radius,
+                normal,
+                slack: 0.0,
+            };
+            let inner = |i: usize| normal.dot(points[i] - centre) > 1e-12;
+            let expected = live()
+                .filter(|&i| inner(i) && pencil.t(points[i]) <= 0.0)
+                .min_by(|&p, &q| pencil.t(points[p]).total_cmp(&pencil.t(points[q])));
+            let found = tree.apex(&pencil, [0, 1, 2], false, inner, |q, s| q < s);
+            assert_eq!(found, expected);
+            apexes += usize::from(found.is_some());
+        }
+        assert!(apexes > 50, "{apexes} facets with an apex");
+    }
+}
