@@ -467,12 +467,11 @@ mod tests {
             })
             .collect();
         let mut tree = LiveTree::new(&points);
-        let mut alive = vec![true; points.len()];
-        for i in 0..points.len() {
-            if rng.random_range(0..4) != 0 {
-                tree.remove(i);
-                alive[i] = false;
-            }
+        let alive: Vec<bool> = (0..points.len())
+            .map(|_| rng.random_range(0..4) == 0)
+            .collect();
+        for (i, _) in alive.iter().enumerate().filter(|(_, live)| !**live) {
+            tree.remove(i);
         }
         (points, alive, tree)
     }
