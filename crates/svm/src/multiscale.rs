@@ -383,7 +383,7 @@ fn fit_level(
     opts: &FitOptions,
 ) -> (Level, Vec<DVec3>, LevelReport) {
     let start = Instant::now();
-    let (candidates, groups) = propose(samples, active, width, opts);
+    let (candidates, groups, sources) = propose(samples, active, width, opts);
     let tolerance = scales.tolerance;
     let positions: Vec<DVec3> = candidates.iter().map(|t| t.position).collect();
     let mut residuals: Vec<f64> = model
@@ -397,7 +397,13 @@ fn fit_level(
     } else {
         let reach = opts.consistency_ratio * width;
         let link = CHAIN_LINK * opts.cell_ratio * width;
-        mark_inconsistent(&groups, &candidates, &mut residuals, reach, link)
+        // A sparsely sampled surface's weights are low, but its sparse
+        // sampling explains them (see `CHAIN_SUPPORT`).
+        let links = |g: usize| {
+            let (weight, i) = (candidates[groups[g].start].weight, sources[g]);
+            weight >= CHAIN_SUPPORT || on_sparse_surface(samples, i, weight)
+        };
+        mark_inconsistent(&groups, &candidates, &mut residuals, reach, link, links)
     };
     let local = local_median_residuals(&positions, &residuals, opts.cell_ratio * width);
     // Per-point C factor: box constraints are in distance units (scaled by
@@ -535,22 +541,54 @@ const CHAIN_LINK: f64 = 2.0;
 /// sample that joins a chain: a thin part is sampled as densely as the
 /// rest (a spike's boxes hold as many samples as a sheet's, their
 /// neighbourhoods a third as many), a stray cluster of outliers is not.
+/// A sample with less support still joins when a sparse sampling
+/// explains it ([`on_sparse_surface`]): a face sampled several times more
+/// sparsely than the rest (harness box, non-uniform: a tilted face with
+/// weights 0.18–0.25 here, whose samples, left out, let the denser
+/// neighbourhood's kernels dent the surface through it) is evenly sampled
+/// along its tangent planes, while stray samples, noisy or outliers, do
+/// not line up along a plane with their neighbours.
 const CHAIN_SUPPORT: f64 = 0.3;
+
+/// Least reach (distance to the [`crate::training::LOCAL_NEIGHBOURS`]-th
+/// nearest sample), relative to the typical reach, of a sample on a
+/// sparsely sampled surface. A thin part's samples reach further than
+/// typical too, as fewer samples fit in a ball around a thin part than
+/// around a sheet at the same spacing (harness spikes: up to 1.6 times
+/// at the tips, where the coarse levels must not chain them), so only a
+/// markedly sparser sampling counts (the box non-uniform's sparse face:
+/// 2.3 times).
+const SPARSE_REACH: f64 = 2.0;
+
+/// Whether sample `i`, with support `weight` below [`CHAIN_SUPPORT`], lies
+/// on a surface sampled markedly more sparsely than typical
+/// ([`SPARSE_REACH`]) that explains its low support: a box there holds
+/// (reach / typical reach)² times fewer samples than typical, and its
+/// weight scaled up by that is at least [`CHAIN_SUPPORT`]; and the sample
+/// lies on its own tangent disc
+/// ([`SurfaceSamples::spans_tangent_disc`]), as a stray sample does not.
+fn on_sparse_surface(samples: &SurfaceSamples, i: usize, weight: f64) -> bool {
+    let sparser = samples.reach[i] / samples.typical_reach;
+    sparser >= SPARSE_REACH
+        && weight * sparser * sparser >= CHAIN_SUPPORT
+        && samples.spans_tangent_disc(i)
+}
 
 /// Leave out every candidate of a group (a surface sample, first, and its
 /// off-surface points) whose surface sample's residual exceeds `reach`, by
 /// setting their residuals to NaN; returns how many groups were left out.
 /// A far sample stays in when a chain of surface samples, each within
-/// `link` of the next, joins it to one within reach: a thin part (a spike,
-/// a tail) is sampled all the way out from the body that the coarser
-/// levels fitted, while a stray cluster floats apart from it and is
-/// sampled more thinly.
+/// `link` of the next and each a group for which `links` holds, joins it
+/// to one within reach: a thin part (a spike, a tail) is sampled all the
+/// way out from the body that the coarser levels fitted, while a stray
+/// cluster floats apart from it and is sampled more thinly.
 fn mark_inconsistent(
     groups: &[std::ops::Range<usize>],
     candidates: &[TrainingPoint],
     residuals: &mut [f64],
     reach: f64,
     link: f64,
+    links: impl Fn(usize) -> bool,
 ) -> usize {
     let surface: Vec<DVec3> = groups
         .iter()
@@ -562,9 +600,11 @@ fn mark_inconsistent(
         .collect();
     let tree = KdTree::new(&surface);
     let mut stack: Vec<usize> = (0..groups.len()).filter(|&i| joined[i]).collect();
+    // `links` may search neighbours: asked once per far group.
+    let mut can_link: Vec<Option<bool>> = vec![None; groups.len()];
     while let Some(i) = stack.pop() {
         for n in tree.within(surface[i], link) {
-            if !joined[n.index] && candidates[groups[n.index].start].weight >= CHAIN_SUPPORT {
+            if !joined[n.index] && *can_link[n.index].get_or_insert_with(|| links(n.index)) {
                 joined[n.index] = true;
                 stack.push(n.index);
             }
@@ -582,13 +622,13 @@ fn mark_inconsistent(
 
 /// Base-point candidates of a level: one surface sample per box of side
 /// cell_ratio·s, each followed by its consistent off-surface points; with
-/// the index range of each such group.
+/// the index range of each such group and the sample it was built from.
 fn propose(
     samples: &SurfaceSamples,
     active: &[usize],
     width: f64,
     opts: &FitOptions,
-) -> (Vec<TrainingPoint>, Vec<std::ops::Range<usize>>) {
+) -> (Vec<TrainingPoint>, Vec<std::ops::Range<usize>>, Vec<usize>) {
     let h = opts.cell_ratio * width;
     let points: Vec<DVec3> = active.iter().map(|&i| samples.points[i]).collect();
     let boxes = box_representatives_preferring(
@@ -644,5 +684,6 @@ fn propose(
         groups.push(out.len()..out.len() + group.len());
         out.extend(group);
     }
-    (out, groups)
+    let sources = reps.iter().map(|r| r.0).collect();
+    (out, groups, sources)
 }
