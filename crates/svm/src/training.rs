@@ -278,8 +278,8 @@ impl SurfaceSamples {
                 let direction = (self.points[q] - p).normalize_or_zero();
                 let on_mine = direction.dot(n).abs() <= TANGENT_ELEVATION
                     && self.normals[q].dot(n) >= TANGENT_NORMAL_AGREEMENT;
-                let on_theirs =
-                    self.normal_agrees[q] && direction.dot(self.normals[q]).abs() <= TANGENT_ELEVATION;
+                let on_theirs = self.normal_agrees[q]
+                    && direction.dot(self.normals[q]).abs() <= TANGENT_ELEVATION;
                 on_mine || on_theirs
             })
             .count();
