@@ -68,6 +68,24 @@ pub const THIN_NEIGHBOURS: usize = 32;
 /// Neighbours that define a sample's local reach and normal agreement.
 pub const LOCAL_NEIGHBOURS: usize = 6;
 
+/// Of a sample's [`LOCAL_NEIGHBOURS`] nearest, how many must lie on its
+/// tangent disc (see [`SurfaceSamples::spans_tangent_disc`]): half.
+pub const TANGENT_NEIGHBOURS: usize = 3;
+/// Largest |cosine| between a sample's normal and the direction to a
+/// neighbour on its tangent disc (about 17° out of the plane): room for
+/// curvature over a few spacings, none for a surface passing below.
+pub const TANGENT_ELEVATION: f64 = 0.3;
+/// Nearest, in noise σ, that a neighbour on a sample's tangent disc lies:
+/// closer, the noise alone tilts the direction to it by more than
+/// [`TANGENT_ELEVATION`], so noisy samples would pass or fail by chance
+/// (harness spikes, 1% noise, chaining every sparse-enough sample on its
+/// tangent disc: noisy samples around the spike tips passed at the coarse
+/// levels and gave two handles).
+pub const TANGENT_NOISE_SPAN: f64 = 10.0;
+/// Least cosine between the normals of a sample and of a neighbour on its
+/// tangent disc (about 45°).
+pub const TANGENT_NORMAL_AGREEMENT: f64 = 0.7;
+
 /// Lowest cosine between a sample's normal and its neighbours' mean normal
 /// that counts as agreement; a cube corner's normal still agrees (its
 /// neighbours' mean lies at 55° from each face normal, cosine 0.58).
@@ -228,6 +246,44 @@ impl SurfaceSamples {
                 let beside = (d + behind * n).length();
                 behind > beside && self.normals[m.index].dot(n) < -0.5
             })
+    }
+
+    /// Whether sample `i` lies on a surface sampled around it, however
+    /// sparsely: at least [`TANGENT_NEIGHBOURS`] of its
+    /// [`LOCAL_NEIGHBOURS`] nearest other samples, at least
+    /// [`TANGENT_NOISE_SPAN`] noise σ away, either lie along its tangent
+    /// plane (their direction within [`TANGENT_ELEVATION`] of it) and face
+    /// its way (normal cosine ≥ [`TANGENT_NORMAL_AGREEMENT`]), or have it
+    /// on theirs (the same angle) and a normal that agrees with their own
+    /// neighbours'. The second holds across an edge or corner next to the
+    /// sample, where most neighbours lie on the other faces (harness box,
+    /// non-uniform: the samples of the sparse corner failed the first
+    /// alone and were left out, denting the corner 0.024 deep). This does
+    /// not depend on how far apart they are, so a sparsely but evenly
+    /// sampled face passes as a dense one does; a stray sample's
+    /// neighbours are a surface it floats beside (below or above its
+    /// tangent plane unless its normal is turned away from theirs, and it
+    /// above theirs) or other stray samples in random directions with
+    /// random normals, which disagree with their own neighbours'.
+    pub fn spans_tangent_disc(&self, i: usize) -> bool {
+        let (p, n) = (self.points[i], self.normals[i]);
+        let nearest = TANGENT_NOISE_SPAN * self.noise;
+        let along = self
+            .tree
+            .knn(p, LOCAL_NEIGHBOURS + 1)
+            .into_iter()
+            .filter(|m| m.index != i && m.distance >= nearest)
+            .filter(|m| {
+                let q = m.index;
+                let direction = (self.points[q] - p).normalize_or_zero();
+                let on_mine = direction.dot(n).abs() <= TANGENT_ELEVATION
+                    && self.normals[q].dot(n) >= TANGENT_NORMAL_AGREEMENT;
+                let on_theirs = self.normal_agrees[q]
+                    && direction.dot(self.normals[q]).abs() <= TANGENT_ELEVATION;
+                on_mine || on_theirs
+            })
+            .count();
+        along >= TANGENT_NEIGHBOURS
     }
 
     /// Indices of the samples that are not isolated: whose [`Self::reach`]
