@@ -173,8 +173,9 @@ pub fn interpolate_slices(stack: &SliceStack, params: &ReconstructParams) -> Res
     let across = stack.levels[stack.levels.len() - 1] - stack.levels[0];
     let spacing = (hi - lo).max_element().max(across) / cells as f64;
     let spec = stack_grid(stack, (lo, hi), spacing, gap)?;
-    // The field, and each slice's section over the plane.
-    spec.check_memory(8 + 8 * stack.levels.len() / spec.dims[stack.axis].max(1))?;
+    // The field, its pieces' labels ([`join_lost_parts`]), and each
+    // slice's section over the plane.
+    spec.check_memory(8 + 4 + 8 * stack.levels.len() / spec.dims[stack.axis].max(1))?;
     let [u, v] = stack.plane_axes();
     let plane = GridSpec::<2> {
         origin: [spec.origin[u], spec.origin[v]],
