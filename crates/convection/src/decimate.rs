@@ -143,15 +143,47 @@ pub(crate) fn remove_around(
     p: usize,
     keep: &mut [bool],
     decided: &mut [bool],
-    mut on_remove: impl FnMut(usize),
+    on_remove: impl FnMut(usize),
 ) {
+    let order = disk_order(tree, points, settings, p);
+    grow_disk(points, normals, settings, p, &order, keep, decided, on_remove);
+}
+
+/// The points within `p`'s decimation radius, closest first (ties by
+/// index), `p` left out: the order its disk grows in. It depends on the
+/// points only, so it may be found ahead of time (the front finds them in
+/// parallel for the points its next steps reach).
+pub(crate) fn disk_order(
+    tree: &KdTree,
+    points: &[DVec3],
+    settings: &Decimation,
+    p: usize,
+) -> Vec<usize> {
     let mut near = tree.within(points[p], settings.radius_at(points[p]));
     near.sort_by(|a, b| {
         a.distance
             .total_cmp(&b.distance)
             .then(a.index.cmp(&b.index))
     });
-    for q in near.into_iter().map(|n| n.index).filter(|&q| q != p) {
+    near.into_iter()
+        .map(|n| n.index)
+        .filter(|&q| q != p)
+        .collect()
+}
+
+/// [`remove_around`] with `p`'s [`disk_order`] given.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn grow_disk(
+    points: &[DVec3],
+    normals: &[DVec3],
+    settings: &Decimation,
+    p: usize,
+    order: &[usize],
+    keep: &mut [bool],
+    decided: &mut [bool],
+    mut on_remove: impl FnMut(usize),
+) {
+    for &q in order {
         if decided[q] && keep[q] {
             // Another kept point: the disk reaches no further this way.
             continue;

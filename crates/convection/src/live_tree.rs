@@ -23,13 +23,16 @@ use surfrecon_delaunay::DVec3;
 
 const LEAF: usize = 16;
 
+// A leaf's live slots are the bits of a `u32`.
+const _: () = assert!(LEAF <= 32);
+
 pub(crate) struct LiveTree {
     /// Point indices, leaf by leaf.
     order: Vec<u32>,
-    /// Their positions and whether they are live, in the same order (the
-    /// search reads leaves whole: no jumps through the input arrays).
+    /// Their positions, in the same order (the search reads leaves whole:
+    /// no jumps through the input arrays). Which are live is in the
+    /// leaves' masks.
     position: Vec<DVec3>,
-    alive: Vec<bool>,
     /// Position of each point in `order`.
     slot: Vec<u32>,
     /// Box and live count per node, in single precision: the search walks
@@ -52,21 +55,26 @@ struct Split {
 }
 
 /// A node's box (rounded outward to `f32`; empty boxes are inverted) and
-/// the number of live points under it.
+/// the number of live points under it; a leaf also has one bit per slot
+/// set while that slot's point is live (in the node's padding: a leaf scan
+/// then visits its live points only, three quarters of them being gone by
+/// the end of a decimation).
 #[derive(Clone, Copy, PartialEq)]
 #[repr(C, align(32))]
 struct Node {
     lo: [f32; 3],
     live: u32,
     hi: [f32; 3],
+    mask: u32,
 }
 
 impl Node {
-    fn new([lo, hi]: [DVec3; 2], live: u32) -> Self {
+    fn new([lo, hi]: [DVec3; 2], live: u32, mask: u32) -> Self {
         Node {
             lo: lo.to_array().map(round_down),
             live,
             hi: hi.to_array().map(round_up),
+            mask,
         }
     }
 
@@ -183,16 +191,17 @@ impl LiveTree {
         let empty = [DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)];
         let mut tree = LiveTree {
             position: order.iter().map(|&i| points[i as usize]).collect(),
-            alive: vec![true; order.len()],
             order,
             slot,
-            nodes: vec![Node::new(empty, 0); 2 * leaf_base],
+            nodes: vec![Node::new(empty, 0, 0); 2 * leaf_base],
             splits: Vec::new(),
             leaf_base,
         };
         for leaf in 0..points.len().div_ceil(LEAF) {
             let live = (points.len() - leaf * LEAF).min(LEAF) as u32;
-            tree.nodes[leaf_base + leaf] = Node::new(tree.live_box(leaf), live);
+            let mask = ((1u64 << live) - 1) as u32;
+            tree.nodes[leaf_base + leaf].mask = mask;
+            tree.nodes[leaf_base + leaf] = Node::new(tree.live_box(leaf), live, mask);
         }
         for node in (1..leaf_base).rev() {
             let (l, r) = (tree.nodes[2 * node], tree.nodes[2 * node + 1]);
@@ -201,6 +210,7 @@ impl LiveTree {
                 lo,
                 live: l.live + r.live,
                 hi,
+                mask: 0,
             };
         }
         tree.splits = (0..leaf_base)
@@ -242,10 +252,12 @@ impl LiveTree {
     /// box kept at its full size would keep meeting balls it holds nothing
     /// for.
     pub fn remove(&mut self, i: usize) {
-        self.alive[self.slot[i] as usize] = false;
         let leaf = self.slot[i] as usize / LEAF;
         let mut node = self.leaf_base + leaf;
-        self.nodes[node] = Node::new(self.live_box(leaf), self.nodes[node].live - 1);
+        let Node { live, mask, .. } = self.nodes[node];
+        let mask = mask & !(1 << (self.slot[i] as usize % LEAF));
+        self.nodes[node].mask = mask;
+        self.nodes[node] = Node::new(self.live_box(leaf), live - 1, mask);
         let mut boxes_changed = true;
         while node > 1 {
             node /= 2;
@@ -263,15 +275,23 @@ impl LiveTree {
     /// The box of the leaf's live points (inverted when none is left).
     fn live_box(&self, leaf: usize) -> [DVec3; 2] {
         let mut bounds = [DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)];
-        for k in leaf * LEAF..((leaf + 1) * LEAF).min(self.order.len()) {
-            if self.alive[k] {
-                bounds = [
-                    bounds[0].min(self.position[k]),
-                    bounds[1].max(self.position[k]),
-                ];
-            }
+        for k in self.live_slots(leaf) {
+            bounds = [
+                bounds[0].min(self.position[k]),
+                bounds[1].max(self.position[k]),
+            ];
         }
         bounds
+    }
+
+    /// The slots of the leaf's live points, ascending.
+    fn live_slots(&self, leaf: usize) -> impl Iterator<Item = usize> {
+        let mut mask = self.nodes[self.leaf_base + leaf].mask;
+        std::iter::from_fn(move || {
+            let bit = mask.trailing_zeros() as usize;
+            mask &= mask.wrapping_sub(1);
+            (bit < LEAF).then_some(leaf * LEAF + bit)
+        })
     }
 
     /// Live points strictly beyond the plane through `origin` with unit
@@ -294,10 +314,9 @@ impl LiveTree {
                 stack.extend([2 * node, 2 * node + 1]);
                 continue;
             }
-            let leaf = node - self.leaf_base;
-            for k in leaf * LEAF..((leaf + 1) * LEAF).min(self.order.len()) {
+            for k in self.live_slots(node - self.leaf_base) {
                 let p = self.position[k];
-                if self.alive[k] && ball.holds(p) && normal.dot(p - origin) > slack {
+                if ball.holds(p) && normal.dot(p - origin) > slack {
                     found.push(self.order[k] as usize);
                 }
             }
@@ -378,10 +397,9 @@ impl LiveTree {
         C: Fn(usize) -> bool,
         B: Fn(usize, usize) -> bool,
     {
-        let end = ((leaf + 1) * LEAF).min(self.order.len());
-        for k in leaf * LEAF..end {
+        for k in self.live_slots(leaf) {
             let (i, p) = (self.order[k] as usize, self.position[k]);
-            if self.alive[k] && search.ball.holds(p) && (search.candidate)(i) {
+            if search.ball.holds(p) && (search.candidate)(i) {
                 search.offer(i, p);
             }
         }
