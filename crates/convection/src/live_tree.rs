@@ -148,11 +148,36 @@ impl Pencil {
         }
     }
 
-    /// Whether the box may hold an inner point inside `ball`.
-    fn may_hold(&self, [lo, hi]: [DVec3; 2], ball: Ball) -> bool {
+    /// For a best at `t` clearly inside the diametral ball, a ball about
+    /// the circumcentre `c₀` holding every inner point that may still beat
+    /// it. A later best is inside the diametral ball too (`t` below
+    /// `−10⁻³r₀`, and a near-tie moves `t` by at most `10⁻⁶` of the
+    /// scale), so it has `t < 0`, or a height rounded to 0 (then its `t`
+    /// is clamped at `−10⁶r₀` but it still passes a sphere's test): with
+    /// height `η > 0` and `|p − c₀ − t·n| ≤ R + s` (`R² = r₀² + t²`, `s`
+    /// the slack), `|p − c₀|² ≤ r₀² + 2tη + 2Rs + s² < r₀² + 2Rs + s²`,
+    /// and `R` stays below `10⁶r₀ + r₀` with the clamp. Near the apex the
+    /// sphere of the best reaches far to the outer side, where the front's
+    /// kept points are; this ball does not.
+    fn lens(&self, t: f64) -> Option<Ball> {
+        if t >= -1e-3 * self.radius {
+            return None;
+        }
+        let (r, s) = (self.radius, self.slack);
+        let largest = 1e6 * r + r + s;
+        // Grown by the slack again for the rounding of this bound.
+        let reach = (r * r + 2.0 * largest * s + s * s).sqrt() + s;
+        Some(Ball {
+            centre: self.centre,
+            reach2: reach * reach,
+        })
+    }
+
+    /// Whether the box reaches the inner side (less the slack).
+    fn above_plane(&self, [lo, hi]: [DVec3; 2]) -> bool {
         let half = (hi - lo) / 2.0;
         let top = self.normal.dot(lo + half - self.centre) + self.normal.abs().dot(half);
-        top > -self.slack && ball.gap2([lo, hi]) <= ball.reach2
+        top > -self.slack
     }
 }
 
@@ -227,11 +252,9 @@ impl LiveTree {
     }
 
     /// The deepest node whose children's split keeps everything outside
-    /// its subtree away from `ball`: the only subtree that can hold a point
-    /// inside it (boxes rounded outward keep this safe).
-    fn subtree_holding(&self, ball: Ball) -> usize {
-        let reach = ball.reach2.sqrt();
-        let (lo, hi) = (ball.centre - reach, ball.centre + reach);
+    /// its subtree away from the box `[lo, hi]`: the only subtree that can
+    /// hold a point inside it (boxes rounded outward keep this safe).
+    fn subtree_holding(&self, [lo, hi]: [DVec3; 2]) -> usize {
         let mut node = 1;
         while node < self.leaf_base {
             let split = self.splits[node];
@@ -346,6 +369,8 @@ impl LiveTree {
             better,
             best: None,
             ball: pencil.ball(0.0),
+            lens: None,
+            wins: 0,
             first_inside,
             done: false,
         };
@@ -358,18 +383,28 @@ impl LiveTree {
             }
         }
         // Then depth first, the box nearer the current sphere's centre
-        // first; the tree is at most 40 levels deep.
-        let mut stack = [0usize; 64];
+        // first; the tree is at most 40 levels deep. Children are tested
+        // when their parent is opened (their gaps order them anyway); a
+        // child is tested again when popped only if a better point came
+        // since (each entry keeps the count of wins it was tested at).
+        let mut stack = [Entry::default(); 64];
         let mut depth = 1;
         // Below the root: the walk from it tested ~20 boxes per search on
         // the way down to the ball.
-        stack[0] = self.subtree_holding(search.ball);
+        stack[0] = Entry {
+            node: self.subtree_holding(search.reach_box()) as u32,
+            wins: u32::MAX,
+            holds: false,
+        };
         while depth > 0 && !search.done {
             depth -= 1;
-            let node = stack[depth];
-            let ball = search.ball;
-            let here = &self.nodes[node];
-            if here.live == 0 || !pencil.may_hold(here.bounds(), ball) {
+            let Entry { node, wins, holds } = stack[depth];
+            let node = node as usize;
+            let holds = match wins == search.wins {
+                true => holds,
+                false => self.test(node, &search).0,
+            };
+            if !holds {
                 continue;
             }
             if node >= self.leaf_base {
@@ -379,16 +414,33 @@ impl LiveTree {
                 continue;
             }
             let (l, r) = (2 * node, 2 * node + 1);
-            let gap2 = |n: usize| ball.gap2(self.nodes[n].bounds());
-            let (near, far) = match gap2(l) <= gap2(r) {
-                true => (l, r),
-                false => (r, l),
+            let (tl, tr) = (self.test(l, &search), self.test(r, &search));
+            let entry = |node: usize, (holds, _): (bool, f64)| Entry {
+                node: node as u32,
+                wins: search.wins,
+                holds,
+            };
+            let (near, far) = match tl.1 <= tr.1 {
+                true => (entry(l, tl), entry(r, tr)),
+                false => (entry(r, tr), entry(l, tl)),
             };
             stack[depth] = far;
             stack[depth + 1] = near;
             depth += 2;
         }
         search.best.map(|(i, _)| i)
+    }
+
+    /// Whether the node may hold a point that beats the search's best so
+    /// far, and its box's squared gap to the current sphere's centre.
+    fn test<C, B>(&self, node: usize, search: &Search<'_, C, B>) -> (bool, f64)
+    where
+        B: Fn(usize, usize) -> bool,
+    {
+        let here = &self.nodes[node];
+        let bounds = here.bounds();
+        let gap2 = search.ball.gap2(bounds);
+        (here.live > 0 && search.may_hold(bounds, gap2), gap2)
     }
 
     /// Offer the leaf's live points inside the current sphere.
@@ -436,6 +488,15 @@ fn split_in_halves(
     split_in_halves(points, right, half, 2 * node + 1, axes);
 }
 
+/// A node on the apex search's stack, tested when its parent was opened.
+#[derive(Clone, Copy, Default)]
+struct Entry {
+    node: u32,
+    /// The search's win count at that test, and its verdict.
+    wins: u32,
+    holds: bool,
+}
+
 /// The state of one apex search.
 struct Search<'a, C, B> {
     pencil: &'a Pencil,
@@ -444,6 +505,11 @@ struct Search<'a, C, B> {
     best: Option<(usize, f64)>,
     /// The sphere of the best so far (the diametral ball before one).
     ball: Ball,
+    /// Once the best is clearly inside the diametral ball, a ball about
+    /// the facet's circumcentre holding the inner part of `ball`.
+    lens: Option<Ball>,
+    /// How many times a better point was found.
+    wins: u32,
     /// Stop at the first point clearly inside the diametral ball.
     first_inside: bool,
     done: bool,
@@ -464,7 +530,33 @@ impl<C, B: Fn(usize, usize) -> bool> Search<'_, C, B> {
         if wins {
             self.best = Some((i, ti));
             self.ball = self.pencil.ball(ti);
+            self.lens = self.pencil.lens(ti);
+            self.wins += 1;
             self.done = self.first_inside && ti < -self.pencil.slack;
+        }
+    }
+
+    /// Whether a box (`gap2` from the sphere's centre) may hold a point
+    /// that beats the best so far.
+    fn may_hold(&self, bounds: [DVec3; 2], gap2: f64) -> bool {
+        gap2 <= self.ball.reach2
+            && self.pencil.above_plane(bounds)
+            && self.lens.is_none_or(|lens| lens.gap2(bounds) <= lens.reach2)
+    }
+
+    /// A box around every point that may beat the best so far.
+    fn reach_box(&self) -> [DVec3; 2] {
+        let corners = |ball: Ball| {
+            let reach = ball.reach2.sqrt();
+            [ball.centre - reach, ball.centre + reach]
+        };
+        let [lo, hi] = corners(self.ball);
+        match self.lens {
+            Some(lens) => {
+                let [lens_lo, lens_hi] = corners(lens);
+                [lo.max(lens_lo), hi.min(lens_hi)]
+            }
+            None => [lo, hi],
         }
     }
 }
