@@ -146,7 +146,9 @@ pub(crate) fn remove_around(
     on_remove: impl FnMut(usize),
 ) {
     let order = disk_order(tree, points, settings, p);
-    grow_disk(points, normals, settings, p, &order, keep, decided, on_remove);
+    grow_disk(
+        points, normals, settings, p, &order, keep, decided, on_remove,
+    );
 }
 
 /// The points within `p`'s decimation radius, closest first (ties by
@@ -239,6 +241,29 @@ mod tests {
         for (i, p) in points.iter().enumerate().filter(|(i, _)| !keep[*i]) {
             let nearest = kept.iter().map(|k| k.distance(*p)).fold(f64::MAX, f64::min);
             assert!(nearest <= settings.radius, "point {i} at {nearest}");
+        }
+    }
+
+    /// A disk's order: every other point within the radius, closest
+    /// first, ties (a grid has many) by index.
+    #[test]
+    fn disk_order_is_the_points_within_the_radius_closest_first() {
+        let (points, _) = grid(12);
+        let tree = KdTree::new(&points);
+        let settings = Decimation {
+            radius: 2.3,
+            geometric: 0.9,
+            topological: 0.95,
+            brush: None,
+        };
+        for p in [0, 17, 77, 143] {
+            let mut expected: Vec<(f64, usize)> = (0..points.len())
+                .filter(|&q| q != p && points[q].distance(points[p]) <= settings.radius)
+                .map(|q| (points[q].distance(points[p]), q))
+                .collect();
+            expected.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let expected: Vec<usize> = expected.into_iter().map(|(_, q)| q).collect();
+            assert_eq!(disk_order(&tree, &points, &settings, p), expected);
         }
     }
 

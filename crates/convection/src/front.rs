@@ -178,7 +178,14 @@ const EXTREME_DIRECTIONS: usize = 64;
 /// The points farthest along the axes (both ways) and along directions
 /// spread over the sphere (a golden-angle spiral), ascending, distinct.
 fn extreme_points(points: &[DVec3]) -> Vec<usize> {
-    let mut directions = vec![DVec3::X, DVec3::Y, DVec3::Z, -DVec3::X, -DVec3::Y, -DVec3::Z];
+    let mut directions = vec![
+        DVec3::X,
+        DVec3::Y,
+        DVec3::Z,
+        -DVec3::X,
+        -DVec3::Y,
+        -DVec3::Z,
+    ];
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     directions.extend((0..EXTREME_DIRECTIONS).map(|k| {
         let z = 1.0 - (2 * k + 1) as f64 / EXTREME_DIRECTIONS as f64;
@@ -593,7 +600,7 @@ impl Front<'_> {
 mod tests {
     use super::*;
     use surfrecon_geom::normals::estimate_normals;
-    use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
+    use surfrecon_geom::shapes::{cuboid, icosphere, sample_surface, torus};
 
     fn settings(radius: f64) -> Decimation {
         Decimation {
@@ -650,5 +657,38 @@ mod tests {
             .map(|i| points[i].truncate().length())
             .fold(f64::MAX, f64::min);
         assert!(inner < 0.7, "nearest kept point to the axis at {inner}");
+    }
+
+    /// The hull taken of the points outside the extremes' hull has the
+    /// corners of the hull of all points: on a torus (most points inside),
+    /// a sphere with points inside it (most points corners), and a cube's
+    /// jittered faces (many points a rounding away from the hull's faces).
+    #[test]
+    fn hull_corners_match_the_hull_of_all_points() {
+        let torus = sample_surface(&torus(1.0, 0.35, 160, 64), 20_000, 3).positions;
+        let mut ball = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 3000, 5).positions;
+        ball.extend(ball.clone().iter().map(|&p| 0.99 * p));
+        let cube = sample_surface(&cuboid(DVec3::ZERO, DVec3::ONE), 20_000, 9).positions;
+        for points in [torus, ball, cube] {
+            let jitter = JITTER * bounding_diagonal(&points);
+            let geometry = jittered(&points, jitter);
+            let all: Vec<usize> = (0..points.len()).collect();
+            let expected = corners_of(&convex_hull(&geometry, &all).unwrap());
+            let found = hull_corners(&geometry, jitter).unwrap();
+            assert_eq!(found, expected);
+            // The extremes keep the points' bounding box (the hull's own
+            // normalization).
+            let extremes = extreme_points(&geometry);
+            let bounds = |ids: &mut dyn Iterator<Item = usize>| {
+                ids.fold([DVec3::INFINITY, DVec3::NEG_INFINITY], |[lo, hi], i| {
+                    [lo.min(geometry[i]), hi.max(geometry[i])]
+                })
+            };
+            assert_eq!(
+                bounds(&mut extremes.iter().copied()),
+                bounds(&mut all.iter().copied())
+            );
+            assert!(extremes.len() > 20, "{} extremes", extremes.len());
+        }
     }
 }

@@ -541,7 +541,9 @@ impl<C, B: Fn(usize, usize) -> bool> Search<'_, C, B> {
     fn may_hold(&self, bounds: [DVec3; 2], gap2: f64) -> bool {
         gap2 <= self.ball.reach2
             && self.pencil.above_plane(bounds)
-            && self.lens.is_none_or(|lens| lens.gap2(bounds) <= lens.reach2)
+            && self
+                .lens
+                .is_none_or(|lens| lens.gap2(bounds) <= lens.reach2)
     }
 
     /// A box around every point that may beat the best so far.
@@ -632,6 +634,13 @@ mod tests {
             let found = tree.apex(&pencil, [0, 1, 2], false, inner, |q, s| q < s);
             assert_eq!(found, expected);
             apexes += usize::from(found.is_some());
+            // Asked only whether a live inner point is inside the diametral
+            // ball: one is returned exactly when one exists.
+            let inside = |i: usize| inner(i) && pencil.t(points[i]) < 0.0;
+            match tree.apex(&pencil, [0, 1, 2], true, inner, |q, s| q < s) {
+                Some(i) => assert!(inside(i), "point {i} is not inside"),
+                None => assert!(live().all(|i| !inside(i))),
+            }
         }
         assert!(apexes > 500, "{apexes} facets with an apex");
     }
