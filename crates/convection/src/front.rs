@@ -301,7 +301,7 @@ const JITTER: f64 = 1e-6;
 fn jittered(points: &[DVec3], jitter: f64) -> Vec<DVec3> {
     let unit = |h: u64| (h >> 11) as f64 / (1u64 << 52) as f64 - 1.0;
     points
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(i, &p)| {
             let h = splitmix(i as u64);

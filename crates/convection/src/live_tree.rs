@@ -208,7 +208,9 @@ impl LiveTree {
         let leaf_base = points.len().div_ceil(LEAF).next_power_of_two();
         let mut order: Vec<u32> = (0..points.len() as u32).collect();
         let mut axes = vec![0u8; leaf_base];
-        split_in_halves(points, &mut order, leaf_base * LEAF, 1, &mut axes);
+        for (node, axis) in split_in_halves(points, &mut order, leaf_base * LEAF, 1) {
+            axes[node] = axis;
+        }
         let mut slot = vec![0u32; points.len()];
         for (k, &i) in order.iter().enumerate() {
             slot[i as usize] = k as u32;
@@ -458,34 +460,58 @@ impl LiveTree {
     }
 }
 
+/// Nodes above this many points split their halves in parallel (the tree
+/// is built while the normals are estimated; each half's order depends on
+/// its own points only).
+const PARALLEL_SPLIT: usize = 1 << 14;
+
 /// Orders `order` (the points under one node, `capacity` slots) so that
 /// the first `capacity / 2` slots hold the points lowest along the points'
 /// longest extent, recursively down to leaves: the left subtree is filled
-/// first, as the implicit layout wants.
+/// first, as the implicit layout wants. Returns each split node's axis.
 fn split_in_halves(
     points: &[DVec3],
     order: &mut [u32],
     capacity: usize,
     node: usize,
-    axes: &mut [u8],
-) {
+) -> Vec<(usize, u8)> {
+    let mut axes = Vec::new();
     if capacity <= LEAF || order.len() <= 1 {
-        return;
+        return axes;
     }
     let half = capacity / 2;
-    if order.len() > half {
-        let (lo, hi) = order.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), &i| (lo.min(points[i as usize]), hi.max(points[i as usize])),
-        );
-        let axis = (hi - lo).max_position();
-        axes[node] = axis as u8;
-        let along = |i: &u32| points[*i as usize][axis];
-        order.select_nth_unstable_by(half, |a, b| along(a).total_cmp(&along(b)).then(a.cmp(b)));
-    }
+    axes.extend(split_node(points, order, half).map(|axis| (node, axis)));
     let (left, right) = order.split_at_mut(half.min(order.len()));
-    split_in_halves(points, left, half, 2 * node, axes);
-    split_in_halves(points, right, half, 2 * node + 1, axes);
+    let [l, r] = [2 * node, 2 * node + 1];
+    let (left, right) = match left.len() + right.len() > PARALLEL_SPLIT {
+        true => rayon::join(
+            || split_in_halves(points, left, half, l),
+            || split_in_halves(points, right, half, r),
+        ),
+        false => (
+            split_in_halves(points, left, half, l),
+            split_in_halves(points, right, half, r),
+        ),
+    };
+    axes.extend(left);
+    axes.extend(right);
+    axes
+}
+
+/// Puts the `half` points lowest along the points' longest extent first
+/// (none to do if they fit in `half`), returning that axis.
+fn split_node(points: &[DVec3], order: &mut [u32], half: usize) -> Option<u8> {
+    if order.len() <= half {
+        return None;
+    }
+    let (lo, hi) = order.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), &i| (lo.min(points[i as usize]), hi.max(points[i as usize])),
+    );
+    let axis = (hi - lo).max_position();
+    let along = |i: &u32| points[*i as usize][axis];
+    order.select_nth_unstable_by(half, |a, b| along(a).total_cmp(&along(b)).then(a.cmp(b)));
+    Some(axis as u8)
 }
 
 /// A node on the apex search's stack, tested when its parent was opened.
