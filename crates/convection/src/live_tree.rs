@@ -29,10 +29,10 @@ const _: () = assert!(LEAF <= 32);
 pub(crate) struct LiveTree {
     /// Point indices, leaf by leaf.
     order: Vec<u32>,
-    /// Their positions, in the same order (the search reads leaves whole:
-    /// no jumps through the input arrays). Which are live is in the
-    /// leaves' masks.
-    position: Vec<DVec3>,
+    /// Their coordinates, in the same order, one array per axis (the
+    /// search tests a leaf's slots against a sphere all at once; padded to
+    /// whole leaves). Which are live is in the leaves' masks.
+    coordinates: [Vec<f64>; 3],
     /// Position of each point in `order`.
     slot: Vec<u32>,
     /// Box and live count per node, in single precision: the search walks
@@ -217,7 +217,11 @@ impl LiveTree {
         }
         let empty = [DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)];
         let mut tree = LiveTree {
-            position: order.iter().map(|&i| points[i as usize]).collect(),
+            coordinates: std::array::from_fn(|axis| {
+                let mut along: Vec<f64> = order.iter().map(|&i| points[i as usize][axis]).collect();
+                along.resize(order.len().next_multiple_of(LEAF), f64::INFINITY);
+                along
+            }),
             order,
             slot,
             nodes: vec![Node::new(empty, 0, 0); 2 * leaf_base],
@@ -302,8 +306,8 @@ impl LiveTree {
         let mut bounds = [DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)];
         for k in self.live_slots(leaf) {
             bounds = [
-                bounds[0].min(self.position[k]),
-                bounds[1].max(self.position[k]),
+                bounds[0].min(self.position(k)),
+                bounds[1].max(self.position(k)),
             ];
         }
         bounds
@@ -340,7 +344,7 @@ impl LiveTree {
                 continue;
             }
             for k in self.live_slots(node - self.leaf_base) {
-                let p = self.position[k];
+                let p = self.position(k);
                 if ball.holds(p) && normal.dot(p - origin) > slack {
                     found.push(self.order[k] as usize);
                 }
@@ -445,18 +449,51 @@ impl LiveTree {
         (here.live > 0 && search.may_hold(bounds, gap2), gap2)
     }
 
-    /// Offer the leaf's live points inside the current sphere.
+    fn position(&self, k: usize) -> DVec3 {
+        let [x, y, z] = &self.coordinates;
+        DVec3::new(x[k], y[k], z[k])
+    }
+
+    /// Offer the leaf's live points inside the current sphere, in slot
+    /// order. The slots are tested against the sphere all at once; when an
+    /// offer wins, the sphere shrinks and the slots after it are tested
+    /// again (each slot meets the sphere current at its turn).
     fn scan_leaf<C, B>(&self, leaf: usize, search: &mut Search<'_, C, B>)
     where
         C: Fn(usize) -> bool,
         B: Fn(usize, usize) -> bool,
     {
-        for k in self.live_slots(leaf) {
-            let (i, p) = (self.order[k] as usize, self.position[k]);
-            if search.ball.holds(p) && (search.candidate)(i) {
-                search.offer(i, p);
+        let base = leaf * LEAF;
+        let mut todo = u64::from(self.nodes[self.leaf_base + leaf].mask);
+        'sphere: while todo != 0 {
+            let mut inside = todo & u64::from(self.slots_inside(base, search.ball));
+            while inside != 0 {
+                let slot = inside.trailing_zeros() as usize;
+                inside &= inside - 1;
+                let i = self.order[base + slot] as usize;
+                if (search.candidate)(i) {
+                    let wins = search.wins;
+                    search.offer(i, self.position(base + slot));
+                    if search.wins != wins {
+                        todo &= !((2u64 << slot) - 1);
+                        continue 'sphere;
+                    }
+                }
             }
+            break;
         }
+    }
+
+    /// One bit per slot of the leaf starting at `base` inside `ball`
+    /// (exactly [`Ball::holds`]; a loop without branches).
+    fn slots_inside(&self, base: usize, ball: Ball) -> u32 {
+        let [x, y, z] = self.coordinates.each_ref().map(|c| &c[base..base + LEAF]);
+        let mut inside = 0;
+        for slot in 0..LEAF {
+            let p = DVec3::new(x[slot], y[slot], z[slot]);
+            inside |= u32::from(ball.holds(p)) << slot;
+        }
+        inside
     }
 }
 
