@@ -576,7 +576,7 @@ impl Front<'_> {
             &pencil,
             f.map(|v| v as usize),
             coupled,
-            |i| !f.contains(&(i as u32)) && orient3d(a, b, c, self.geometry[i]) > 0.0,
+            |i, p| !f.contains(&(i as u32)) && orient3d(a, b, c, p) > 0.0,
             |q, s| self.inside_circumsphere(f, s, q),
         )?;
         in_diametral_ball(a, b, c, self.geometry[s]).then_some(s)

@@ -38,7 +38,7 @@ pub(crate) struct LiveTree {
     /// Box and live count per node, in single precision: the search walks
     /// ~270 nodes per facet and is bound by memory, and two siblings then
     /// share a cache line.
-    nodes: Vec<Node>,
+    nodes: Nodes,
     /// Per inner node, how its children's points are separated (fixed
     /// when the tree is built, all points live).
     splits: Vec<Split>,
@@ -90,6 +90,29 @@ impl Node {
         let lo = std::array::from_fn(|k| self.lo[k].min(other.lo[k]));
         let hi = std::array::from_fn(|k| self.hi[k].max(other.hi[k]));
         (lo, hi)
+    }
+}
+
+/// The nodes by number, siblings `2k` and `2k + 1` in one 64-byte cache
+/// line (the walk tests both children of a node together; a `Vec<Node>`
+/// is only 32-byte aligned, and half its pairs could straddle two lines).
+struct Nodes(Vec<Siblings>);
+
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+struct Siblings([Node; 2]);
+
+impl std::ops::Index<usize> for Nodes {
+    type Output = Node;
+
+    fn index(&self, node: usize) -> &Node {
+        &self.0[node / 2].0[node % 2]
+    }
+}
+
+impl std::ops::IndexMut<usize> for Nodes {
+    fn index_mut(&mut self, node: usize) -> &mut Node {
+        &mut self.0[node / 2].0[node % 2]
     }
 }
 
@@ -224,7 +247,7 @@ impl LiveTree {
             }),
             order,
             slot,
-            nodes: vec![Node::new(empty, 0, 0); 2 * leaf_base],
+            nodes: Nodes(vec![Siblings([Node::new(empty, 0, 0); 2]); leaf_base]),
             splits: Vec::new(),
             leaf_base,
         };
@@ -356,8 +379,10 @@ impl LiveTree {
     /// The candidate that `better` prefers among the live points (of those
     /// given to [`LiveTree::new`]) the pencil
     /// meets on the inner side before the diametral ball (`t ≤ 0`), or
-    /// `None`. `candidate(i)` says whether a live point may be an apex at
-    /// all (not a corner, exactly on the inner side); `better(q, s)` decides
+    /// `None`. `candidate(i, p)` says whether a live point `i` at `p` may be
+    /// an apex at all (not a corner, exactly on the inner side; `p` is its
+    /// position as given, from the leaf just read: looking it up by `i`
+    /// was a cache miss per point tested); `better(q, s)` decides
     /// exactly whether `q` beats `s` where their `t` nearly tie. With
     /// `first_inside`, any point inside the diametral ball will do (the
     /// question is only whether the facet's Gabriel property fails).
@@ -366,7 +391,7 @@ impl LiveTree {
         pencil: &Pencil,
         corners: [usize; 3],
         first_inside: bool,
-        candidate: impl Fn(usize) -> bool,
+        candidate: impl Fn(usize, DVec3) -> bool,
         better: impl Fn(usize, usize) -> bool,
     ) -> Option<usize> {
         let mut search = Search {
@@ -460,7 +485,7 @@ impl LiveTree {
     /// again (each slot meets the sphere current at its turn).
     fn scan_leaf<C, B>(&self, leaf: usize, search: &mut Search<'_, C, B>)
     where
-        C: Fn(usize) -> bool,
+        C: Fn(usize, DVec3) -> bool,
         B: Fn(usize, usize) -> bool,
     {
         let base = leaf * LEAF;
@@ -470,10 +495,10 @@ impl LiveTree {
             while inside != 0 {
                 let slot = inside.trailing_zeros() as usize;
                 inside &= inside - 1;
-                let i = self.order[base + slot] as usize;
-                if (search.candidate)(i) {
+                let (i, p) = (self.order[base + slot] as usize, self.position(base + slot));
+                if (search.candidate)(i, p) {
                     let wins = search.wins;
-                    search.offer(i, self.position(base + slot));
+                    search.offer(i, p);
                     if search.wins != wins {
                         todo &= !((2u64 << slot) - 1);
                         continue 'sphere;
@@ -694,13 +719,14 @@ mod tests {
             let expected = live()
                 .filter(|&i| inner(i) && pencil.t(points[i]) <= 0.0)
                 .min_by(|&p, &q| pencil.t(points[p]).total_cmp(&pencil.t(points[q])));
-            let found = tree.apex(&pencil, [0, 1, 2], false, inner, |q, s| q < s);
+            let candidate = |i: usize, p: DVec3| p == points[i] && inner(i);
+            let found = tree.apex(&pencil, [0, 1, 2], false, candidate, |q, s| q < s);
             assert_eq!(found, expected);
             apexes += usize::from(found.is_some());
             // Asked only whether a live inner point is inside the diametral
             // ball: one is returned exactly when one exists.
             let inside = |i: usize| inner(i) && pencil.t(points[i]) < 0.0;
-            match tree.apex(&pencil, [0, 1, 2], true, inner, |q, s| q < s) {
+            match tree.apex(&pencil, [0, 1, 2], true, candidate, |q, s| q < s) {
                 Some(i) => assert!(inside(i), "point {i} is not inside"),
                 None => assert!(live().all(|i| !inside(i))),
             }
