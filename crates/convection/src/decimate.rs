@@ -143,15 +143,49 @@ pub(crate) fn remove_around(
     p: usize,
     keep: &mut [bool],
     decided: &mut [bool],
-    mut on_remove: impl FnMut(usize),
+    on_remove: impl FnMut(usize),
 ) {
+    let order = disk_order(tree, points, settings, p);
+    grow_disk(
+        points, normals, settings, p, &order, keep, decided, on_remove,
+    );
+}
+
+/// The points within `p`'s decimation radius, closest first (ties by
+/// index), `p` left out: the order its disk grows in. It depends on the
+/// points only, so it may be found ahead of time (the front finds them in
+/// parallel for the points its next steps reach).
+pub(crate) fn disk_order(
+    tree: &KdTree,
+    points: &[DVec3],
+    settings: &Decimation,
+    p: usize,
+) -> Vec<usize> {
     let mut near = tree.within(points[p], settings.radius_at(points[p]));
     near.sort_by(|a, b| {
         a.distance
             .total_cmp(&b.distance)
             .then(a.index.cmp(&b.index))
     });
-    for q in near.into_iter().map(|n| n.index).filter(|&q| q != p) {
+    near.into_iter()
+        .map(|n| n.index)
+        .filter(|&q| q != p)
+        .collect()
+}
+
+/// [`remove_around`] with `p`'s [`disk_order`] given.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn grow_disk(
+    points: &[DVec3],
+    normals: &[DVec3],
+    settings: &Decimation,
+    p: usize,
+    order: &[usize],
+    keep: &mut [bool],
+    decided: &mut [bool],
+    mut on_remove: impl FnMut(usize),
+) {
+    for &q in order {
         if decided[q] && keep[q] {
             // Another kept point: the disk reaches no further this way.
             continue;
@@ -207,6 +241,29 @@ mod tests {
         for (i, p) in points.iter().enumerate().filter(|(i, _)| !keep[*i]) {
             let nearest = kept.iter().map(|k| k.distance(*p)).fold(f64::MAX, f64::min);
             assert!(nearest <= settings.radius, "point {i} at {nearest}");
+        }
+    }
+
+    /// A disk's order: every other point within the radius, closest
+    /// first, ties (a grid has many) by index.
+    #[test]
+    fn disk_order_is_the_points_within_the_radius_closest_first() {
+        let (points, _) = grid(12);
+        let tree = KdTree::new(&points);
+        let settings = Decimation {
+            radius: 2.3,
+            geometric: 0.9,
+            topological: 0.95,
+            brush: None,
+        };
+        for p in [0, 17, 77, 143] {
+            let mut expected: Vec<(f64, usize)> = (0..points.len())
+                .filter(|&q| q != p && points[q].distance(points[p]) <= settings.radius)
+                .map(|q| (points[q].distance(points[p]), q))
+                .collect();
+            expected.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let expected: Vec<usize> = expected.into_iter().map(|(_, q)| q).collect();
+            assert_eq!(disk_order(&tree, &points, &settings, p), expected);
         }
     }
 

@@ -31,12 +31,13 @@
 //! property holds); the points it never reaches are decimated afterwards in
 //! input order, kept points still stopping the disks.
 
-use crate::decimate::{grow_disks, remove_around, Decimation};
+use crate::decimate::{disk_order, grow_disk, grow_disks, Decimation};
 use crate::gabriel::in_diametral_ball;
 use crate::live_tree::{LiveTree, Pencil};
 use crate::reconstruct::bounding_diagonal;
 use rayon::prelude::*;
-use std::collections::{HashMap, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::hash::{BuildHasherDefault, Hasher};
 use surfrecon_delaunay::predicates::{insphere_sos, orient3d};
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::DVec3;
@@ -67,20 +68,193 @@ pub fn decimate_on_the_fly(
     normals: &[DVec3],
     settings: &Decimation,
 ) -> (Vec<bool>, FrontStats) {
-    let tree = KdTree::new(points);
-    let mut front = Front::new(points, normals, settings, &tree);
-    if let Some(hull) = front.decimated_hull() {
-        front.start(&hull);
-        front.sweep(8 * points.len() + 1000);
+    FrontStart::new(points).decimate(points, normals, settings)
+}
+
+/// What the front needs before it needs the normals: the trees over the
+/// points and the corners of their convex hull. Built while the normals
+/// are estimated (the parts are sequential and the machine has few cores).
+pub struct FrontStart {
+    tree: KdTree,
+    /// The points moved by the front's jitter, and their live tree.
+    geometry: Vec<DVec3>,
+    jitter: f64,
+    live: LiveTree,
+    /// The corners of the hull of all points (`None`: no 3D hull).
+    hull_corners: Option<Vec<usize>>,
+}
+
+impl FrontStart {
+    pub fn new(points: &[DVec3]) -> Self {
+        let jitter = JITTER * bounding_diagonal(points);
+        let geometry = jittered(points, jitter);
+        let (tree, (live, hull_corners)) = rayon::join(
+            || KdTree::new(points),
+            || {
+                rayon::join(
+                    || LiveTree::new(&geometry),
+                    || hull_corners(&geometry, jitter),
+                )
+            },
+        );
+        FrontStart {
+            tree,
+            geometry,
+            jitter,
+            live,
+            hull_corners,
+        }
     }
-    let Front {
-        mut keep,
-        mut decided,
-        stats,
-        ..
-    } = front;
-    grow_disks(&tree, points, normals, settings, &mut keep, &mut decided);
-    (keep, stats)
+
+    /// [`decimate_on_the_fly`] of the `points` this was built from.
+    pub fn decimate(
+        self,
+        points: &[DVec3],
+        normals: &[DVec3],
+        settings: &Decimation,
+    ) -> (Vec<bool>, FrontStats) {
+        let FrontStart {
+            tree,
+            geometry,
+            jitter,
+            live,
+            hull_corners,
+        } = self;
+        let mut front = Front {
+            points,
+            geometry,
+            jitter,
+            normals,
+            settings,
+            tree: &tree,
+            live,
+            facets: FacetSet::default(),
+            queue: VecDeque::new(),
+            ahead: Vec::new(),
+            keep: vec![true; points.len()],
+            decided: vec![false; points.len()],
+            stats: FrontStats::default(),
+        };
+        if let Some(hull) = hull_corners.and_then(|corners| front.decimated_hull(corners)) {
+            front.start(&hull);
+            front.sweep(8 * points.len() + 1000);
+        }
+        let Front {
+            mut keep,
+            mut decided,
+            stats,
+            ..
+        } = front;
+        grow_disks(&tree, points, normals, settings, &mut keep, &mut decided);
+        (keep, stats)
+    }
+}
+
+/// The corners of the convex hull of all `points`, ascending. Only points
+/// outside the hull of a few extreme points can be corners: the hull is
+/// taken of those (a few percent of a scan), which with the axes' extremes
+/// among them has the same bounding box, so the same normalized
+/// coordinates in the hull's own computation.
+fn hull_corners(points: &[DVec3], margin: f64) -> Option<Vec<usize>> {
+    let inner = convex_hull(points, &extreme_points(points))?;
+    let planes: Vec<(DVec3, f64)> = inner
+        .iter()
+        .filter_map(|t| {
+            let [a, b, c] = t.map(|v| points[v as usize]);
+            let normal = (b - a).cross(c - a).try_normalize()?;
+            Some((normal, normal.dot(a) - margin))
+        })
+        .collect();
+    let outside_inner = (0..points.len())
+        .into_par_iter()
+        .filter(|&i| planes.iter().any(|&(n, d)| n.dot(points[i]) >= d))
+        .collect::<Vec<usize>>();
+    Some(corners_of(&convex_hull(points, &outside_inner)?))
+}
+
+/// Directions the extreme points are taken along, besides the axes.
+const EXTREME_DIRECTIONS: usize = 64;
+
+/// The points farthest along the axes (both ways) and along directions
+/// spread over the sphere (a golden-angle spiral), ascending, distinct.
+fn extreme_points(points: &[DVec3]) -> Vec<usize> {
+    let mut directions = vec![
+        DVec3::X,
+        DVec3::Y,
+        DVec3::Z,
+        -DVec3::X,
+        -DVec3::Y,
+        -DVec3::Z,
+    ];
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    directions.extend((0..EXTREME_DIRECTIONS).map(|k| {
+        let z = 1.0 - (2 * k + 1) as f64 / EXTREME_DIRECTIONS as f64;
+        let (sin, cos) = (golden * k as f64).sin_cos();
+        let r = (1.0 - z * z).sqrt();
+        DVec3::new(r * cos, r * sin, z)
+    }));
+    let none = vec![(f64::NEG_INFINITY, usize::MAX); directions.len()];
+    // The larger value, then the lower index: the same for any split.
+    let better = |a: (f64, usize), b: (f64, usize)| match b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)) {
+        std::cmp::Ordering::Greater => b,
+        _ => a,
+    };
+    let best = points
+        .par_iter()
+        .enumerate()
+        .fold(
+            || none.clone(),
+            |mut best, (i, p)| {
+                for (b, d) in best.iter_mut().zip(&directions) {
+                    *b = better(*b, (p.dot(*d), i));
+                }
+                best
+            },
+        )
+        .reduce(
+            || none.clone(),
+            |a, b| a.into_iter().zip(b).map(|(a, b)| better(a, b)).collect(),
+        );
+    let mut extremes: Vec<usize> = best
+        .into_iter()
+        .map(|(_, i)| i)
+        .filter(|&i| i != usize::MAX)
+        .collect();
+    extremes.sort_unstable();
+    extremes.dedup();
+    extremes
+}
+
+/// The live facets' keys ([`key`] packed in 96 bits). The map is never
+/// iterated, so its hash cannot reach the output; std's SipHash was ~3 %
+/// of a Dragon run.
+type FacetSet = HashSet<u128, BuildHasherDefault<FacetHasher>>;
+
+fn packed([a, b, c]: [u32; 3]) -> u128 {
+    u128::from(a) | u128::from(b) << 32 | u128::from(c) << 64
+}
+
+/// Two multiply-xorshift rounds (the high bits pick hashbrown's control
+/// byte, the low ones the bucket: both must depend on every index).
+#[derive(Default)]
+struct FacetHasher(u64);
+
+impl Hasher for FacetHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ u64::from(b)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        }
+    }
+
+    fn write_u128(&mut self, x: u128) {
+        let h = (x as u64 ^ 0x243f_6a88_85a3_08d3).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        let h = (h ^ (h >> 32) ^ (x >> 64) as u64).wrapping_mul(0x94d0_49bb_1331_11eb);
+        self.0 = h ^ (h >> 32);
+    }
+
+    fn finish(&self) -> u64 {
+        self.0
+    }
 }
 
 /// The triangles of the convex hull of `points[subset]`, oriented outward,
@@ -127,7 +301,7 @@ const JITTER: f64 = 1e-6;
 fn jittered(points: &[DVec3], jitter: f64) -> Vec<DVec3> {
     let unit = |h: u64| (h >> 11) as f64 / (1u64 << 52) as f64 - 1.0;
     points
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(i, &p)| {
             let h = splitmix(i as u64);
@@ -191,54 +365,38 @@ struct Front<'a> {
     tree: &'a KdTree,
     /// The jittered points with live counts, for the apex search.
     live: LiveTree,
-    /// Live oriented facets by key, inside on their normal's side.
-    facets: HashMap<[u32; 3], ()>,
+    /// Live oriented facets by packed key, inside on their normal's side.
+    facets: FacetSet,
     queue: VecDeque<[u32; 3]>,
+    /// The disk orders of points the next steps may reach, by point,
+    /// found ahead in parallel.
+    ahead: Vec<(usize, Vec<usize>)>,
     /// `decided && keep`: on the surface; `decided && !keep`: removed.
     keep: Vec<bool>,
     decided: Vec<bool>,
     stats: FrontStats,
 }
 
-impl<'a> Front<'a> {
-    fn new(
-        points: &'a [DVec3],
-        normals: &'a [DVec3],
-        settings: &'a Decimation,
-        tree: &'a KdTree,
-    ) -> Self {
-        let jitter = JITTER * bounding_diagonal(points);
-        let geometry = jittered(points, jitter);
-        Front {
-            points,
-            live: LiveTree::new(&geometry),
-            geometry,
-            jitter,
-            normals,
-            settings,
-            tree,
-            facets: HashMap::new(),
-            queue: VecDeque::new(),
-            keep: vec![true; points.len()],
-            decided: vec![false; points.len()],
-            stats: FrontStats::default(),
-        }
-    }
-
+impl Front<'_> {
     /// The paper's approximate hull: hull points join the surface farthest
     /// from the centroid first, each removing its neighbours (hull points
     /// too); the hull of the points left is taken again until every corner
     /// is a kept point and no live point lies outside. Returns its
     /// triangles, oriented outward.
-    fn decimated_hull(&mut self) -> Option<Vec<[u32; 3]>> {
-        let mut candidates: Vec<usize> = (0..self.points.len()).collect();
+    /// `first` are the corners of the hull of all points.
+    fn decimated_hull(&mut self, first: Vec<usize>) -> Option<Vec<[u32; 3]>> {
+        let mut first = Some(first);
+        let mut candidates = Vec::new();
         for _ in 0..HULL_ROUNDS {
-            let hull = convex_hull(&self.geometry, &candidates)?;
-            let mut corners = corners_of(&hull);
+            let mut corners = match first.take() {
+                Some(corners) => corners,
+                None => corners_of(&convex_hull(&self.geometry, &candidates)?),
+            };
             let centroid =
                 corners.iter().map(|&v| self.geometry[v]).sum::<DVec3>() / corners.len() as f64;
             let far = |v: usize| self.geometry[v].distance_squared(centroid);
             corners.sort_by(|&a, &b| far(b).total_cmp(&far(a)).then(a.cmp(&b)));
+            self.find_disks_ahead(corners.iter().copied());
             for &v in &corners {
                 if !self.decided[v] {
                     self.reach(v);
@@ -297,7 +455,7 @@ impl<'a> Front<'a> {
             let batch: Vec<[u32; 3]> = self.queue.drain(..self.queue.len().min(BATCH)).collect();
             let apexes: Vec<(Option<usize>, bool)> = batch
                 .par_iter()
-                .map(|&f| match self.facets.contains_key(&f) {
+                .map(|&f| match self.facets.contains(&packed(f)) {
                     true => {
                         let coupled = self.is_coupled(f);
                         (self.violating_apex(f, coupled), coupled)
@@ -305,8 +463,10 @@ impl<'a> Front<'a> {
                     false => (None, false),
                 })
                 .collect();
+            let reachable = apexes.iter().filter(|(_, coupled)| !coupled);
+            self.find_disks_ahead(reachable.filter_map(|&(apex, _)| apex));
             for (f, (apex, coupled)) in batch.into_iter().zip(apexes) {
-                if !self.facets.contains_key(&f) {
+                if !self.facets.contains(&packed(f)) {
                     continue; // collapsed since it was queued
                 }
                 // Searched again if its point was removed since, or if only
@@ -335,8 +495,8 @@ impl<'a> Front<'a> {
     /// collapse it with its mirror.
     fn open(&mut self, f: [u32; 3], apex: usize) {
         let [a, b, c] = f;
-        self.facets.remove(&f);
-        if self.facets.remove(&key([a, c, b])).is_some() {
+        self.facets.remove(&packed(f));
+        if self.facets.remove(&packed(key([a, c, b]))) {
             self.stats.collapsed += 1;
             return;
         }
@@ -354,9 +514,22 @@ impl<'a> Front<'a> {
     /// facet (only possible because this pass is not exact) is dropped.
     fn add(&mut self, f: [u32; 3]) {
         let k = key(f);
-        if self.facets.insert(k, ()).is_none() {
+        if self.facets.insert(packed(k)) {
             self.queue.push_back(k);
         }
+    }
+
+    /// The disk orders of those of `points` not decided yet, in parallel:
+    /// a disk's growth is sequential (each removal stops later disks), but
+    /// its order depends on the points only.
+    fn find_disks_ahead(&mut self, points: impl Iterator<Item = usize>) {
+        let mut undecided: Vec<usize> = points.filter(|&p| !self.decided[p]).collect();
+        undecided.sort_unstable();
+        undecided.dedup();
+        self.ahead = undecided
+            .into_par_iter()
+            .map(|p| (p, disk_order(self.tree, self.points, self.settings, p)))
+            .collect();
     }
 
     /// `p` joins the surface and removes its redundant neighbours.
@@ -364,13 +537,17 @@ impl<'a> Front<'a> {
         self.decided[p] = true;
         self.keep[p] = true;
         self.stats.reached += 1;
+        let order = match self.ahead.binary_search_by_key(&p, |(q, _)| *q) {
+            Ok(k) => std::mem::take(&mut self.ahead[k].1),
+            Err(_) => disk_order(self.tree, self.points, self.settings, p),
+        };
         let (live, removed) = (&mut self.live, &mut self.stats.removed);
-        remove_around(
-            self.tree,
+        grow_disk(
             self.points,
             self.normals,
             self.settings,
             p,
+            &order,
             &mut self.keep,
             &mut self.decided,
             |q| {
@@ -399,7 +576,7 @@ impl<'a> Front<'a> {
             &pencil,
             f.map(|v| v as usize),
             coupled,
-            |i| !f.contains(&(i as u32)) && orient3d(a, b, c, self.geometry[i]) > 0.0,
+            |i, p| !f.contains(&(i as u32)) && orient3d(a, b, c, p) > 0.0,
             |q, s| self.inside_circumsphere(f, s, q),
         )?;
         in_diametral_ball(a, b, c, self.geometry[s]).then_some(s)
@@ -408,7 +585,7 @@ impl<'a> Front<'a> {
     /// Whether the mirror of `f` is on the surface too: then `f` collapses
     /// if it violates the property, whatever its apex.
     fn is_coupled(&self, [a, b, c]: [u32; 3]) -> bool {
-        self.facets.contains_key(&key([a, c, b]))
+        self.facets.contains(&packed(key([a, c, b])))
     }
 
     /// Whether `q` is inside the circumsphere of `f` and its inner point
@@ -423,7 +600,7 @@ impl<'a> Front<'a> {
 mod tests {
     use super::*;
     use surfrecon_geom::normals::estimate_normals;
-    use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
+    use surfrecon_geom::shapes::{cuboid, icosphere, sample_surface, torus};
 
     fn settings(radius: f64) -> Decimation {
         Decimation {
@@ -480,5 +657,38 @@ mod tests {
             .map(|i| points[i].truncate().length())
             .fold(f64::MAX, f64::min);
         assert!(inner < 0.7, "nearest kept point to the axis at {inner}");
+    }
+
+    /// The hull taken of the points outside the extremes' hull has the
+    /// corners of the hull of all points: on a torus (most points inside),
+    /// a sphere with points inside it (most points corners), and a cube's
+    /// jittered faces (many points a rounding away from the hull's faces).
+    #[test]
+    fn hull_corners_match_the_hull_of_all_points() {
+        let torus = sample_surface(&torus(1.0, 0.35, 160, 64), 20_000, 3).positions;
+        let mut ball = sample_surface(&icosphere(DVec3::ZERO, 1.0, 4), 3000, 5).positions;
+        ball.extend(ball.clone().iter().map(|&p| 0.99 * p));
+        let cube = sample_surface(&cuboid(DVec3::ZERO, DVec3::ONE), 20_000, 9).positions;
+        for points in [torus, ball, cube] {
+            let jitter = JITTER * bounding_diagonal(&points);
+            let geometry = jittered(&points, jitter);
+            let all: Vec<usize> = (0..points.len()).collect();
+            let expected = corners_of(&convex_hull(&geometry, &all).unwrap());
+            let found = hull_corners(&geometry, jitter).unwrap();
+            assert_eq!(found, expected);
+            // The extremes keep the points' bounding box (the hull's own
+            // normalization).
+            let extremes = extreme_points(&geometry);
+            let bounds = |ids: &mut dyn Iterator<Item = usize>| {
+                ids.fold([DVec3::INFINITY, DVec3::NEG_INFINITY], |[lo, hi], i| {
+                    [lo.min(geometry[i]), hi.max(geometry[i])]
+                })
+            };
+            assert_eq!(
+                bounds(&mut extremes.iter().copied()),
+                bounds(&mut all.iter().copied())
+            );
+            assert!(extremes.len() > 20, "{} extremes", extremes.len());
+        }
     }
 }

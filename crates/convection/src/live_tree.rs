@@ -23,19 +23,22 @@ use surfrecon_delaunay::DVec3;
 
 const LEAF: usize = 16;
 
+// A leaf's live slots are the bits of a `u32`.
+const _: () = assert!(LEAF <= 32);
+
 pub(crate) struct LiveTree {
     /// Point indices, leaf by leaf.
     order: Vec<u32>,
-    /// Their positions and whether they are live, in the same order (the
-    /// search reads leaves whole: no jumps through the input arrays).
-    position: Vec<DVec3>,
-    alive: Vec<bool>,
+    /// Their coordinates, in the same order, one array per axis (the
+    /// search tests a leaf's slots against a sphere all at once; padded to
+    /// whole leaves). Which are live is in the leaves' masks.
+    coordinates: [Vec<f64>; 3],
     /// Position of each point in `order`.
     slot: Vec<u32>,
     /// Box and live count per node, in single precision: the search walks
     /// ~270 nodes per facet and is bound by memory, and two siblings then
     /// share a cache line.
-    nodes: Vec<Node>,
+    nodes: Nodes,
     /// Per inner node, how its children's points are separated (fixed
     /// when the tree is built, all points live).
     splits: Vec<Split>,
@@ -52,21 +55,26 @@ struct Split {
 }
 
 /// A node's box (rounded outward to `f32`; empty boxes are inverted) and
-/// the number of live points under it.
+/// the number of live points under it; a leaf also has one bit per slot
+/// set while that slot's point is live (in the node's padding: a leaf scan
+/// then visits its live points only, three quarters of them being gone by
+/// the end of a decimation).
 #[derive(Clone, Copy, PartialEq)]
 #[repr(C, align(32))]
 struct Node {
     lo: [f32; 3],
     live: u32,
     hi: [f32; 3],
+    mask: u32,
 }
 
 impl Node {
-    fn new([lo, hi]: [DVec3; 2], live: u32) -> Self {
+    fn new([lo, hi]: [DVec3; 2], live: u32, mask: u32) -> Self {
         Node {
             lo: lo.to_array().map(round_down),
             live,
             hi: hi.to_array().map(round_up),
+            mask,
         }
     }
 
@@ -82,6 +90,29 @@ impl Node {
         let lo = std::array::from_fn(|k| self.lo[k].min(other.lo[k]));
         let hi = std::array::from_fn(|k| self.hi[k].max(other.hi[k]));
         (lo, hi)
+    }
+}
+
+/// The nodes by number, siblings `2k` and `2k + 1` in one 64-byte cache
+/// line (the walk tests both children of a node together; a `Vec<Node>`
+/// is only 32-byte aligned, and half its pairs could straddle two lines).
+struct Nodes(Vec<Siblings>);
+
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+struct Siblings([Node; 2]);
+
+impl std::ops::Index<usize> for Nodes {
+    type Output = Node;
+
+    fn index(&self, node: usize) -> &Node {
+        &self.0[node / 2].0[node % 2]
+    }
+}
+
+impl std::ops::IndexMut<usize> for Nodes {
+    fn index_mut(&mut self, node: usize) -> &mut Node {
+        &mut self.0[node / 2].0[node % 2]
     }
 }
 
@@ -140,11 +171,36 @@ impl Pencil {
         }
     }
 
-    /// Whether the box may hold an inner point inside `ball`.
-    fn may_hold(&self, [lo, hi]: [DVec3; 2], ball: Ball) -> bool {
+    /// For a best at `t` clearly inside the diametral ball, a ball about
+    /// the circumcentre `c₀` holding every inner point that may still beat
+    /// it. A later best is inside the diametral ball too (`t` below
+    /// `−10⁻³r₀`, and a near-tie moves `t` by at most `10⁻⁶` of the
+    /// scale), so it has `t < 0`, or a height rounded to 0 (then its `t`
+    /// is clamped at `−10⁶r₀` but it still passes a sphere's test): with
+    /// height `η > 0` and `|p − c₀ − t·n| ≤ R + s` (`R² = r₀² + t²`, `s`
+    /// the slack), `|p − c₀|² ≤ r₀² + 2tη + 2Rs + s² < r₀² + 2Rs + s²`,
+    /// and `R` stays below `10⁶r₀ + r₀` with the clamp. Near the apex the
+    /// sphere of the best reaches far to the outer side, where the front's
+    /// kept points are; this ball does not.
+    fn lens(&self, t: f64) -> Option<Ball> {
+        if t >= -1e-3 * self.radius {
+            return None;
+        }
+        let (r, s) = (self.radius, self.slack);
+        let largest = 1e6 * r + r + s;
+        // Grown by the slack again for the rounding of this bound.
+        let reach = (r * r + 2.0 * largest * s + s * s).sqrt() + s;
+        Some(Ball {
+            centre: self.centre,
+            reach2: reach * reach,
+        })
+    }
+
+    /// Whether the box reaches the inner side (less the slack).
+    fn above_plane(&self, [lo, hi]: [DVec3; 2]) -> bool {
         let half = (hi - lo) / 2.0;
         let top = self.normal.dot(lo + half - self.centre) + self.normal.abs().dot(half);
-        top > -self.slack && ball.gap2([lo, hi]) <= ball.reach2
+        top > -self.slack
     }
 }
 
@@ -175,24 +231,31 @@ impl LiveTree {
         let leaf_base = points.len().div_ceil(LEAF).next_power_of_two();
         let mut order: Vec<u32> = (0..points.len() as u32).collect();
         let mut axes = vec![0u8; leaf_base];
-        split_in_halves(points, &mut order, leaf_base * LEAF, 1, &mut axes);
+        for (node, axis) in split_in_halves(points, &mut order, leaf_base * LEAF, 1) {
+            axes[node] = axis;
+        }
         let mut slot = vec![0u32; points.len()];
         for (k, &i) in order.iter().enumerate() {
             slot[i as usize] = k as u32;
         }
         let empty = [DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)];
         let mut tree = LiveTree {
-            position: order.iter().map(|&i| points[i as usize]).collect(),
-            alive: vec![true; order.len()],
+            coordinates: std::array::from_fn(|axis| {
+                let mut along: Vec<f64> = order.iter().map(|&i| points[i as usize][axis]).collect();
+                along.resize(order.len().next_multiple_of(LEAF), f64::INFINITY);
+                along
+            }),
             order,
             slot,
-            nodes: vec![Node::new(empty, 0); 2 * leaf_base],
+            nodes: Nodes(vec![Siblings([Node::new(empty, 0, 0); 2]); leaf_base]),
             splits: Vec::new(),
             leaf_base,
         };
         for leaf in 0..points.len().div_ceil(LEAF) {
             let live = (points.len() - leaf * LEAF).min(LEAF) as u32;
-            tree.nodes[leaf_base + leaf] = Node::new(tree.live_box(leaf), live);
+            let mask = ((1u64 << live) - 1) as u32;
+            tree.nodes[leaf_base + leaf].mask = mask;
+            tree.nodes[leaf_base + leaf] = Node::new(tree.live_box(leaf), live, mask);
         }
         for node in (1..leaf_base).rev() {
             let (l, r) = (tree.nodes[2 * node], tree.nodes[2 * node + 1]);
@@ -201,6 +264,7 @@ impl LiveTree {
                 lo,
                 live: l.live + r.live,
                 hi,
+                mask: 0,
             };
         }
         tree.splits = (0..leaf_base)
@@ -217,11 +281,9 @@ impl LiveTree {
     }
 
     /// The deepest node whose children's split keeps everything outside
-    /// its subtree away from `ball`: the only subtree that can hold a point
-    /// inside it (boxes rounded outward keep this safe).
-    fn subtree_holding(&self, ball: Ball) -> usize {
-        let reach = ball.reach2.sqrt();
-        let (lo, hi) = (ball.centre - reach, ball.centre + reach);
+    /// its subtree away from the box `[lo, hi]`: the only subtree that can
+    /// hold a point inside it (boxes rounded outward keep this safe).
+    fn subtree_holding(&self, [lo, hi]: [DVec3; 2]) -> usize {
         let mut node = 1;
         while node < self.leaf_base {
             let split = self.splits[node];
@@ -242,10 +304,12 @@ impl LiveTree {
     /// box kept at its full size would keep meeting balls it holds nothing
     /// for.
     pub fn remove(&mut self, i: usize) {
-        self.alive[self.slot[i] as usize] = false;
         let leaf = self.slot[i] as usize / LEAF;
         let mut node = self.leaf_base + leaf;
-        self.nodes[node] = Node::new(self.live_box(leaf), self.nodes[node].live - 1);
+        let Node { live, mask, .. } = self.nodes[node];
+        let mask = mask & !(1 << (self.slot[i] as usize % LEAF));
+        self.nodes[node].mask = mask;
+        self.nodes[node] = Node::new(self.live_box(leaf), live - 1, mask);
         let mut boxes_changed = true;
         while node > 1 {
             node /= 2;
@@ -263,15 +327,23 @@ impl LiveTree {
     /// The box of the leaf's live points (inverted when none is left).
     fn live_box(&self, leaf: usize) -> [DVec3; 2] {
         let mut bounds = [DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)];
-        for k in leaf * LEAF..((leaf + 1) * LEAF).min(self.order.len()) {
-            if self.alive[k] {
-                bounds = [
-                    bounds[0].min(self.position[k]),
-                    bounds[1].max(self.position[k]),
-                ];
-            }
+        for k in self.live_slots(leaf) {
+            bounds = [
+                bounds[0].min(self.position(k)),
+                bounds[1].max(self.position(k)),
+            ];
         }
         bounds
+    }
+
+    /// The slots of the leaf's live points, ascending.
+    fn live_slots(&self, leaf: usize) -> impl Iterator<Item = usize> {
+        let mut mask = self.nodes[self.leaf_base + leaf].mask;
+        std::iter::from_fn(move || {
+            let bit = mask.trailing_zeros() as usize;
+            mask &= mask.wrapping_sub(1);
+            (bit < LEAF).then_some(leaf * LEAF + bit)
+        })
     }
 
     /// Live points strictly beyond the plane through `origin` with unit
@@ -294,10 +366,9 @@ impl LiveTree {
                 stack.extend([2 * node, 2 * node + 1]);
                 continue;
             }
-            let leaf = node - self.leaf_base;
-            for k in leaf * LEAF..((leaf + 1) * LEAF).min(self.order.len()) {
-                let p = self.position[k];
-                if self.alive[k] && ball.holds(p) && normal.dot(p - origin) > slack {
+            for k in self.live_slots(node - self.leaf_base) {
+                let p = self.position(k);
+                if ball.holds(p) && normal.dot(p - origin) > slack {
                     found.push(self.order[k] as usize);
                 }
             }
@@ -308,8 +379,10 @@ impl LiveTree {
     /// The candidate that `better` prefers among the live points (of those
     /// given to [`LiveTree::new`]) the pencil
     /// meets on the inner side before the diametral ball (`t ≤ 0`), or
-    /// `None`. `candidate(i)` says whether a live point may be an apex at
-    /// all (not a corner, exactly on the inner side); `better(q, s)` decides
+    /// `None`. `candidate(i, p)` says whether a live point `i` at `p` may be
+    /// an apex at all (not a corner, exactly on the inner side; `p` is its
+    /// position as given, from the leaf just read: looking it up by `i`
+    /// was a cache miss per point tested); `better(q, s)` decides
     /// exactly whether `q` beats `s` where their `t` nearly tie. With
     /// `first_inside`, any point inside the diametral ball will do (the
     /// question is only whether the facet's Gabriel property fails).
@@ -318,7 +391,7 @@ impl LiveTree {
         pencil: &Pencil,
         corners: [usize; 3],
         first_inside: bool,
-        candidate: impl Fn(usize) -> bool,
+        candidate: impl Fn(usize, DVec3) -> bool,
         better: impl Fn(usize, usize) -> bool,
     ) -> Option<usize> {
         let mut search = Search {
@@ -327,6 +400,8 @@ impl LiveTree {
             better,
             best: None,
             ball: pencil.ball(0.0),
+            lens: None,
+            wins: 0,
             first_inside,
             done: false,
         };
@@ -339,18 +414,28 @@ impl LiveTree {
             }
         }
         // Then depth first, the box nearer the current sphere's centre
-        // first; the tree is at most 40 levels deep.
-        let mut stack = [0usize; 64];
+        // first; the tree is at most 40 levels deep. Children are tested
+        // when their parent is opened (their gaps order them anyway); a
+        // child is tested again when popped only if a better point came
+        // since (each entry keeps the count of wins it was tested at).
+        let mut stack = [Entry::default(); 64];
         let mut depth = 1;
         // Below the root: the walk from it tested ~20 boxes per search on
         // the way down to the ball.
-        stack[0] = self.subtree_holding(search.ball);
+        stack[0] = Entry {
+            node: self.subtree_holding(search.reach_box()) as u32,
+            wins: u32::MAX,
+            holds: false,
+        };
         while depth > 0 && !search.done {
             depth -= 1;
-            let node = stack[depth];
-            let ball = search.ball;
-            let here = &self.nodes[node];
-            if here.live == 0 || !pencil.may_hold(here.bounds(), ball) {
+            let Entry { node, wins, holds } = stack[depth];
+            let node = node as usize;
+            let holds = match wins == search.wins {
+                true => holds,
+                false => self.test(node, &search).0,
+            };
+            if !holds {
                 continue;
             }
             if node >= self.leaf_base {
@@ -360,10 +445,15 @@ impl LiveTree {
                 continue;
             }
             let (l, r) = (2 * node, 2 * node + 1);
-            let gap2 = |n: usize| ball.gap2(self.nodes[n].bounds());
-            let (near, far) = match gap2(l) <= gap2(r) {
-                true => (l, r),
-                false => (r, l),
+            let (tl, tr) = (self.test(l, &search), self.test(r, &search));
+            let entry = |node: usize, (holds, _): (bool, f64)| Entry {
+                node: node as u32,
+                wins: search.wins,
+                holds,
+            };
+            let (near, far) = match tl.1 <= tr.1 {
+                true => (entry(l, tl), entry(r, tr)),
+                false => (entry(r, tr), entry(l, tl)),
             };
             stack[depth] = far;
             stack[depth + 1] = near;
@@ -372,50 +462,127 @@ impl LiveTree {
         search.best.map(|(i, _)| i)
     }
 
-    /// Offer the leaf's live points inside the current sphere.
-    fn scan_leaf<C, B>(&self, leaf: usize, search: &mut Search<'_, C, B>)
+    /// Whether the node may hold a point that beats the search's best so
+    /// far, and its box's squared gap to the current sphere's centre.
+    fn test<C, B>(&self, node: usize, search: &Search<'_, C, B>) -> (bool, f64)
     where
-        C: Fn(usize) -> bool,
         B: Fn(usize, usize) -> bool,
     {
-        let end = ((leaf + 1) * LEAF).min(self.order.len());
-        for k in leaf * LEAF..end {
-            let (i, p) = (self.order[k] as usize, self.position[k]);
-            if self.alive[k] && search.ball.holds(p) && (search.candidate)(i) {
-                search.offer(i, p);
+        let here = &self.nodes[node];
+        let bounds = here.bounds();
+        let gap2 = search.ball.gap2(bounds);
+        (here.live > 0 && search.may_hold(bounds, gap2), gap2)
+    }
+
+    fn position(&self, k: usize) -> DVec3 {
+        let [x, y, z] = &self.coordinates;
+        DVec3::new(x[k], y[k], z[k])
+    }
+
+    /// Offer the leaf's live points inside the current sphere, in slot
+    /// order. The slots are tested against the sphere all at once; when an
+    /// offer wins, the sphere shrinks and the slots after it are tested
+    /// again (each slot meets the sphere current at its turn).
+    fn scan_leaf<C, B>(&self, leaf: usize, search: &mut Search<'_, C, B>)
+    where
+        C: Fn(usize, DVec3) -> bool,
+        B: Fn(usize, usize) -> bool,
+    {
+        let base = leaf * LEAF;
+        let mut todo = u64::from(self.nodes[self.leaf_base + leaf].mask);
+        'sphere: while todo != 0 {
+            let mut inside = todo & u64::from(self.slots_inside(base, search.ball));
+            while inside != 0 {
+                let slot = inside.trailing_zeros() as usize;
+                inside &= inside - 1;
+                let (i, p) = (self.order[base + slot] as usize, self.position(base + slot));
+                if (search.candidate)(i, p) {
+                    let wins = search.wins;
+                    search.offer(i, p);
+                    if search.wins != wins {
+                        todo &= !((2u64 << slot) - 1);
+                        continue 'sphere;
+                    }
+                }
             }
+            break;
         }
     }
+
+    /// One bit per slot of the leaf starting at `base` inside `ball`
+    /// (exactly [`Ball::holds`]; a loop without branches).
+    fn slots_inside(&self, base: usize, ball: Ball) -> u32 {
+        let [x, y, z] = self.coordinates.each_ref().map(|c| &c[base..base + LEAF]);
+        let mut inside = 0;
+        for slot in 0..LEAF {
+            let p = DVec3::new(x[slot], y[slot], z[slot]);
+            inside |= u32::from(ball.holds(p)) << slot;
+        }
+        inside
+    }
 }
+
+/// Nodes above this many points split their halves in parallel (the tree
+/// is built while the normals are estimated; each half's order depends on
+/// its own points only).
+const PARALLEL_SPLIT: usize = 1 << 14;
 
 /// Orders `order` (the points under one node, `capacity` slots) so that
 /// the first `capacity / 2` slots hold the points lowest along the points'
 /// longest extent, recursively down to leaves: the left subtree is filled
-/// first, as the implicit layout wants.
+/// first, as the implicit layout wants. Returns each split node's axis.
 fn split_in_halves(
     points: &[DVec3],
     order: &mut [u32],
     capacity: usize,
     node: usize,
-    axes: &mut [u8],
-) {
+) -> Vec<(usize, u8)> {
+    let mut axes = Vec::new();
     if capacity <= LEAF || order.len() <= 1 {
-        return;
+        return axes;
     }
     let half = capacity / 2;
-    if order.len() > half {
-        let (lo, hi) = order.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), &i| (lo.min(points[i as usize]), hi.max(points[i as usize])),
-        );
-        let axis = (hi - lo).max_position();
-        axes[node] = axis as u8;
-        let along = |i: &u32| points[*i as usize][axis];
-        order.select_nth_unstable_by(half, |a, b| along(a).total_cmp(&along(b)).then(a.cmp(b)));
-    }
+    axes.extend(split_node(points, order, half).map(|axis| (node, axis)));
     let (left, right) = order.split_at_mut(half.min(order.len()));
-    split_in_halves(points, left, half, 2 * node, axes);
-    split_in_halves(points, right, half, 2 * node + 1, axes);
+    let [l, r] = [2 * node, 2 * node + 1];
+    let (left, right) = match left.len() + right.len() > PARALLEL_SPLIT {
+        true => rayon::join(
+            || split_in_halves(points, left, half, l),
+            || split_in_halves(points, right, half, r),
+        ),
+        false => (
+            split_in_halves(points, left, half, l),
+            split_in_halves(points, right, half, r),
+        ),
+    };
+    axes.extend(left);
+    axes.extend(right);
+    axes
+}
+
+/// Puts the `half` points lowest along the points' longest extent first
+/// (none to do if they fit in `half`), returning that axis.
+fn split_node(points: &[DVec3], order: &mut [u32], half: usize) -> Option<u8> {
+    if order.len() <= half {
+        return None;
+    }
+    let (lo, hi) = order.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), &i| (lo.min(points[i as usize]), hi.max(points[i as usize])),
+    );
+    let axis = (hi - lo).max_position();
+    let along = |i: &u32| points[*i as usize][axis];
+    order.select_nth_unstable_by(half, |a, b| along(a).total_cmp(&along(b)).then(a.cmp(b)));
+    Some(axis as u8)
+}
+
+/// A node on the apex search's stack, tested when its parent was opened.
+#[derive(Clone, Copy, Default)]
+struct Entry {
+    node: u32,
+    /// The search's win count at that test, and its verdict.
+    wins: u32,
+    holds: bool,
 }
 
 /// The state of one apex search.
@@ -426,6 +593,11 @@ struct Search<'a, C, B> {
     best: Option<(usize, f64)>,
     /// The sphere of the best so far (the diametral ball before one).
     ball: Ball,
+    /// Once the best is clearly inside the diametral ball, a ball about
+    /// the facet's circumcentre holding the inner part of `ball`.
+    lens: Option<Ball>,
+    /// How many times a better point was found.
+    wins: u32,
     /// Stop at the first point clearly inside the diametral ball.
     first_inside: bool,
     done: bool,
@@ -446,7 +618,35 @@ impl<C, B: Fn(usize, usize) -> bool> Search<'_, C, B> {
         if wins {
             self.best = Some((i, ti));
             self.ball = self.pencil.ball(ti);
+            self.lens = self.pencil.lens(ti);
+            self.wins += 1;
             self.done = self.first_inside && ti < -self.pencil.slack;
+        }
+    }
+
+    /// Whether a box (`gap2` from the sphere's centre) may hold a point
+    /// that beats the best so far.
+    fn may_hold(&self, bounds: [DVec3; 2], gap2: f64) -> bool {
+        gap2 <= self.ball.reach2
+            && self.pencil.above_plane(bounds)
+            && self
+                .lens
+                .is_none_or(|lens| lens.gap2(bounds) <= lens.reach2)
+    }
+
+    /// A box around every point that may beat the best so far.
+    fn reach_box(&self) -> [DVec3; 2] {
+        let corners = |ball: Ball| {
+            let reach = ball.reach2.sqrt();
+            [ball.centre - reach, ball.centre + reach]
+        };
+        let [lo, hi] = corners(self.ball);
+        match self.lens {
+            Some(lens) => {
+                let [lens_lo, lens_hi] = corners(lens);
+                [lo.max(lens_lo), hi.min(lens_hi)]
+            }
+            None => [lo, hi],
         }
     }
 }
@@ -519,9 +719,17 @@ mod tests {
             let expected = live()
                 .filter(|&i| inner(i) && pencil.t(points[i]) <= 0.0)
                 .min_by(|&p, &q| pencil.t(points[p]).total_cmp(&pencil.t(points[q])));
-            let found = tree.apex(&pencil, [0, 1, 2], false, inner, |q, s| q < s);
+            let candidate = |i: usize, p: DVec3| p == points[i] && inner(i);
+            let found = tree.apex(&pencil, [0, 1, 2], false, candidate, |q, s| q < s);
             assert_eq!(found, expected);
             apexes += usize::from(found.is_some());
+            // Asked only whether a live inner point is inside the diametral
+            // ball: one is returned exactly when one exists.
+            let inside = |i: usize| inner(i) && pencil.t(points[i]) < 0.0;
+            match tree.apex(&pencil, [0, 1, 2], true, candidate, |q, s| q < s) {
+                Some(i) => assert!(inside(i), "point {i} is not inside"),
+                None => assert!(live().all(|i| !inside(i))),
+            }
         }
         assert!(apexes > 500, "{apexes} facets with an apex");
     }

@@ -4,7 +4,7 @@ use crate::decimate::{decimate, Brush, Decimation};
 use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
 use crate::flips::flip_to_lower_bending;
-use crate::front::{decimate_on_the_fly, FrontStats};
+use crate::front::{FrontStart, FrontStats};
 use crate::holes::{open_sampling_holes, HoleRule};
 use crate::manifold::{boundary_edges, fill_small_holes, make_manifold};
 use crate::refine::{refine, Quality, RefineStats};
@@ -218,9 +218,17 @@ pub fn reconstruct(
         return reconstruct_all(points, normals, params);
     }
     let clock = Instant::now();
-    let unit: Vec<DVec3> = match normals {
+    let unit_normals = || match normals {
         Some(n) => n.iter().map(|v| v.normalize()).collect(),
         None => estimate_normals(points, params.normal_k),
+    };
+    // The front's trees and hull need no normals: built meanwhile.
+    let (unit, front_start): (Vec<DVec3>, _) = match params.decimate_on_the_fly {
+        true => {
+            let (unit, start) = rayon::join(unit_normals, || FrontStart::new(points));
+            (unit, Some(start))
+        }
+        false => (unit_normals(), None),
     };
     let diagonal = bounding_diagonal(points);
     let settings = Decimation {
@@ -232,12 +240,12 @@ pub fn reconstruct(
             ..b
         }),
     };
-    let (mut keep, front) = match params.decimate_on_the_fly {
-        true => {
-            let (keep, stats) = decimate_on_the_fly(points, &unit, &settings);
+    let (mut keep, front) = match front_start {
+        Some(start) => {
+            let (keep, stats) = start.decimate(points, &unit, &settings);
             (keep, Some(stats))
         }
-        false => (decimate(points, &unit, &settings), None),
+        None => (decimate(points, &unit, &settings), None),
     };
     let seconds = clock.elapsed().as_secs_f64();
     let quality = Quality {
