@@ -6,7 +6,8 @@
 //! SET: `i,j,k=x,y,z;i,j,k=none;i,j,k=x,y,z+x,y,z;...` (a cell's point,
 //! none, or a first point and further points `+x,y,z+...`, kept as the
 //! cell's further points ([`UnifiedField::cell_points`]); changes applied
-//! together; an empty SET measures the field as it is).
+//! together; an empty SET measures the field as it is). With
+//! `TRY_OUT=PATH.ply` the last SET's surface is written there.
 use std::collections::BTreeMap;
 use surfrecon_distfield::extract::extract_points;
 use surfrecon_distfield::features::cell_of;
@@ -56,6 +57,10 @@ fn main() {
             }
         }
         let (out, report) = extract_points(&field, &features, &second, &more);
+        if let Ok(path) = std::env::var("TRY_OUT") {
+            surfrecon_geom::io::write(&path, &surfrecon_geom::Geometry::from_mesh(out.clone()))
+                .unwrap();
+        }
         let to_out = MeshQuery::new(&out).unwrap();
         let there = deviation(&out, &to_ref, 16);
         let back = deviation(&reference, &to_out, 16);

@@ -99,7 +99,7 @@ pub fn extract_points(
     let cells = active_cells(field);
     let (keys, vertices) = edge_vertices(field, &cells);
     let spec = field.spec();
-    let mut patches: Vec<Patch> = cells
+    let (mut patches, several): (Vec<Patch>, Vec<Option<Vec<DVec3>>>) = cells
         .par_iter()
         .map(|&(cell, config, bits)| {
             let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
@@ -111,10 +111,10 @@ pub fn extract_points(
                     .copied()
                     .collect();
                 if let Some(fan) = fan_points(&patch, &points, &vertices, &keys, field) {
-                    return fan;
+                    return (fan, Some(points));
                 }
             }
-            match features.get(&cell) {
+            let patch = match features.get(&cell) {
                 Some(&f) if !leans_on_neighbour(field, cell, f) => {
                     let split = (seconds.get(&cell))
                         .and_then(|&g| fan_two(&patch.boundary(), f, g, &vertices, &keys, field));
@@ -128,13 +128,17 @@ pub fn extract_points(
                     ..patch
                 },
                 None => patch,
-            }
+            };
+            (patch, None)
         })
+        .unzip();
+    let several: BTreeMap<usize, Vec<DVec3>> = (cells.iter().zip(several))
+        .filter_map(|(c, points)| Some((c.0, points?)))
         .collect();
     let merged = merge_beside(
         field,
         features,
-        more,
+        &several,
         &cells,
         &mut patches,
         &keys,
@@ -225,12 +229,14 @@ fn within_moved_corners(field: &impl SampledField, cell: usize, f: DVec3) -> boo
 /// (a sharp edge passing just beside the cell), join that neighbour's
 /// patch: the two crossing loops, less the segment they share, become one
 /// loop fanned around the neighbour's feature point (or, if it has none,
-/// the point itself). A group that does not fan keeps its own patches.
+/// the point itself; if it was fanned around `several` points, each sheet
+/// of the joined patches around its own, where that fits). A group that
+/// does not fan keeps its own patches.
 /// Returns the number of cells merged into a neighbour.
 fn merge_beside(
     field: &impl SampledField,
     features: &BTreeMap<usize, DVec3>,
-    more: &BTreeMap<usize, Vec<DVec3>>,
+    several: &BTreeMap<usize, Vec<DVec3>>,
     cells: &[(usize, u8, u8)],
     patches: &mut [Patch],
     keys: &[u64],
@@ -249,9 +255,6 @@ fn merge_beside(
     let mut merged = 0;
     for (target, members) in groups {
         let Some(t) = slot(target) else { continue };
-        if more.contains_key(&target) && patches[t].fanned == Some(true) {
-            continue; // fanned around its several points: kept
-        }
         let own = features.get(&target).copied();
         if own.is_some_and(|f| leans_on_neighbour(field, target, f)) {
             continue; // the target leans on yet another cell
@@ -267,7 +270,18 @@ fn merge_beside(
         let all: HashSet<(Vertex, Vertex)> = boundary.iter().copied().collect();
         boundary.retain(|&(a, b)| !all.contains(&(b, a)));
         let feature = own.unwrap_or_else(|| features[&cells[members[0]].0]);
-        let Some(fan) = fan_over(&boundary, feature, vertices, keys, field) else {
+        let joined = || {
+            let mut all = table;
+            for &m in &members {
+                let (cell, config, bits) = cells[m];
+                all.append(table_patch(spec, cell, config, bits, keys, vertices));
+            }
+            all
+        };
+        let fan = (several.get(&target))
+            .and_then(|points| fan_points(&joined(), points, vertices, keys, field))
+            .or_else(|| fan_over(&boundary, feature, vertices, keys, field));
+        let Some(fan) = fan else {
             continue;
         };
         patches[t] = fan;
@@ -528,6 +542,19 @@ impl Patch {
                 })
             })
             .collect()
+    }
+
+    /// Adds `other`'s triangles and extra vertices (renumbered after
+    /// these).
+    fn append(&mut self, other: Patch) {
+        let base = self.extra.len() as u32;
+        self.triangles.extend(other.triangles.iter().map(|t| {
+            t.map(|v| match v {
+                Vertex::Extra(i) => Vertex::Extra(base + i),
+                edge => edge,
+            })
+        }));
+        self.extra.extend(other.extra);
     }
 
     /// The directed edges of the patch that no other of its triangles
@@ -848,14 +875,7 @@ fn fan_points(
             1 => fan_over(&boundary, own[0], vertices, keys, field)?,
             _ => fan_runs(&boundary, own, vertices, keys, field)?,
         };
-        let base = out.extra.len() as u32;
-        out.triangles.extend(part.triangles.iter().map(|t| {
-            t.map(|v| match v {
-                Vertex::Extra(i) => Vertex::Extra(base + i),
-                edge => edge,
-            })
-        }));
-        out.extra.extend(part.extra);
+        out.append(part);
     }
     Some(out)
 }
