@@ -1231,6 +1231,14 @@ fn further_points_keep_a_corner_and_an_edge_one_point_per_cell_cuts() {
     let back = read_udf(&path).unwrap();
     assert_eq!(back, udf);
     assert_eq!(back.extract().0.vertices, both.vertices);
+    // Cut anywhere in its further points (or their count), it is refused.
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = dir.path().join("cut.udf");
+    for less in [1, 8, 28, 29, 36, 56] {
+        std::fs::write(&cut, &bytes[..bytes.len() - less]).unwrap();
+        let message = read_udf(&cut).unwrap_err().to_string();
+        assert!(message.contains("cut.udf"), "{less}: {message}");
+    }
     // Without further points the file stays version 1.
     udf.cell_points.clear();
     write_udf(&path, &udf).unwrap();
