@@ -4,10 +4,12 @@
 //! triangle, as `examples/sculpt_check.rs`), with the worst cells.
 //! cargo run --release -p surfrecon-distfield --example try_points -- FIELD.udf REF H [SET ...]
 //! SET: `i,j,k=x,y,z;i,j,k=none;i,j,k=x,y,z+x,y,z;...` (a cell's point,
-//! none, or a first and second point; changes applied together; an empty
-//! SET measures the field as it is).
+//! none, or a first point and further points `+x,y,z+...`, kept as the
+//! cell's further points ([`UnifiedField::cell_points`]); changes applied
+//! together; an empty SET measures the field as it is). With
+//! `TRY_OUT=PATH.ply` the last SET's surface is written there.
 use std::collections::BTreeMap;
-use surfrecon_distfield::extract::extract_split;
+use surfrecon_distfield::extract::extract_points;
 use surfrecon_distfield::features::cell_of;
 use surfrecon_distfield::format::read_udf;
 use surfrecon_distfield::query::{deviation, lattice_points, MeshQuery};
@@ -25,6 +27,7 @@ fn main() {
     let to_ref = MeshQuery::new(&reference).unwrap();
     let first = field.feature_points();
     let seconds = field.second_points(&first);
+    let further = field.more_points();
     let sets = if args.len() > 3 {
         args[3..].to_vec()
     } else {
@@ -32,24 +35,32 @@ fn main() {
     };
     for set in &sets {
         let (mut features, mut second) = (first.clone(), seconds.clone());
+        let mut more = further.clone();
         for item in set.split(';').filter(|s| !s.is_empty()) {
             let (cell, point) = item.split_once('=').unwrap();
             let cell = field.spec.linear(triple(cell).map(|x| x as usize));
             second.remove(&cell);
-            match point.split_once('+') {
-                _ if point == "none" => {
+            more.remove(&cell);
+            let mut parts = point.split('+');
+            match parts.next() {
+                Some("none") => {
                     features.remove(&cell);
                 }
-                Some((a, b)) => {
+                Some(a) => {
                     features.insert(cell, DVec3::from_array(triple(a)));
-                    second.insert(cell, DVec3::from_array(triple(b)));
                 }
-                None => {
-                    features.insert(cell, DVec3::from_array(triple(point)));
-                }
+                None => {}
+            }
+            let rest: Vec<DVec3> = parts.map(|b| DVec3::from_array(triple(b))).collect();
+            if !rest.is_empty() {
+                more.insert(cell, rest);
             }
         }
-        let (out, report) = extract_split(&field, &features, &second);
+        let (out, report) = extract_points(&field, &features, &second, &more);
+        if let Ok(path) = std::env::var("TRY_OUT") {
+            surfrecon_geom::io::write(&path, &surfrecon_geom::Geometry::from_mesh(out.clone()))
+                .unwrap();
+        }
         let to_out = MeshQuery::new(&out).unwrap();
         let there = deviation(&out, &to_ref, 16);
         let back = deviation(&reference, &to_out, 16);

@@ -15,6 +15,7 @@
 use crate::features::cell_of;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashSet};
+use surfrecon_geom::metrics::closest_point_on_triangle;
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::marching::tables::{cube_table, EDGE_CORNERS};
 use surfrecon_grid::marching::{cell_case, crossing_fraction};
@@ -79,14 +80,41 @@ pub fn extract_split(
     features: &BTreeMap<usize, DVec3>,
     seconds: &BTreeMap<usize, DVec3>,
 ) -> (TriMesh, ExtractReport) {
+    extract_points(field, features, seconds, &BTreeMap::new())
+}
+
+/// [`extract_split`], where the cells in `more` keep further feature
+/// points (two corners in one cell, or a line on each of two sheets):
+/// each point goes with the sheet of the cell's patch that passes nearest
+/// it, and each sheet is fanned around its points (one: a fan; several:
+/// its crossing loop split into the runs nearest each, see
+/// [`fan_runs`]); a sheet without a point keeps its table triangles.
+/// Where that does not fit, the cell is treated as by [`extract_split`].
+pub fn extract_points(
+    field: &impl SampledField,
+    features: &BTreeMap<usize, DVec3>,
+    seconds: &BTreeMap<usize, DVec3>,
+    more: &BTreeMap<usize, Vec<DVec3>>,
+) -> (TriMesh, ExtractReport) {
     let cells = active_cells(field);
     let (keys, vertices) = edge_vertices(field, &cells);
     let spec = field.spec();
-    let mut patches: Vec<Patch> = cells
+    let (mut patches, several): (Vec<Patch>, Vec<Option<Vec<DVec3>>>) = cells
         .par_iter()
         .map(|&(cell, config, bits)| {
             let patch = table_patch(spec, cell, config, bits, &keys, &vertices);
-            match features.get(&cell) {
+            let first = features.get(&cell).copied();
+            let leans = first.is_some_and(|f| leans_on_neighbour(field, cell, f));
+            if let (Some(further), false) = (more.get(&cell), leans) {
+                let points: Vec<DVec3> = (first.iter().chain(seconds.get(&cell)))
+                    .chain(further)
+                    .copied()
+                    .collect();
+                if let Some(fan) = fan_points(&patch, &points, &vertices, &keys, field) {
+                    return (fan, Some(points));
+                }
+            }
+            let patch = match features.get(&cell) {
                 Some(&f) if !leans_on_neighbour(field, cell, f) => {
                     let split = (seconds.get(&cell))
                         .and_then(|&g| fan_two(&patch.boundary(), f, g, &vertices, &keys, field));
@@ -100,10 +128,22 @@ pub fn extract_split(
                     ..patch
                 },
                 None => patch,
-            }
+            };
+            (patch, None)
         })
+        .unzip();
+    let several: BTreeMap<usize, Vec<DVec3>> = (cells.iter().zip(several))
+        .filter_map(|(c, points)| Some((c.0, points?)))
         .collect();
-    let merged = merge_beside(field, features, &cells, &mut patches, &keys, &vertices);
+    let merged = merge_beside(
+        field,
+        features,
+        &several,
+        &cells,
+        &mut patches,
+        &keys,
+        &vertices,
+    );
     let mut report = ExtractReport::default();
     let mut mesh = TriMesh {
         vertices,
@@ -189,11 +229,14 @@ fn within_moved_corners(field: &impl SampledField, cell: usize, f: DVec3) -> boo
 /// (a sharp edge passing just beside the cell), join that neighbour's
 /// patch: the two crossing loops, less the segment they share, become one
 /// loop fanned around the neighbour's feature point (or, if it has none,
-/// the point itself). A group that does not fan keeps its own patches.
+/// the point itself; if it was fanned around `several` points, each sheet
+/// of the joined patches around its own, where that fits). A group that
+/// does not fan keeps its own patches.
 /// Returns the number of cells merged into a neighbour.
 fn merge_beside(
     field: &impl SampledField,
     features: &BTreeMap<usize, DVec3>,
+    several: &BTreeMap<usize, Vec<DVec3>>,
     cells: &[(usize, u8, u8)],
     patches: &mut [Patch],
     keys: &[u64],
@@ -227,7 +270,18 @@ fn merge_beside(
         let all: HashSet<(Vertex, Vertex)> = boundary.iter().copied().collect();
         boundary.retain(|&(a, b)| !all.contains(&(b, a)));
         let feature = own.unwrap_or_else(|| features[&cells[members[0]].0]);
-        let Some(fan) = fan_over(&boundary, feature, vertices, keys, field) else {
+        let joined = || {
+            let mut all = table;
+            for &m in &members {
+                let (cell, config, bits) = cells[m];
+                all.append(table_patch(spec, cell, config, bits, keys, vertices));
+            }
+            all
+        };
+        let fan = (several.get(&target))
+            .and_then(|points| fan_points(&joined(), points, vertices, keys, field))
+            .or_else(|| fan_over(&boundary, feature, vertices, keys, field));
+        let Some(fan) = fan else {
             continue;
         };
         patches[t] = fan;
@@ -490,6 +544,19 @@ impl Patch {
             .collect()
     }
 
+    /// Adds `other`'s triangles and extra vertices (renumbered after
+    /// these).
+    fn append(&mut self, other: Patch) {
+        let base = self.extra.len() as u32;
+        self.triangles.extend(other.triangles.iter().map(|t| {
+            t.map(|v| match v {
+                Vertex::Extra(i) => Vertex::Extra(base + i),
+                edge => edge,
+            })
+        }));
+        self.extra.extend(other.extra);
+    }
+
     /// The directed edges of the patch that no other of its triangles
     /// shares (its crossing loops).
     fn boundary(&self) -> Vec<(Vertex, Vertex)> {
@@ -639,10 +706,8 @@ fn fan_over(
 /// A cell crossed by two feature lines, with a point on each: its
 /// crossing loop split into the run of crossings nearer `first` and the
 /// run nearer `second`, each fanned to its point, the strip between the
-/// lines closed by two triangles on the edge between the points. Only
-/// when the loop is one, the runs are two and contiguous, and no triangle
-/// turns against a crossing's inside-to-outside direction (as
-/// [`fan_over`]).
+/// lines closed by two triangles on the edge between the points (see
+/// [`fan_runs`]).
 fn fan_two(
     boundary: &[(Vertex, Vertex)],
     first: DVec3,
@@ -651,7 +716,25 @@ fn fan_two(
     keys: &[u64],
     field: &impl SampledField,
 ) -> Option<Patch> {
-    if !is_one_loop(boundary) {
+    fan_runs(boundary, &[first, second], vertices, keys, field)
+}
+
+/// A crossing loop split into the runs of crossings nearest each of
+/// `points` (of equal distances the earlier point's), each run fanned to
+/// its point; where the run changes, a triangle on the crossing shared by
+/// both fans joins the two points, and the polygon the points then bound
+/// (three or more) is closed by a fan from the first run's point. Only
+/// when the loop is one, each point has exactly one run, and no triangle
+/// turns against a crossing's inside-to-outside direction (as
+/// [`fan_over`]) or against the loop's (the points' polygon).
+fn fan_runs(
+    boundary: &[(Vertex, Vertex)],
+    points: &[DVec3],
+    vertices: &[DVec3],
+    keys: &[u64],
+    field: &impl SampledField,
+) -> Option<Patch> {
+    if !is_one_loop(boundary) || points.len() < 2 {
         return None;
     }
     // The loop in order, from its first edge.
@@ -664,38 +747,51 @@ fn fan_two(
         Vertex::Edge(i) => Some(vertices[i as usize]),
         Vertex::Extra(_) => None,
     };
-    let near_second: Vec<bool> = order
+    let nearest = |p: DVec3| {
+        (0..points.len()).min_by(|&a, &b| p.distance(points[a]).total_cmp(&p.distance(points[b])))
+    };
+    let label: Vec<usize> = order
         .iter()
-        .map(|&v| at(v).map(|p| p.distance(second) < p.distance(first)))
+        .map(|&v| at(v).and_then(nearest))
         .collect::<Option<_>>()?;
     let n = order.len();
-    let changes: Vec<usize> = (0..n)
-        .filter(|&k| near_second[k] != near_second[(k + 1) % n])
-        .collect();
-    if changes.len() != 2 {
+    let changes: Vec<usize> = (0..n).filter(|&k| label[k] != label[(k + 1) % n]).collect();
+    // The runs' points in loop order: each point once.
+    let runs: Vec<usize> = changes.iter().map(|&k| label[(k + 1) % n]).collect();
+    let mut seen = runs.clone();
+    seen.sort_unstable();
+    seen.dedup();
+    if runs.len() != points.len() || seen.len() != points.len() {
         return None;
     }
-    let (p1, p2) = (Vertex::Extra(0), Vertex::Extra(1));
+    let apex = |k: usize| Vertex::Extra(label[k] as u32);
     let mut triangles = Vec::new();
     for k in 0..n {
         let (a, b) = (order[k], order[(k + 1) % n]);
-        let apex = if near_second[(k + 1) % n] { p2 } else { p1 };
-        triangles.push([a, b, apex]);
+        triangles.push([a, b, apex((k + 1) % n)]);
         // Where the run changes, the strip between the lines: a triangle
         // on the crossing shared by both fans and the two points.
-        if near_second[k] != near_second[(k + 1) % n] {
-            let own = if near_second[k] { p2 } else { p1 };
-            triangles.push([a, apex, own]);
+        if label[k] != label[(k + 1) % n] {
+            triangles.push([a, apex((k + 1) % n), apex(k)]);
         }
     }
-    let extra = vec![first, second];
+    let inner: Vec<[Vertex; 3]> = (1..runs.len().saturating_sub(1))
+        .map(|i| [runs[0], runs[i], runs[i + 1]].map(|r| Vertex::Extra(r as u32)))
+        .collect();
+    let extra = points.to_vec();
     let h = field.spec().spacing;
     let min_area2 = (1e-8 * h * h).powi(2);
     let pos = |v: Vertex| match v {
         Vertex::Edge(i) => vertices[i as usize],
         Vertex::Extra(i) => extra[i as usize],
     };
-    for t in &triangles {
+    let loop_out: DVec3 = (order.iter())
+        .filter_map(|&v| match v {
+            Vertex::Edge(i) => Some(outward(field, keys[i as usize])),
+            Vertex::Extra(_) => None,
+        })
+        .sum();
+    for t in triangles.iter().chain(&inner) {
         let normal = triangle_normal(t.map(pos));
         if normal.length_squared() < min_area2 {
             return None;
@@ -705,15 +801,83 @@ fn fan_two(
             Vertex::Edge(i) => normal.dot(outward(field, keys[i as usize])) < -FAN_SLACK,
             Vertex::Extra(_) => false,
         });
-        if against {
+        let only_points = t.iter().all(|v| matches!(v, Vertex::Extra(_)));
+        if against || (only_points && normal.dot(loop_out) <= 0.0) {
             return None;
         }
     }
+    triangles.extend(inner);
     Some(Patch {
         triangles,
         extra,
         fanned: Some(true),
     })
+}
+
+/// `cell`'s patch with each of `points` given to the sheet whose table
+/// triangles pass nearest it, each sheet fanned around its points (see
+/// [`extract_points`]); `None` where a sheet's fan does not fit, or a
+/// sheet without a point needs a loop centre (which would count as a
+/// feature vertex for the flips).
+fn fan_points(
+    patch: &Patch,
+    points: &[DVec3],
+    vertices: &[DVec3],
+    keys: &[u64],
+    field: &impl SampledField,
+) -> Option<Patch> {
+    let sheets = patch.sheets();
+    let positions = |sheet: &[[Vertex; 3]]| {
+        let part = Patch {
+            triangles: sheet.to_vec(),
+            extra: patch.extra.clone(),
+            fanned: None,
+        };
+        part.positions(vertices)
+    };
+    let placed: Vec<Vec<[DVec3; 3]>> = sheets.iter().map(|s| positions(s)).collect();
+    let gap = |p: DVec3, tris: &[[DVec3; 3]]| {
+        (tris.iter())
+            .map(|&t| p.distance(closest_point_on_triangle(p, t)))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut of_sheet: Vec<Vec<DVec3>> = vec![Vec::new(); sheets.len()];
+    for &p in points {
+        let k =
+            (0..sheets.len()).min_by(|&a, &b| gap(p, &placed[a]).total_cmp(&gap(p, &placed[b])))?;
+        of_sheet[k].push(p);
+    }
+    let mut out = Patch {
+        triangles: Vec::new(),
+        extra: Vec::new(),
+        fanned: Some(true),
+    };
+    for (sheet, own) in sheets.iter().zip(&of_sheet) {
+        let boundary = Patch {
+            triangles: sheet.clone(),
+            extra: Vec::new(),
+            fanned: None,
+        }
+        .boundary();
+        let part = match own.len() {
+            0 if sheet
+                .iter()
+                .flatten()
+                .any(|v| matches!(v, Vertex::Extra(_))) =>
+            {
+                return None
+            }
+            0 => Patch {
+                triangles: sheet.clone(),
+                extra: Vec::new(),
+                fanned: None,
+            },
+            1 => fan_over(&boundary, own[0], vertices, keys, field)?,
+            _ => fan_runs(&boundary, own, vertices, keys, field)?,
+        };
+        out.append(part);
+    }
+    Some(out)
 }
 
 /// Area-weighted normal (twice the area vector) of a triangle.

@@ -36,6 +36,14 @@ use surfrecon_grid::GridSpec;
 
 const ODF_MAGIC: &[u8; 8] = b"SRODF\0\0\x01";
 const UDF_MAGIC: &[u8; 8] = b"SRUDF\0\0\x01";
+/// Version 2 of the `.udf`: version 1 followed by the cells' further points.
+const UDF2_MAGIC: &[u8; 8] = b"SRUDF\0\0\x02";
+/// Bytes per record of a cell's further point (u32 cell, 3 × f64).
+const CELL_POINT_BYTES: usize = 4 + 24;
+/// How far (in spacings) a cell's further point may lie outside its cell:
+/// as far as a feature point from its cell (half a cell, see
+/// [`crate::sharp::owner_cell`]).
+const CELL_POINT_REACH: f64 = 0.5;
 const HEADER_BYTES: usize = 8 + 12 + 24 + 8;
 
 /// Which of the two field kinds a file holds.
@@ -52,7 +60,7 @@ pub fn sniff(path: &Path) -> Result<Option<FieldKind>, DistFieldError> {
     let mut f = std::fs::File::open(path).map_err(|error| io_error(path, error))?;
     Ok(match std::io::Read::read_exact(&mut f, &mut magic) {
         Ok(()) if &magic == ODF_MAGIC => Some(FieldKind::Offset),
-        Ok(()) if &magic == UDF_MAGIC => Some(FieldKind::Unified),
+        Ok(()) if &magic == UDF_MAGIC || &magic == UDF2_MAGIC => Some(FieldKind::Unified),
         _ => match extension(path).as_str() {
             "odf" => Some(FieldKind::Offset),
             "udf" => Some(FieldKind::Unified),
@@ -93,7 +101,9 @@ pub fn write_odf(path: &Path, field: &OffsetField) -> Result<(), DistFieldError>
 
 pub fn write_udf(path: &Path, field: &UnifiedField) -> Result<(), DistFieldError> {
     write_file(path, |w| {
-        write_header(w, UDF_MAGIC, &field.spec, &field.values)?;
+        let more = !field.cell_points.is_empty();
+        let magic = if more { UDF2_MAGIC } else { UDF_MAGIC };
+        write_header(w, magic, &field.spec, &field.values)?;
         let mut tags = vec![0u8; field.values.len().div_ceil(4)];
         for (&i, e) in &field.extras {
             let i = i as usize;
@@ -106,6 +116,16 @@ pub fn write_udf(path: &Path, field: &UnifiedField) -> Result<(), DistFieldError
                 Extra::FeaturePoint(p) | Extra::Position(p) => p,
             };
             write_vec(w, v)?;
+        }
+        if more {
+            let count: usize = field.cell_points.values().map(Vec::len).sum();
+            w.write_all(&(count as u64).to_le_bytes())?;
+            for (&cell, points) in &field.cell_points {
+                for &p in points {
+                    w.write_all(&cell.to_le_bytes())?;
+                    write_vec(w, p)?;
+                }
+            }
         }
         Ok(())
     })
@@ -154,16 +174,37 @@ pub fn read_udf(path: &Path) -> Result<UnifiedField, DistFieldError> {
         at: 0,
         path,
     };
-    let (spec, values) = r.header(UDF_MAGIC, "unified distance field (.udf)")?;
+    let version2 = bytes.get(..8) == Some(UDF2_MAGIC.as_slice());
+    let magic = if version2 { UDF2_MAGIC } else { UDF_MAGIC };
+    let (spec, values) = r.header(magic, "unified distance field (.udf)")?;
     let n = values.len();
     let tags = r.take(n.div_ceil(4), "the sample tags")?.to_vec();
     let tag = |i: usize| (tags[i / 4] >> (2 * (i % 4))) & 3;
     let tagged: Vec<usize> = (0..n).filter(|&i| tag(i) != 0).collect();
-    if r.remaining() != tagged.len() * 24 {
+    let tail = if version2 {
+        // The count of further points (8 bytes) must follow at least.
+        let at = r.at + tagged.len() * 24;
+        let count = bytes
+            .get(at..at + 8)
+            .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")));
+        match count {
+            Some(m) if m <= n as u64 => 8 + m as usize * CELL_POINT_BYTES,
+            Some(m) => return Err(r.bad(format!("{m} further cell points for {n} samples"))),
+            None => 8,
+        }
+    } else {
+        0
+    };
+    if r.remaining() != tagged.len() * 24 + tail {
         return Err(r.bad(format!(
-            "{} tagged samples need {} bytes of extra data but {} follow",
+            "{} tagged samples need {} bytes of extra data{} but {} follow",
             tagged.len(),
             tagged.len() * 24,
+            if version2 {
+                format!(" and the further cell points {tail}")
+            } else {
+                String::new()
+            },
             r.remaining()
         )));
     }
@@ -190,11 +231,52 @@ pub fn read_udf(path: &Path) -> Result<UnifiedField, DistFieldError> {
         };
         extras.insert(i as u32, extra);
     }
+    let cell_points = if version2 {
+        read_cell_points(&mut r, &spec)?
+    } else {
+        BTreeMap::new()
+    };
     Ok(UnifiedField {
         spec,
         values,
         extras,
+        cell_points,
     })
+}
+
+/// The further points of cells that end a version 2 `.udf`: each in a
+/// cell of the grid (not on its last layer of samples), finite, within
+/// [`CELL_POINT_REACH`] of the cell, by increasing cell index.
+fn read_cell_points(
+    r: &mut Reader,
+    spec: &GridSpec<3>,
+) -> Result<BTreeMap<u32, Vec<DVec3>>, DistFieldError> {
+    let m = r.u64("the count of further cell points")?;
+    let mut out: BTreeMap<u32, Vec<DVec3>> = BTreeMap::new();
+    let mut last = None;
+    for _ in 0..m {
+        let cell = r.u32("a cell index")?;
+        let p = r.vec("a cell's further point")?;
+        let samples: usize = spec.dims.iter().product();
+        let idx = spec.unlinear((cell as usize).min(samples - 1));
+        let is_cell = (cell as usize) < samples && (0..3).all(|a| idx[a] + 1 < spec.dims[a]);
+        if !is_cell || last.is_some_and(|l| cell < l) {
+            return Err(r.bad(format!(
+                "further point of cell {cell}: not a cell of the grid, or out of order"
+            )));
+        }
+        let lo = DVec3::from_array(spec.position(idx));
+        let reach = CELL_POINT_REACH * spec.spacing;
+        let outside = (lo - p).max(p - lo - DVec3::splat(spec.spacing));
+        if !(p.is_finite() && outside.max_element() <= reach) {
+            return Err(r.bad(format!(
+                "further point {p} of cell {idx:?} lies outside the cell"
+            )));
+        }
+        out.entry(cell).or_default().push(p);
+        last = Some(cell);
+    }
+    Ok(out)
 }
 
 fn tag_of(e: &Extra) -> u8 {

@@ -416,7 +416,7 @@ impl Bound {
 enum Action {
     /// The cell keeps this point alone.
     Replace(DVec3),
-    /// The cell keeps no point (its table triangles).
+    /// The cell keeps no point (its table triangles), nor further ones.
     Remove,
     /// The cell's corner `c` (`x + 2y + 4z`), a sample within
     /// [`TURN_LIMIT`] of the surface, counts as on the other side.
@@ -774,6 +774,9 @@ fn apply(field: &mut UnifiedField, cell: usize, action: &Action) -> bool {
                 field.extras.remove(&(n as u32));
             }
         }
+    }
+    if let Action::Remove = *action {
+        field.cell_points.remove(&(cell as u32));
     }
     match *action {
         Action::Remove | Action::Turn(_) | Action::Snap { .. } | Action::Second(_) => true,

@@ -409,6 +409,14 @@ pub fn sculpt_udf(
     for i in stale {
         field.extras.remove(&i);
     }
+    // A field sculpted before may keep further points: those the tool
+    // moves off the surface go as feature points do.
+    for points in field.cell_points.values_mut() {
+        let before = points.len();
+        points.retain(|&p| !combined.changes(p, 1e-6 * h));
+        report.dropped += before - points.len();
+    }
+    field.cell_points.retain(|_, points| !points.is_empty());
     // New corners a sample can sit on take it, as in construction: one
     // feature point per cell cannot keep both an old edge and the new one
     // where they meet.

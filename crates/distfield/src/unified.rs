@@ -70,6 +70,13 @@ pub struct UnifiedField {
     pub values: Vec<f64>,
     /// Extra data of the samples that need it, by sample index.
     pub extras: BTreeMap<u32, Extra>,
+    /// Further feature points of cells (by their lowest sample's index)
+    /// beyond the one or two their samples store: a cell holding two
+    /// corners, or two lines and a sheet, whose samples all carry extra
+    /// data already. Extraction fans each of a cell's sheets, and each
+    /// run of a sheet's crossing loop, around its own point (see
+    /// [`crate::extract::extract_points`]). Empty for almost every field.
+    pub cell_points: BTreeMap<u32, Vec<DVec3>>,
 }
 
 /// How to build a unified field.
@@ -159,6 +166,7 @@ pub fn build_udf(
         spec,
         values,
         extras: BTreeMap::new(),
+        cell_points: BTreeMap::new(),
     };
     let mut report = UdfReport {
         samples: field.values.len(),
@@ -480,12 +488,20 @@ pub(crate) fn crop(field: &UnifiedField, lo: [usize; 3], side: usize) -> Unified
     let spec = field.spec;
     let mut values = Vec::with_capacity(side * side * side);
     let mut extras = BTreeMap::new();
+    let mut cell_points = BTreeMap::new();
     for k in 0..side {
         for j in 0..side {
             for i in 0..side {
                 let n = spec.linear([lo[0] + i, lo[1] + j, lo[2] + k]);
                 if let Some(e) = field.extras.get(&(n as u32)) {
                     extras.insert(values.len() as u32, *e);
+                }
+                // A cell of the crop has its lowest sample in it and no
+                // sample on the crop's last layers.
+                if let Some(points) = field.cell_points.get(&(n as u32)) {
+                    if i + 1 < side && j + 1 < side && k + 1 < side {
+                        cell_points.insert(values.len() as u32, points.clone());
+                    }
                 }
                 values.push(field.values[n]);
             }
@@ -499,6 +515,7 @@ pub(crate) fn crop(field: &UnifiedField, lo: [usize; 3], side: usize) -> Unified
         },
         values,
         extras,
+        cell_points,
     }
 }
 
@@ -778,7 +795,15 @@ impl UnifiedField {
     /// and feature fans.
     pub fn extract(&self) -> (TriMesh, ExtractReport) {
         let first = self.feature_points();
-        crate::extract::extract_split(self, &first, &self.second_points(&first))
+        let more = self.more_points();
+        crate::extract::extract_points(self, &first, &self.second_points(&first), &more)
+    }
+
+    /// [`Self::cell_points`] by cell as extraction takes them.
+    pub fn more_points(&self) -> BTreeMap<usize, Vec<DVec3>> {
+        (self.cell_points.iter())
+            .map(|(&c, points)| (c as usize, points.clone()))
+            .collect()
     }
 
     /// Per cell owning two feature points (two feature lines through it),

@@ -932,13 +932,24 @@ struct CylinderCut {
     off: f64,
 }
 
-/// Fandisk's UDF (64 cells, `padding`) minus the cylinder of the two
-/// tests above, with the surface measured against the exact result.
-fn fandisk_minus_cylinder(padding: usize) -> CylinderCut {
+/// The cylinder the tests above subtract from fandisk: ends and radius.
+const CYLINDER: (DVec3, DVec3, f64) = (
+    DVec3::new(3.0, 13.5, -1.6),
+    DVec3::new(3.0, 15.0, -1.6),
+    0.3,
+);
+
+/// Fandisk's UDF (64 cells, `padding`) minus [`CYLINDER`], and the
+/// sculpting report.
+fn fandisk_minus_cylinder_field(
+    padding: usize,
+) -> (
+    surfrecon_distfield::unified::UnifiedField,
+    surfrecon_distfield::sculpt::SculptReport,
+) {
     use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
-    let shape = fandisk();
     let (mut udf, _) = build_udf(
-        &shape,
+        &fandisk(),
         &UdfOptions {
             size: GridSize::Resolution(64),
             padding,
@@ -946,18 +957,16 @@ fn fandisk_minus_cylinder(padding: usize) -> CylinderCut {
         },
     )
     .unwrap();
-    let h = udf.spec.spacing;
-    let (a, b, radius) = (
-        DVec3::new(3.0, 13.5, -1.6),
-        DVec3::new(3.0, 15.0, -1.6),
-        0.3,
-    );
+    let (a, b, radius) = CYLINDER;
     let tool = Tool::Cylinder { a, b, radius };
     let report = sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
-    let (mesh, _) = udf.extract();
-    // The cap (a disc around b, inside fandisk everywhere) lies on the
-    // result: the surface must pass through it.
-    let exact = MeshQuery::new(&shape).unwrap();
+    (udf, report)
+}
+
+/// Largest distance (h) from [`CYLINDER`]'s cap (a disc around its end,
+/// inside fandisk everywhere, so on the exact result) to `mesh`.
+fn cap_error(mesh: &TriMesh, h: f64) -> f64 {
+    let (_, b, radius) = CYLINDER;
     let disc: Vec<DVec3> = (0..60)
         .flat_map(|i| (1..=10).map(move |r| (i, r)))
         .map(|(i, r)| {
@@ -965,12 +974,25 @@ fn fandisk_minus_cylinder(padding: usize) -> CylinderCut {
             b + DVec3::new(angle.cos(), 0.0, angle.sin()) * (radius * r as f64 / 10.0)
         })
         .collect();
+    let exact = MeshQuery::new(&fandisk()).unwrap();
     assert!(disc.iter().all(|&p| exact.signed_distance(p) < 0.0));
-    let surface = MeshQuery::new(&mesh).unwrap();
-    let cap = disc
-        .iter()
+    let surface = MeshQuery::new(mesh).unwrap();
+    disc.iter()
         .map(|&p| surface.signed_distance(p).abs() / h)
-        .fold(0.0, f64::max);
+        .fold(0.0, f64::max)
+}
+
+/// [`fandisk_minus_cylinder_field`]'s surface measured against the exact
+/// result.
+fn fandisk_minus_cylinder(padding: usize) -> CylinderCut {
+    use surfrecon_distfield::sculpt::Tool;
+    let (udf, report) = fandisk_minus_cylinder_field(padding);
+    let h = udf.spec.spacing;
+    let (a, b, radius) = CYLINDER;
+    let tool = Tool::Cylinder { a, b, radius };
+    let (mesh, _) = udf.extract();
+    let exact = MeshQuery::new(&fandisk()).unwrap();
+    let cap = cap_error(&mesh, h);
     let off = dense_points(&mesh)
         .map(|p| exact.signed_distance(p).max(-tool.signed_distance(p)).abs() / h)
         .fold(0.0, f64::max);
@@ -1168,4 +1190,57 @@ fn sculpting_keeps_a_blind_holes_rim_under_a_thin_roof() {
     // 0.071 h)
     assert!(rim < 0.1, "the rim lies {rim} h from the surface");
     assert!(off < 0.1, "the surface leaves the result by {off} h");
+}
+
+/// Where fandisk's concave edge passes over the cylinder's rim (under
+/// the pocket's floor), one point per cell keeps the edge or the rim, not
+/// both: the corner is cut by 0.22 h. Given as further points, the corner
+/// to the cell whose point keeps the concave edge (it lies 0.015 h below
+/// that cell) and the concave edge's old point to the rim cell beside it,
+/// extraction fans each cell's sheets around both and reaches the corner;
+/// the field with them round-trips through a version 2 `.udf`.
+#[test]
+fn further_points_keep_a_corner_and_an_edge_one_point_per_cell_cuts() {
+    use surfrecon_distfield::features::cell_of;
+    use surfrecon_distfield::format::{read_udf, write_udf};
+    let (mut udf, _) = fandisk_minus_cylinder_field(4);
+    let spec = udf.spec;
+    let h = spec.spacing;
+    let (one, _) = udf.extract();
+    let before = cap_error(&one, h);
+    let corner = DVec3::new(2.878, 15.0, -1.874);
+    let concave = DVec3::new(2.85126, 15.0326, -1.84753);
+    let first = udf.feature_points();
+    // Each cell keeps its own point first (the edge's, the rim's).
+    for (at, point) in [(DVec3::new(2.9, 15.0, -1.85), corner), (concave, concave)] {
+        let cell = cell_of(&spec, at).unwrap();
+        let own = first[&cell];
+        assert!(own.distance(point) > h / 3.0, "{own} beside {point}");
+        udf.cell_points.insert(cell as u32, vec![point]);
+    }
+    let (both, _) = udf.extract();
+    assert_closed_manifold(&both, 2);
+    let after = cap_error(&both, h);
+    eprintln!("cap off the surface: one point per cell {before} h, further points {after} h");
+    // (one point per cell: 0.2225 h; further points: 0.098 h)
+    assert!(before > 0.2 && after < 0.15, "{before} h -> {after} h");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cut.udf");
+    write_udf(&path, &udf).unwrap();
+    assert_eq!(&std::fs::read(&path).unwrap()[..8], b"SRUDF\0\0\x02");
+    let back = read_udf(&path).unwrap();
+    assert_eq!(back, udf);
+    assert_eq!(back.extract().0.vertices, both.vertices);
+    // Cut anywhere in its further points (or their count), it is refused.
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = dir.path().join("cut.udf");
+    for less in [1, 8, 28, 29, 36, 56] {
+        std::fs::write(&cut, &bytes[..bytes.len() - less]).unwrap();
+        let message = read_udf(&cut).unwrap_err().to_string();
+        assert!(message.contains("cut.udf"), "{less}: {message}");
+    }
+    // Without further points the file stays version 1.
+    udf.cell_points.clear();
+    write_udf(&path, &udf).unwrap();
+    assert_eq!(&std::fs::read(&path).unwrap()[..8], b"SRUDF\0\0\x01");
 }
