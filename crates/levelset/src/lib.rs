@@ -26,6 +26,7 @@ mod holes;
 pub mod multires;
 mod nesting;
 pub mod reconstruct;
+pub mod reach;
 pub mod refine;
 pub mod reinit;
 pub mod slices;
