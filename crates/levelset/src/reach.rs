@@ -36,6 +36,9 @@ const PULL_RADIUS_CELLS: f64 = 1.5;
 /// their tiny triangles over).
 const PULL_CORE_CELLS: f64 = 0.5;
 
+/// A tip takes a vertex within this many cells of its closest point.
+const TIP_VERTEX_CELLS: f64 = 1.0;
+
 /// A cone's end as marching cubes leaves it is often a cluster of nearly
 /// coinciding vertices whose triangles (of this many square cells, or
 /// less) point anywhere: when its foremost vertex is moved onto the tip,
@@ -95,26 +98,35 @@ pub fn reach_far_points(
         .map(|(&i, _)| points[i])
         .collect();
     let dropped_distances = distances_to(mesh, dropped);
-    tips.extend((dropped.iter().zip(&dropped_distances))
-        .filter(|&(&p, &d)| pullable(d) && sampled.tips_a_line(p, None))
-        .map(|(&p, _)| p));
+    tips.extend(
+        (dropped.iter().zip(&dropped_distances))
+            .filter(|&(&p, &d)| pullable(d) && sampled.tips_a_line(p, None))
+            .map(|(&p, _)| p),
+    );
     let before = mesh.vertices.clone();
     // Triangles of less than `oriented` area had no direction to keep.
     let oriented = DEGENERATE_AREA_CELLS * spacing * spacing;
-    let undo = |mesh: &mut TriMesh| {
-        undo_degenerating_moves(mesh, &before, |old, new| {
+    let undo = |mesh: &mut TriMesh, from: &[DVec3]| {
+        undo_degenerating_moves(mesh, from, |old, new| {
             collapsed(old, new) || (old.length() >= oriented && turned_over(old, new))
         })
     };
-    extend_to_tips(mesh, &tips, far, PULL_CORE_CELLS * spacing);
-    undo(mesh);
+    let on_tips = extend_to_tips(mesh, &tips, far, TIP_VERTEX_CELLS * spacing, oriented);
+    // The pulls neither move the tips' vertices nor undo them.
+    let pinned: Vec<bool> = (mesh.vertices.iter().zip(&before))
+        .zip(&on_tips)
+        .map(|((a, b), &tip)| tip && a != b)
+        .collect();
+    let with_tips = mesh.vertices.clone();
     for _ in 0..PULL_ROUNDS {
         let (core, radius) = (PULL_CORE_CELLS * spacing, PULL_RADIUS_CELLS * spacing);
-        if !pull_towards(mesh, &surface, far, core, radius) {
+        if !pull_towards(mesh, &surface, &pinned, far, core, radius) {
             break;
         }
-        undo(mesh);
+        undo(mesh, &with_tips);
     }
+    // Two tips on one position (duplicate samples) would weld two vertices.
+    undo_degenerating_moves(mesh, &before, |_, _| false);
     let moved = (mesh.vertices.iter().zip(&before))
         .filter(|(a, b)| a != b)
         .count();
@@ -124,15 +136,24 @@ pub fn reach_far_points(
     }
 }
 
-/// Move, for each of `tips` farther than `far`, the surface's foremost
-/// vertex towards it (within `core` of its closest point) onto it: the
-/// vertex's fan becomes the cone's last stretch, as thin as the cone there.
-/// Pulling the whole end along with falloff would stretch its many tiny
-/// triangles until some turned over. The farthest tip takes a vertex first
-/// (the samples before it on the same cone then lie along the new fan).
-fn extend_to_tips(mesh: &mut TriMesh, tips: &[DVec3], far: f64, core: f64) {
+/// Move, for each of `tips` farther than `far`, a vertex of the surface
+/// within `core` of its closest point onto it: the foremost towards it
+/// whose fan neither turns over nor collapses (triangles of less than
+/// `oriented` area point anywhere and are not asked). The fan becomes the
+/// cone's last stretch, as thin as the cone there; pulling the whole end
+/// along with a falloff would stretch its many tiny triangles until some
+/// turned over. The farthest tip takes a vertex first (the samples before
+/// it on the same cone then lie along the new fan).
+fn extend_to_tips(
+    mesh: &mut TriMesh,
+    tips: &[DVec3],
+    far: f64,
+    core: f64,
+    oriented: f64,
+) -> Vec<bool> {
     let bvh = TriangleBvh::new(mesh);
     let vertex_tree = KdTree::new(&mesh.vertices);
+    let fans = vertex_fans(mesh);
     let mut found: Vec<_> = (tips.iter())
         .filter_map(|&p| bvh.closest(p).filter(|c| c.distance > far).map(|c| (p, c)))
         .collect();
@@ -141,14 +162,46 @@ fn extend_to_tips(mesh: &mut TriMesh, tips: &[DVec3], far: f64, core: f64) {
     for (p, closest) in found {
         let towards = p - closest.point;
         let corners = mesh.triangles[closest.triangle].map(|i| i as usize);
-        let near = vertex_tree.within(closest.point, core).into_iter().map(|n| n.index);
-        let ahead = |v: usize| (mesh.vertices[v] - closest.point).dot(towards);
-        let foremost = (near.chain(corners)).max_by(|&a, &b| ahead(a).total_cmp(&ahead(b)));
-        if let Some(v) = foremost.filter(|&v| !taken[v]) {
+        let ahead = |v: &usize| (mesh.vertices[*v] - closest.point).dot(towards);
+        let mut candidates: Vec<usize> = (vertex_tree.within(closest.point, core).into_iter())
+            .map(|n| n.index)
+            .chain(corners)
+            .filter(|&v| !taken[v])
+            .collect();
+        candidates.sort_by(|a, b| ahead(b).total_cmp(&ahead(a)));
+        let movable = |v: usize| {
+            fans[v].iter().all(|&t| {
+                let area = |at: DVec3| {
+                    let [a, b, c] = mesh.triangles[t as usize].map(|i| {
+                        if i as usize == v {
+                            at
+                        } else {
+                            mesh.vertices[i as usize]
+                        }
+                    });
+                    (b - a).cross(c - a)
+                };
+                let (old, new) = (area(mesh.vertices[v]), area(p));
+                !collapsed(old, new) && (old.length() < oriented || !turned_over(old, new))
+            })
+        };
+        if let Some(v) = candidates.into_iter().find(|&v| movable(v)) {
             mesh.vertices[v] = p;
             taken[v] = true;
         }
     }
+    taken
+}
+
+/// The triangles around each vertex.
+fn vertex_fans(mesh: &TriMesh) -> Vec<Vec<u32>> {
+    let mut fans = vec![Vec::new(); mesh.vertices.len()];
+    for (t, triangle) in mesh.triangles.iter().enumerate() {
+        for &v in triangle {
+            fans[v as usize].push(t as u32);
+        }
+    }
+    fans
 }
 
 /// Turned by more than about 100° (a cone's end cap, pulled out into its
@@ -167,10 +220,17 @@ fn distances_to(mesh: &TriMesh, points: &[DVec3]) -> Vec<f64> {
 }
 
 /// One round of pulls towards the `targets` still farther than `far`: each
-/// moves the vertices within `radius` of its closest surface point that
-/// face the same way, by its gap with a smooth fall-off; where pulls
+/// moves the vertices (but the `pinned`) within `radius` of its closest
+/// surface point that face the same way, by its gap with a smooth fall-off; where pulls
 /// overlap their weighted mean. Returns whether anything moved.
-fn pull_towards(mesh: &mut TriMesh, targets: &[DVec3], far: f64, core: f64, radius: f64) -> bool {
+fn pull_towards(
+    mesh: &mut TriMesh,
+    targets: &[DVec3],
+    pinned: &[bool],
+    far: f64,
+    core: f64,
+    radius: f64,
+) -> bool {
     let bvh = TriangleBvh::new(mesh);
     let normals = area_weighted_normals(&mesh.vertices, &mesh.triangles);
     let vertex_tree = KdTree::new(&mesh.vertices);
@@ -183,7 +243,7 @@ fn pull_towards(mesh: &mut TriMesh, targets: &[DVec3], far: f64, core: f64, radi
         let [a, b, c] = mesh.corners(closest.triangle);
         let facing = (b - a).cross(c - a);
         for v in vertex_tree.within(closest.point, radius) {
-            if normals[v.index].dot(facing) <= 0.0 {
+            if pinned[v.index] || normals[v.index].dot(facing) <= 0.0 {
                 continue;
             }
             let w = fall_off(v.distance, core, radius);
@@ -281,7 +341,7 @@ impl SampledSurface<'_> {
         };
         let [flat, wide, long] = near.variances;
         if near.distances[0] > 8.0 * self.gap
-            || long < 4.0 * wide
+            || long < 2.5 * wide
             || (flat + wide).sqrt() > self.spacing
         {
             return false;
@@ -317,5 +377,84 @@ impl SampledSurface<'_> {
             .filter(|&&j| self.distances[j] > self.far)
             .count();
         off_plane <= 0.3 * median && missed >= 2
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use surfrecon_geom::shapes::{icosphere, sample_surface};
+
+    const H: f64 = 0.05;
+
+    fn distance(mesh: &TriMesh, p: DVec3) -> f64 {
+        distances_to(mesh, &[p])[0]
+    }
+
+    /// A unit sphere's samples and the mesh of the sphere alone.
+    fn sphere(seed: u64) -> (TriMesh, Vec<DVec3>) {
+        let mesh = icosphere(DVec3::ZERO, 1.0, 5);
+        let points = sample_surface(&mesh, 20_000, seed).positions;
+        (mesh, points)
+    }
+
+    /// Rings of three samples on a cone along +x from the unit sphere,
+    /// radius 0.015 at the sphere to 0.003 at x = 1.3 (a cell is 0.05).
+    fn cone() -> Vec<DVec3> {
+        (0..10)
+            .flat_map(|ring| {
+                let x = 1.0 + 0.03 * ring as f64;
+                let r = 0.015 - 0.0012 * ring as f64;
+                (0..3).map(move |k| {
+                    let a = (k as f64 + 0.3 * ring as f64) * std::f64::consts::TAU / 3.0;
+                    DVec3::new(x, r * a.cos(), r * a.sin())
+                })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_cone_is_reached_to_its_tip_and_a_stray_point_pulls_nothing() {
+        let (mut mesh, mut points) = sphere(3);
+        let cone = cone();
+        let tip = DVec3::new(1.33, 0.0, 0.0);
+        let stray = DVec3::new(0.0, 0.0, -1.0 - 3.0 * H);
+        points.extend(cone.iter().chain([&tip, &stray]));
+        let stats = reach_far_points(&mut mesh, &points, &[], H);
+        assert!(stats.pulled_to > 0);
+        let far = FAR_CELLS * H;
+        assert!(distance(&mesh, tip) <= far, "tip {}", distance(&mesh, tip));
+        let missed = cone
+            .iter()
+            .filter(|&&p| distance(&mesh, p) > 2.0 * far)
+            .count();
+        assert!(
+            missed <= 3,
+            "{missed} of the cone's samples missed by a cell"
+        );
+        assert!(
+            (distance(&mesh, stray) - 3.0 * H).abs() < 0.1 * H,
+            "the stray point pulled"
+        );
+        // No two vertices on one position: manifold after welding.
+        let mut at: Vec<[u64; 3]> = (mesh.vertices.iter())
+            .map(|v| v.to_array().map(f64::to_bits))
+            .collect();
+        at.sort_unstable();
+        assert!(at.windows(2).all(|w| w[0] != w[1]));
+    }
+
+    #[test]
+    fn a_tip_cleaning_dropped_is_reached_when_it_continues_its_line() {
+        let (mut mesh, mut points) = sphere(4);
+        points.extend(cone());
+        // On the cone's line, and beside it (a stray cleaning dropped too).
+        let dropped = [DVec3::new(1.33, 0.0, 0.0), DVec3::new(1.15, 0.2, 0.0)];
+        reach_far_points(&mut mesh, &points, &dropped, H);
+        assert!(distance(&mesh, dropped[0]) <= FAR_CELLS * H);
+        assert!(
+            distance(&mesh, dropped[1]) > 2.0 * H,
+            "the stray beside the line reached"
+        );
     }
 }

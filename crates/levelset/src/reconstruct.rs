@@ -372,7 +372,10 @@ fn reconstruct_3d_centred(
 fn dropped_points(raw: &[DVec3], kept: &[DVec3]) -> Vec<DVec3> {
     let bits = |p: &DVec3| p.to_array().map(f64::to_bits);
     let kept: std::collections::HashSet<_> = kept.iter().map(bits).collect();
-    raw.iter().filter(|p| !kept.contains(&bits(p))).copied().collect()
+    raw.iter()
+        .filter(|p| !kept.contains(&bits(p)))
+        .copied()
+        .collect()
 }
 
 /// A stack of contour slices: the field interpolated between the slices'
