@@ -25,6 +25,7 @@ pub mod flow;
 mod holes;
 pub mod multires;
 mod nesting;
+pub mod reach;
 pub mod reconstruct;
 pub mod refine;
 pub mod reinit;

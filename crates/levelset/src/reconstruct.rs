@@ -14,6 +14,7 @@ use crate::multires::{
     auto_levels, coarsen, grow_to_points, interpolate, reopen_near_buried, restore_near_missed,
     upsample_band,
 };
+use crate::reach::reach_far_points;
 use crate::refine::{refine_surface, RefineOptions, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
 use crate::slices::{detect_slices, interpolate_slices, join_lost_parts, SliceStack};
@@ -329,7 +330,8 @@ fn reconstruct_3d_centred(
     }
     let mut report = Report::default();
     check(hook, "cleaning")?;
-    let input = cleaned(input, params, 3, &mut report);
+    let raw = input;
+    let input = cleaned(raw, params, 3, &mut report);
     let (mut phi, field) = evolve_field::<3>(&input, params, &mut report, hook)?;
     check(hook, "extract")?;
     // Straight from the blocks: same triangles as on the dense φ.
@@ -349,6 +351,13 @@ fn reconstruct_3d_centred(
         report.refine = report.time("refine", || {
             refine_surface(&mut mesh, &input.points, phi.spec().spacing, options)
         });
+        if options.exact_points {
+            let dropped = dropped_points(&raw.points, &input.points);
+            let reached = report.time("reach", || {
+                reach_far_points(&mut mesh, &input.points, &dropped, phi.spec().spacing)
+            });
+            report.refine.reached_far_points = reached.pulled_to;
+        }
     }
     Ok(Reconstruction3 {
         mesh,
@@ -356,6 +365,17 @@ fn reconstruct_3d_centred(
         field,
         report,
     })
+}
+
+/// The points of `raw` that cleaning left out of `kept` (cleaning that
+/// does not project keeps the others' coordinates exactly).
+fn dropped_points(raw: &[DVec3], kept: &[DVec3]) -> Vec<DVec3> {
+    let bits = |p: &DVec3| p.to_array().map(f64::to_bits);
+    let kept: std::collections::HashSet<_> = kept.iter().map(bits).collect();
+    raw.iter()
+        .filter(|p| !kept.contains(&bits(p)))
+        .copied()
+        .collect()
 }
 
 /// A stack of contour slices: the field interpolated between the slices'

@@ -10,7 +10,8 @@
 //! nearest point's face does; fairing ([`fair`]) replaces each sagging
 //! patch with the smoothest fill that meets the surrounding surface with
 //! its slope. All only move vertices, so the mesh stays watertight, and
-//! moves that would fold or flatten a triangle are undone.
+//! moves that would fold or flatten a triangle are undone. Data beyond a
+//! cell's reach are pulled onto by [`crate::reach`].
 
 use crate::cleaning::{project_onto_points, SurfaceFit};
 use rayon::prelude::*;
@@ -54,6 +55,8 @@ pub struct RefineStats {
     pub faired: usize,
     /// Largest distance a faired vertex moved (world units).
     pub max_fairing_shift: f64,
+    /// Far data the surface was pulled onto ([`crate::reach`]).
+    pub reached_far_points: usize,
 }
 
 /// What [`refine_surface`] may do besides snapping onto the data's fit.
@@ -113,18 +116,16 @@ pub fn refine_surface(
     // the harness's CD).
     let moved = undo_degenerating_moves(mesh, &on_grid, collapsed);
     stats.snapped = moved.saturating_sub(stats.snapped_to_planes);
-    if !options.fair_gaps {
-        return stats;
+    if options.fair_gaps {
+        // Unsupported vertices did not move, so their support stands.
+        let free: Vec<bool> = projection.supported.iter().map(|s| !s).collect();
+        let unsupported = free.iter().filter(|&&f| f).count();
+        if unsupported as f64 <= (1.0 - SUPPORTED_SHARE) * free.len() as f64 {
+            let faired = fair(mesh, &free, &FairingOptions::default());
+            stats.faired = faired.moved;
+            stats.max_fairing_shift = faired.max_shift;
+        }
     }
-    // Unsupported vertices did not move, so their support stands.
-    let free: Vec<bool> = projection.supported.iter().map(|s| !s).collect();
-    let unsupported = free.iter().filter(|&&f| f).count();
-    if unsupported as f64 > (1.0 - SUPPORTED_SHARE) * free.len() as f64 {
-        return stats;
-    }
-    let faired = fair(mesh, &free, &FairingOptions::default());
-    stats.faired = faired.moved;
-    stats.max_fairing_shift = faired.max_shift;
     stats
 }
 
@@ -164,7 +165,7 @@ fn project_onto_nearest_planes(
 /// `degenerate`, and every moved vertex that landed on another vertex's
 /// position, until none is left: the mesh stays manifold after welding by
 /// position. Returns the number of vertices that keep their move.
-fn undo_degenerating_moves(
+pub(crate) fn undo_degenerating_moves(
     mesh: &mut TriMesh,
     before: &[DVec3],
     degenerate: impl Fn(DVec3, DVec3) -> bool + Sync,
@@ -208,6 +209,6 @@ fn folded(old: DVec3, new: DVec3) -> bool {
 }
 
 /// Of no area any more (a millionth of its old area, or less).
-fn collapsed(old: DVec3, new: DVec3) -> bool {
+pub(crate) fn collapsed(old: DVec3, new: DVec3) -> bool {
     new.length_squared() <= 1e-12 * old.length_squared() && old != DVec3::ZERO
 }

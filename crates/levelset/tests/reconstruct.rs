@@ -920,6 +920,17 @@ fn thin_spikes_are_kept_to_their_tips() {
             worst < 4.0 * h,
             "{levels} levels: a point {worst} from the surface (h {h})"
         );
+        // Exact distances to the surface: the cones' last samples, which
+        // the grid ends short of (3.6 cells), are reached too. (Issue #15
+        // asks 0.5% of the diagonal at the harness's 20k points, where a
+        // cell is 0.35% of it.)
+        let fit = surfrecon_geom::data_fit::data_fit(&r.mesh, &points).unwrap();
+        let farthest = fit.max * fit.diagonal / h;
+        assert!(
+            farthest <= 1.5,
+            "{levels} levels: a point {farthest} cells from the surface, at {:?}",
+            fit.farthest
+        );
     }
 }
 

@@ -165,6 +165,9 @@ pub struct RefineReport {
     pub snapped_to_planes: usize,
     pub faired: usize,
     pub max_fairing_shift: f64,
+    /// Exact data beyond half a cell the surface was pulled onto (cone
+    /// tips, wedge apexes).
+    pub reached_far_points: usize,
 }
 
 /// A stack of parallel contour slices, across `axis` (0 = x).
