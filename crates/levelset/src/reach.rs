@@ -268,14 +268,17 @@ fn fall_off(distance: f64, core: f64, radius: f64) -> f64 {
     (1.0 - t * t).powi(2)
 }
 
-/// The 95th percentile of the distance from a point to its nearest other
-/// point (over at most 20,000 evenly strided points).
-fn sampling_gap(points: &[DVec3], tree: &KdTree) -> f64 {
+/// Typical gap between neighbouring `points` (indexed by `tree`): the 95th
+/// percentile of the distance from a point to its nearest other point
+/// (over at most 20,000 evenly strided points; duplicates left out); 0 for
+/// fewer than two distinct points.
+pub(crate) fn sampling_gap(points: &[DVec3], tree: &KdTree) -> f64 {
     let stride = (points.len() / 20_000).max(1);
     let mut gaps: Vec<f64> = points
         .par_iter()
         .step_by(stride)
         .filter_map(|&p| tree.knn(p, 2).get(1).map(|n| n.distance))
+        .filter(|g| *g > 0.0)
         .collect();
     if gaps.is_empty() {
         return 0.0;

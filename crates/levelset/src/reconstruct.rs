@@ -14,7 +14,7 @@ use crate::multires::{
     auto_levels, coarsen, grow_to_points, interpolate, reopen_near_buried, restore_near_missed,
     upsample_band,
 };
-use crate::reach::reach_far_points;
+use crate::reach::{reach_far_points, sampling_gap};
 use crate::refine::{refine_surface, RefineOptions, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
 use crate::slices::{detect_slices, interpolate_slices, join_lost_parts, SliceStack};
@@ -806,27 +806,14 @@ fn validate<const D: usize>(input: &Input, params: &ReconstructParams) -> Result
     Ok(())
 }
 
-/// Typical gap between neighbouring data: the 95th percentile of the
-/// distance from a datum vertex to its nearest other vertex (over at most
-/// 20,000 evenly strided vertices); 0 for a single vertex.
+/// Typical gap between neighbouring data ([`sampling_gap`] over every
+/// datum vertex).
 fn sampling_spacing(input: &Input) -> f64 {
     let verts: Vec<DVec3> = input.all_vertices().collect();
     if verts.len() < 2 {
         return 0.0;
     }
-    let tree = KdTree::new(&verts);
-    let stride = (verts.len() / 20_000).max(1);
-    let mut gaps: Vec<f64> = verts
-        .iter()
-        .step_by(stride)
-        .filter_map(|&v| tree.knn(v, 2).get(1).map(|n| n.distance))
-        .filter(|g| *g > 0.0)
-        .collect();
-    if gaps.is_empty() {
-        return 0.0;
-    }
-    gaps.sort_by(|a, b| a.total_cmp(b));
-    gaps[(gaps.len() - 1) * 95 / 100]
+    sampling_gap(&verts, &KdTree::new(&verts))
 }
 
 /// The offset that moves `input` near the origin (see [`centre::offset`]).
