@@ -613,19 +613,22 @@ fn edge_counts(triangles: &[[u32; 3]]) -> (usize, usize, usize) {
     (distinct, boundary, nonmanifold)
 }
 
-/// Faces around each vertex, in compressed rows.
-struct VertexFaces {
+/// Faces around each vertex, in compressed rows (a face with a repeated
+/// vertex is listed once at it).
+pub struct VertexFaces {
     offsets: Vec<usize>,
     faces: Vec<u32>,
 }
 
 impl VertexFaces {
-    fn of(&self, v: usize) -> &[u32] {
+    /// The faces around vertex `v`.
+    pub fn of(&self, v: usize) -> &[u32] {
         &self.faces[self.offsets[v]..self.offsets[v + 1]]
     }
 }
 
-fn vertex_faces(triangles: &[[u32; 3]], n: usize) -> VertexFaces {
+/// The faces around each of the `n` vertices of `triangles`.
+pub fn vertex_faces(triangles: &[[u32; 3]], n: usize) -> VertexFaces {
     let mut offsets = vec![0usize; n + 1];
     for t in triangles {
         for (k, &v) in t.iter().enumerate() {

@@ -1,7 +1,7 @@
 //! Pulls the extracted surface onto exact data it does not reach, where the
 //! grid cannot: the tip of a cone thinner than a cell, which the level set
 //! ends a few cells short of, and the apex of a narrow wedge (a fin meeting
-//! the body at 50°), which the flow leaves filled two or three cells deep.
+//! the body at about 55°), which the flow leaves filled two or three cells deep.
 //! Snapping ([`crate::refine`]) moves vertices onto data within a cell;
 //! these data have no vertex that near.
 //!
@@ -15,7 +15,7 @@
 use crate::refine::{collapsed, undo_degenerating_moves};
 use rayon::prelude::*;
 use surfrecon_geom::fairing::area_weighted_normals;
-use surfrecon_geom::metrics::TriangleBvh;
+use surfrecon_geom::metrics::{vertex_faces, TriangleBvh};
 use surfrecon_geom::normals::symmetric_eigen3;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, TriMesh};
@@ -52,25 +52,18 @@ const PULL_ROUNDS: usize = 3;
 /// Neighbours that decide whether a far datum belongs to a sampled surface.
 const NEIGHBOURS: usize = 8;
 
-/// Far data pulled onto, and vertices moved.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ReachStats {
-    pub pulled_to: usize,
-    pub moved: usize,
-}
-
 /// Move the vertices of `mesh` (grid spacing `spacing`) so that it reaches
 /// the far data of `points` that belong to a sampled surface, and the far
 /// points of `dropped` (those cleaning removed as strays) that tip a line
 /// of `points`: a thin cone's last sample lies farther from the rest than
 /// cleaning allows. Moves that would collapse or turn over a triangle are
-/// undone.
+/// undone. Returns the number of points pulled onto.
 pub fn reach_far_points(
     mesh: &mut TriMesh,
     points: &[DVec3],
     dropped: &[DVec3],
     spacing: f64,
-) -> ReachStats {
+) -> usize {
     let far = FAR_CELLS * spacing;
     let tree = KdTree::new(points);
     let distances = distances_to(mesh, points);
@@ -111,12 +104,8 @@ pub fn reach_far_points(
             collapsed(old, new) || (old.length() >= oriented && turned_over(old, new))
         })
     };
-    let on_tips = extend_to_tips(mesh, &tips, far, TIP_VERTEX_CELLS * spacing, oriented);
     // The pulls neither move the tips' vertices nor undo them.
-    let pinned: Vec<bool> = (mesh.vertices.iter().zip(&before))
-        .zip(&on_tips)
-        .map(|((a, b), &tip)| tip && a != b)
-        .collect();
+    let pinned = extend_to_tips(mesh, &tips, far, TIP_VERTEX_CELLS * spacing, oriented);
     let with_tips = mesh.vertices.clone();
     for _ in 0..PULL_ROUNDS {
         let (core, radius) = (PULL_CORE_CELLS * spacing, PULL_RADIUS_CELLS * spacing);
@@ -127,13 +116,7 @@ pub fn reach_far_points(
     }
     // Two tips on one position (duplicate samples) would weld two vertices.
     undo_degenerating_moves(mesh, &before, |_, _| false);
-    let moved = (mesh.vertices.iter().zip(&before))
-        .filter(|(a, b)| a != b)
-        .count();
-    ReachStats {
-        pulled_to: tips.len() + surface.len(),
-        moved,
-    }
+    tips.len() + surface.len()
 }
 
 /// Move, for each of `tips` farther than `far`, a vertex of the surface
@@ -143,7 +126,8 @@ pub fn reach_far_points(
 /// cone's last stretch, as thin as the cone there; pulling the whole end
 /// along with a falloff would stretch its many tiny triangles until some
 /// turned over. The farthest tip takes a vertex first (the samples before
-/// it on the same cone then lie along the new fan).
+/// it on the same cone then lie along the new fan). Returns which vertices
+/// moved onto a tip.
 fn extend_to_tips(
     mesh: &mut TriMesh,
     tips: &[DVec3],
@@ -153,7 +137,7 @@ fn extend_to_tips(
 ) -> Vec<bool> {
     let bvh = TriangleBvh::new(mesh);
     let vertex_tree = KdTree::new(&mesh.vertices);
-    let fans = vertex_fans(mesh);
+    let fans = vertex_faces(&mesh.triangles, mesh.vertices.len());
     let mut found: Vec<_> = (tips.iter())
         .filter_map(|&p| bvh.closest(p).filter(|c| c.distance > far).map(|c| (p, c)))
         .collect();
@@ -170,7 +154,7 @@ fn extend_to_tips(
             .collect();
         candidates.sort_by(|a, b| ahead(b).total_cmp(&ahead(a)));
         let movable = |v: usize| {
-            fans[v].iter().all(|&t| {
+            fans.of(v).iter().all(|&t| {
                 let area = |at: DVec3| {
                     let [a, b, c] = mesh.triangles[t as usize].map(|i| {
                         if i as usize == v {
@@ -191,17 +175,6 @@ fn extend_to_tips(
         }
     }
     taken
-}
-
-/// The triangles around each vertex.
-fn vertex_fans(mesh: &TriMesh) -> Vec<Vec<u32>> {
-    let mut fans = vec![Vec::new(); mesh.vertices.len()];
-    for (t, triangle) in mesh.triangles.iter().enumerate() {
-        for &v in triangle {
-            fans[v as usize].push(t as u32);
-        }
-    }
-    fans
 }
 
 /// Turned by more than about 100° (a cone's end cap, pulled out into its
@@ -423,8 +396,7 @@ mod tests {
         let tip = DVec3::new(1.33, 0.0, 0.0);
         let stray = DVec3::new(0.0, 0.0, -1.0 - 3.0 * H);
         points.extend(cone.iter().chain([&tip, &stray]));
-        let stats = reach_far_points(&mut mesh, &points, &[], H);
-        assert!(stats.pulled_to > 0);
+        assert!(reach_far_points(&mut mesh, &points, &[], H) > 0);
         let far = FAR_CELLS * H;
         assert!(distance(&mesh, tip) <= far, "tip {}", distance(&mesh, tip));
         let missed = cone

@@ -356,7 +356,7 @@ fn reconstruct_3d_centred(
             let reached = report.time("reach", || {
                 reach_far_points(&mut mesh, &input.points, &dropped, phi.spec().spacing)
             });
-            report.refine.reached_far_points = reached.pulled_to;
+            report.refine.reached_far_points = reached;
         }
     }
     Ok(Reconstruction3 {
