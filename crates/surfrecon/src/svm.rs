@@ -25,11 +25,10 @@ use surfrecon_svm::{FitOptions, SvmModel};
 pub const DEFAULT_RESOLUTION: usize = 200;
 
 /// Thin parts' tips up to this many mesh cells past the surface are
-/// reached. The fit ends a thin cone farther short of its tip than the
-/// level set does (8 cells): its finest kernels are wider than such a
-/// cone, whose last samples then sit inside the ε tube of nothing (harness
-/// spikes: 12 cells on the clean +x needle, 17 on the sparse −x cone of
-/// the non-uniform sample).
+/// reached. The fit ends a cone thinner than its finest kernels far
+/// shorter than the level set does (8 cells): its last samples sit inside
+/// the ε tube of nothing (harness spikes: 12 cells on the clean +x needle,
+/// 17 on the sparse −x cone of the non-uniform sample).
 const MAX_TIP_CELLS: f64 = 24.0;
 
 pub(crate) fn run(
