@@ -94,9 +94,7 @@ pub fn reach_far_points(
         .map(|(&i, _)| points[i])
         .collect();
     let surface: Vec<DVec3> = (candidates.iter().zip(&tipping))
-        .filter(|&(&i, &t)| {
-            !t && pullable(distances[i]) && sampled.on_missed_surface(points[i], i)
-        })
+        .filter(|&(&i, &t)| !t && pullable(distances[i]) && sampled.on_missed_surface(points[i], i))
         .map(|(&i, _)| points[i])
         .collect();
     let dropped_distances = distances_to(mesh, dropped);

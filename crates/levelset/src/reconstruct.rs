@@ -368,7 +368,6 @@ fn reconstruct_3d_centred(
     })
 }
 
-
 /// A stack of contour slices: the field interpolated between the slices'
 /// 2D reconstructions, and its zero set.
 fn reconstruct_stack(stack: &SliceStack, params: &ReconstructParams) -> Result<Reconstruction3> {
