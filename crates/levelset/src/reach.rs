@@ -427,6 +427,23 @@ mod tests {
     }
 
     #[test]
+    fn a_tip_beyond_the_level_sets_reach_is_reached_when_the_caller_allows() {
+        // On a grid of half the spacing the tip lies 13 cells out: beyond
+        // the level set's reach, within a caller's (the SVM's) wider one.
+        let h = H / 2.0;
+        let tip = DVec3::new(1.33, 0.0, 0.0);
+        let reached = |max_tip_cells: f64| {
+            let (mut mesh, mut points) = sphere(5);
+            points.extend(cone());
+            points.push(tip);
+            reach_far_points(&mut mesh, &points, &[], h, max_tip_cells);
+            distance(&mesh, tip) <= FAR_CELLS * h
+        };
+        assert!(!reached(MAX_PULL_CELLS));
+        assert!(reached(2.0 * MAX_PULL_CELLS));
+    }
+
+    #[test]
     fn a_tip_cleaning_dropped_is_reached_when_it_continues_its_line() {
         let (mut mesh, mut points) = sphere(4);
         points.extend(cone());
