@@ -97,6 +97,7 @@ pub(crate) fn run(
     }
     // Not for contour stacks: their samples between the contours are
     // guesses, and the contours' own ends are no thin parts' tips.
+    let reaching = Instant::now();
     let reached = match (&checked, contour_stack) {
         (Some(checked), None) if exact => reach_thin_parts(
             &mut kept.mesh,
@@ -106,6 +107,7 @@ pub(crate) fn run(
         ),
         _ => 0,
     };
+    mesh_seconds += reaching.elapsed().as_secs_f64();
     let normals_estimated =
         (o.model_in.is_none() && points.normals.is_none()).then_some(o.normal_k);
     let Surface {
