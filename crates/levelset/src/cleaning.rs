@@ -151,6 +151,17 @@ pub fn clean_points_with_normals(
     (cleaned, kept_normals, stats)
 }
 
+/// The points of `raw` that cleaning left out of `kept` (cleaning that
+/// does not project keeps the others' coordinates exactly).
+pub fn dropped_points(raw: &[DVec3], kept: &[DVec3]) -> Vec<DVec3> {
+    let bits = |p: &DVec3| p.to_array().map(f64::to_bits);
+    let kept: std::collections::HashSet<_> = kept.iter().map(bits).collect();
+    raw.iter()
+        .filter(|p| !kept.contains(&bits(p)))
+        .copied()
+        .collect()
+}
+
 /// Whether 3D `points` are noisy by the test cleaning decides by
 /// ([`noise_level`]): for methods that must treat noisy data apart.
 pub fn is_noisy(points: &[DVec3]) -> bool {

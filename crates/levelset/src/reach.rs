@@ -23,9 +23,10 @@ use surfrecon_geom::{DVec3, TriMesh};
 /// Data farther than this many cells from the surface are far.
 const FAR_CELLS: f64 = 0.5;
 
-/// Data farther than this many cells are left alone: no tip the grid ends
-/// short of lies that far out.
-const MAX_PULL_CELLS: f64 = 8.0;
+/// Data farther than this many cells are left alone: no tip the level
+/// set's grid ends short of lies that far out. The surface's pulls keep to
+/// it whatever the caller's reach for tips ([`reach_far_points`]).
+pub const MAX_PULL_CELLS: f64 = 8.0;
 
 /// A pull moves the surface within this many cells of the closest point.
 const PULL_RADIUS_CELLS: f64 = 1.5;
@@ -56,13 +57,18 @@ const NEIGHBOURS: usize = 8;
 /// the far data of `points` that belong to a sampled surface, and the far
 /// points of `dropped` (those cleaning removed as strays) that tip a line
 /// of `points`: a thin cone's last sample lies farther from the rest than
-/// cleaning allows. Moves that would collapse or turn over a triangle are
-/// undone. Returns the number of points pulled onto.
+/// cleaning allows. Tips up to `max_tip_cells` cells off the surface are
+/// reached ([`MAX_PULL_CELLS`] for the level set; a method whose surface
+/// ends farther short of thin tips may reach farther: the tip test, not
+/// the distance, tells a tip from a stray). Moves that would collapse or
+/// turn over a triangle are undone. Returns the number of points pulled
+/// onto.
 pub fn reach_far_points(
     mesh: &mut TriMesh,
     points: &[DVec3],
     dropped: &[DVec3],
     spacing: f64,
+    max_tip_cells: f64,
 ) -> usize {
     let far = FAR_CELLS * spacing;
     let tree = KdTree::new(points);
@@ -76,24 +82,25 @@ pub fn reach_far_points(
         spacing,
     };
     let pullable = |d: f64| d > far && d < MAX_PULL_CELLS * spacing;
+    let tip_reachable = |d: f64| d > far && d < max_tip_cells * spacing;
     let candidates: Vec<usize> = (0..points.len())
-        .filter(|&i| pullable(distances[i]))
+        .filter(|&i| pullable(distances[i]) || tip_reachable(distances[i]))
         .collect();
     let tipping: Vec<bool> = (candidates.par_iter())
-        .map(|&i| sampled.tips_a_line(points[i], Some(i)))
+        .map(|&i| tip_reachable(distances[i]) && sampled.tips_a_line(points[i], Some(i)))
         .collect();
     let mut tips: Vec<DVec3> = (candidates.iter().zip(&tipping))
         .filter(|&(_, &t)| t)
         .map(|(&i, _)| points[i])
         .collect();
     let surface: Vec<DVec3> = (candidates.iter().zip(&tipping))
-        .filter(|&(&i, &t)| !t && sampled.on_missed_surface(points[i], i))
+        .filter(|&(&i, &t)| !t && pullable(distances[i]) && sampled.on_missed_surface(points[i], i))
         .map(|(&i, _)| points[i])
         .collect();
     let dropped_distances = distances_to(mesh, dropped);
     tips.extend(
         (dropped.iter().zip(&dropped_distances))
-            .filter(|&(&p, &d)| pullable(d) && sampled.tips_a_line(p, None))
+            .filter(|&(&p, &d)| tip_reachable(d) && sampled.tips_a_line(p, None))
             .map(|(&p, _)| p),
     );
     let before = mesh.vertices.clone();
@@ -396,7 +403,7 @@ mod tests {
         let tip = DVec3::new(1.33, 0.0, 0.0);
         let stray = DVec3::new(0.0, 0.0, -1.0 - 3.0 * H);
         points.extend(cone.iter().chain([&tip, &stray]));
-        assert!(reach_far_points(&mut mesh, &points, &[], H) > 0);
+        assert!(reach_far_points(&mut mesh, &points, &[], H, MAX_PULL_CELLS) > 0);
         let far = FAR_CELLS * H;
         assert!(distance(&mesh, tip) <= far, "tip {}", distance(&mesh, tip));
         let missed = cone
@@ -420,12 +427,29 @@ mod tests {
     }
 
     #[test]
+    fn a_tip_beyond_the_level_sets_reach_is_reached_when_the_caller_allows() {
+        // On a grid of half the spacing the tip lies 13 cells out: beyond
+        // the level set's reach, within a caller's (the SVM's) wider one.
+        let h = H / 2.0;
+        let tip = DVec3::new(1.33, 0.0, 0.0);
+        let reached = |max_tip_cells: f64| {
+            let (mut mesh, mut points) = sphere(5);
+            points.extend(cone());
+            points.push(tip);
+            reach_far_points(&mut mesh, &points, &[], h, max_tip_cells);
+            distance(&mesh, tip) <= FAR_CELLS * h
+        };
+        assert!(!reached(MAX_PULL_CELLS));
+        assert!(reached(2.0 * MAX_PULL_CELLS));
+    }
+
+    #[test]
     fn a_tip_cleaning_dropped_is_reached_when_it_continues_its_line() {
         let (mut mesh, mut points) = sphere(4);
         points.extend(cone());
         // On the cone's line, and beside it (a stray cleaning dropped too).
         let dropped = [DVec3::new(1.33, 0.0, 0.0), DVec3::new(1.15, 0.2, 0.0)];
-        reach_far_points(&mut mesh, &points, &dropped, H);
+        reach_far_points(&mut mesh, &points, &dropped, H, MAX_PULL_CELLS);
         assert!(distance(&mesh, dropped[0]) <= FAR_CELLS * H);
         assert!(
             distance(&mesh, dropped[1]) > 2.0 * H,

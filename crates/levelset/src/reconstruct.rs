@@ -6,7 +6,7 @@
 use crate::anchors::{with_corners, DataCells, PointPlanes, TangentSides};
 use crate::band::{BandDistance, NarrowBand};
 use crate::centre;
-use crate::cleaning::{clean_points_with_normals, CleaningStats};
+use crate::cleaning::{clean_points_with_normals, dropped_points, CleaningStats};
 use crate::error::{LevelsetError, Result};
 use crate::flow::{evolve, Anchors, EvolveParams, EvolveStats, Motion};
 use crate::holes::seal_with_normals;
@@ -14,7 +14,7 @@ use crate::multires::{
     auto_levels, coarsen, grow_to_points, interpolate, reopen_near_buried, restore_near_missed,
     upsample_band,
 };
-use crate::reach::{reach_far_points, sampling_gap};
+use crate::reach::{reach_far_points, sampling_gap, MAX_PULL_CELLS};
 use crate::refine::{refine_surface, RefineOptions, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
 use crate::slices::{detect_slices, interpolate_slices, join_lost_parts, SliceStack};
@@ -354,7 +354,8 @@ fn reconstruct_3d_centred(
         if options.exact_points {
             let dropped = dropped_points(&raw.points, &input.points);
             let reached = report.time("reach", || {
-                reach_far_points(&mut mesh, &input.points, &dropped, phi.spec().spacing)
+                let spacing = phi.spec().spacing;
+                reach_far_points(&mut mesh, &input.points, &dropped, spacing, MAX_PULL_CELLS)
             });
             report.refine.reached_far_points = reached;
         }
@@ -365,17 +366,6 @@ fn reconstruct_3d_centred(
         field,
         report,
     })
-}
-
-/// The points of `raw` that cleaning left out of `kept` (cleaning that
-/// does not project keeps the others' coordinates exactly).
-fn dropped_points(raw: &[DVec3], kept: &[DVec3]) -> Vec<DVec3> {
-    let bits = |p: &DVec3| p.to_array().map(f64::to_bits);
-    let kept: std::collections::HashSet<_> = kept.iter().map(bits).collect();
-    raw.iter()
-        .filter(|p| !kept.contains(&bits(p)))
-        .copied()
-        .collect()
 }
 
 /// A stack of contour slices: the field interpolated between the slices'

@@ -286,6 +286,9 @@ pub struct SvmMeshReport {
     pub snapped: usize,
     /// Of the others, beside sharp edges, onto the nearest point's plane.
     pub snapped_to_planes: usize,
+    /// Points farther than half a cell from the surface pulled onto: thin
+    /// parts' tips the fit ends short of, and surface it misses.
+    pub reached_far_points: usize,
     pub vertices: usize,
     pub triangles: usize,
 }

@@ -13,7 +13,8 @@ use surfrecon_geom::normals::estimate_oriented_sheet_normals;
 use surfrecon_geom::progress::Hook;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, PointCloud, TriMesh};
-use surfrecon_levelset::cleaning::clean_points_with_normals;
+use surfrecon_levelset::cleaning::{clean_points_with_normals, dropped_points};
+use surfrecon_levelset::reach::reach_far_points;
 use surfrecon_levelset::refine::{refine_surface, RefineOptions, RefineStats};
 use surfrecon_svm::mesh::{mesh_model, MeshOptions, MeshReport};
 use surfrecon_svm::noise::estimate_noise_unoriented;
@@ -22,6 +23,13 @@ use surfrecon_svm::{FitOptions, SvmModel};
 
 /// Meshing resolution when none is given.
 pub const DEFAULT_RESOLUTION: usize = 200;
+
+/// Thin parts' tips up to this many mesh cells past the surface are
+/// reached. The fit ends a cone thinner than its finest kernels far
+/// shorter than the level set does (8 cells): its last samples sit inside
+/// the ε tube of nothing (harness spikes: 12 cells on the clean +x needle,
+/// 17 on the sparse −x cone of the non-uniform sample).
+const MAX_TIP_CELLS: f64 = 24.0;
 
 pub(crate) fn run(
     input: &Geometry,
@@ -43,12 +51,9 @@ pub(crate) fn run(
     // Only noisy points are used cleaned: dropping the few stray points of
     // clean data cut thin tips off (spikes: a cone's tip as a second
     // piece), and the fit keeps strays out by itself.
-    let cleaning = (o.cleaning && o.model_in.is_none())
-        .then(|| cleaned_if_noisy(input_points))
-        .flatten();
-    let points = cleaning
-        .as_ref()
-        .map_or(input_points, |(cleaned, _)| cleaned);
+    let checked = (o.cleaning && o.model_in.is_none()).then(|| checked(input_points));
+    let cleaning = checked.as_ref().and_then(Checked::noisy);
+    let points = cleaning.map_or(input_points, |(cleaned, _)| cleaned);
     // Smoothed points look less noisy than they were measured: the fit
     // keeps the raw points' noise as the floor of its finest width
     // (without it 1% noise gave handles or pieces on 4 of the 7 harness
@@ -65,7 +70,7 @@ pub(crate) fn run(
     // edges), instead of staying on the smooth kernel sum. Not for smoothed
     // points (0.25% noise: 4% worse), points not checked (`--no-cleaning`)
     // nor a loaded model's mesh.
-    let exact = o.cleaning && o.model_in.is_none() && cleaning.is_none();
+    let exact = checked.is_some() && cleaning.is_none();
     let settings = SurfaceSettings {
         o,
         by,
@@ -88,8 +93,21 @@ pub(crate) fn run(
             .map_err(|e| e.within(&format!("cannot write model {}", path.display())))?;
     }
     if let SvmFit::Fitted(fit) = &mut kept.fit {
-        fit.cleaning = cleaning.as_ref().map(|(_, report)| *report);
+        fit.cleaning = cleaning.map(|(_, report)| *report);
     }
+    // Not for contour stacks: their samples between the contours are
+    // guesses, and the contours' own ends are no thin parts' tips.
+    let reaching = Instant::now();
+    let reached = match (&checked, contour_stack) {
+        (Some(checked), None) if exact => reach_thin_parts(
+            &mut kept.mesh,
+            &checked.kept.positions,
+            &input_points.positions,
+            kept.meshing.spacing,
+        ),
+        _ => 0,
+    };
+    mesh_seconds += reaching.elapsed().as_secs_f64();
     let normals_estimated =
         (o.model_in.is_none() && points.normals.is_none()).then_some(o.normal_k);
     let Surface {
@@ -120,6 +138,7 @@ pub(crate) fn run(
             thin_samples_reached: m.thin_samples_reached,
             snapped: refined.map_or(0, |r| r.snapped),
             snapped_to_planes: refined.map_or(0, |r| r.snapped_to_planes),
+            reached_far_points: reached,
             vertices: mesh.vertices.len(),
             triangles: mesh.triangles.len(),
         },
@@ -350,25 +369,52 @@ fn fit_model(
     Ok((model, fit))
 }
 
-/// Noisy points with outliers removed and noise smoothed as the level set
-/// cleans them (along their normals, if given, each keeping its input
-/// point's normal); `None` for points the cleaning finds not noisy. The
-/// fit's own noise estimate sees one scan's smoothness, not the
-/// misregistration between overlapping scans, which it then follows
-/// within ε (the ten merged raw bunny scans: CD-L1 8.6e-5 as given,
-/// 6.5e-5 cleaned).
-fn cleaned_if_noisy(points: &PointCloud) -> Option<(PointCloud, CleaningReport)> {
+/// The input as the level set's cleaning finds it: its outliers dropped
+/// and, if it is noisy, its noise smoothed (along the normals, if given,
+/// each kept point keeping its input point's normal).
+struct Checked {
+    kept: PointCloud,
+    report: CleaningReport,
+}
+
+impl Checked {
+    /// The cleaned points, for points the cleaning finds noisy: the fit's
+    /// own noise estimate sees one scan's smoothness, not the
+    /// misregistration between overlapping scans, which it then follows
+    /// within ε (the ten merged raw bunny scans: CD-L1 8.6e-5 as given,
+    /// 6.5e-5 cleaned).
+    fn noisy(&self) -> Option<(&PointCloud, &CleaningReport)> {
+        (self.report.projected > 0).then_some((&self.kept, &self.report))
+    }
+}
+
+/// `points` through the level set's cleaning (see [`Checked`]).
+fn checked(points: &PointCloud) -> Checked {
     let given = points.normals.as_deref().unwrap_or(&[]);
     let (positions, normals, stats) = clean_points_with_normals(&points.positions, given, 3);
-    if stats.projected == 0 {
-        return None;
-    }
-    let cleaned = PointCloud {
+    let kept = PointCloud {
         positions,
         normals: points.normals.is_some().then_some(normals),
         scalars: None,
     };
-    Some((cleaned, CleaningReport::from(&stats)))
+    Checked {
+        kept,
+        report: CleaningReport::from(&stats),
+    }
+}
+
+/// Pull the refined `mesh` (grid spacing `spacing`) onto the exact data
+/// it ends short of (see [`reach_far_points`]): the tips of thin parts
+/// and surface it misses. Only the `inliers` the cleaning kept may pull
+/// the surface: the fit keeps stray points in its training set (their
+/// bounded weights leave them no blob of their own) and they would pull
+/// the surface towards them (harness outliers: two_torus 7% worse). The
+/// points of `all` it dropped may still be a line's tip (a thin cone's
+/// last sample lies farther from the rest than cleaning allows). Returns
+/// the number of points reached.
+fn reach_thin_parts(mesh: &mut TriMesh, inliers: &[DVec3], all: &[DVec3], spacing: f64) -> usize {
+    let dropped = dropped_points(all, inliers);
+    reach_far_points(mesh, inliers, &dropped, spacing, MAX_TIP_CELLS)
 }
 
 /// The input's normals, or normals estimated from `k` neighbours (on

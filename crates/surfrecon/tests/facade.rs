@@ -282,6 +282,72 @@ fn svm_smooths_noisy_points_along_their_normals_up_to_the_edges() {
     assert!(mean < 0.0032, "mean distance {mean} to the box");
 }
 
+/// A unit sphere's samples (8000 drawn, with normals) and a needle along
+/// +x sampled at the same density: a cone of radius 0.032 where it leaves
+/// the sphere, 1.2 long (the harness spikes' thinnest), its samples drawn
+/// by area, so they thin out linearly towards the tip.
+fn sphere_with_needle() -> surfrecon::geom::PointCloud {
+    let (start, length, radius) = (1.0, 1.2, 0.032);
+    let in_needle = |p: &DVec3| {
+        let t = (p.x - start) / length;
+        p.x > 0.9 && DVec3::new(0.0, p.y, p.z).length() < radius * (1.0 - t.max(0.0))
+    };
+    let sphere = sample_surface(&icosphere(DVec3::ZERO, RADIUS, 5), 8000, 5);
+    let sphere_normals = sphere.normals.unwrap();
+    let (mut positions, mut normals): (Vec<DVec3>, Vec<DVec3>) = (sphere.positions.iter())
+        .zip(&sphere_normals)
+        .filter(|(p, _)| !in_needle(p))
+        .unzip();
+    let lateral_area = std::f64::consts::PI * radius * length;
+    let count = (lateral_area * 8000.0 / (4.0 * std::f64::consts::PI)) as usize;
+    // Uniform in [0, 1), reproducible.
+    let uniform = |i: usize| ((i as f64 * 12.9898).sin() * 43_758.545).fract().abs();
+    for k in 0..count {
+        // Area falls linearly to the tip: t = 1 − √s for uniform s.
+        let t = 1.0 - uniform(2 * k + 1).sqrt();
+        let (sin, cos) = (std::f64::consts::TAU * uniform(2 * k + 2)).sin_cos();
+        let r = radius * (1.0 - t);
+        positions.push(DVec3::new(start + length * t, r * cos, r * sin));
+        normals.push(DVec3::new(radius / length, cos, sin).normalize());
+    }
+    surfrecon::geom::PointCloud {
+        positions,
+        normals: Some(normals),
+        scalars: None,
+    }
+}
+
+#[test]
+fn svm_reaches_a_needle_to_its_tip() {
+    // The fit ends a cone thinner than a mesh cell 0.73 short of its tip
+    // (the tip sample 17.4% of the diagonal, 23.6 cells, off the surface
+    // without the reach step); the level set's reach step pulls the
+    // refined mesh onto the tip and the samples before it.
+    let cloud = sphere_with_needle();
+    let options = Options {
+        resolution: Some(100),
+        data_fit: true,
+        ..Options::with_method(Method::Svm(SvmOptions::default()))
+    };
+    let out = reconstruct(&Geometry::from_points(cloud), &options).unwrap();
+    let t = topology(&out.mesh);
+    assert!(
+        t.watertight && t.edge_manifold && t.vertex_manifold,
+        "{t:?}"
+    );
+    assert_eq!((t.components, t.euler), (1, 2), "{t:?}");
+    let json = serde_json::to_value(&out.report).unwrap();
+    // Issue #15: every input point within 0.5% of the diagonal.
+    let fit = &json["data_fit"];
+    let farthest = fit["max"].as_f64().unwrap();
+    assert!(
+        farthest <= 0.005,
+        "a sample {farthest} of the diagonal off, at {}",
+        fit["farthest"]
+    );
+    assert!(json["svm"]["mesh"]["reached_far_points"].as_u64().unwrap() > 0);
+}
+
 #[test]
 fn svm_mesh_of_contour_slices_stays_manifold_after_welding() {
     // The refinement snapped vertices between sparse slices onto the same
