@@ -18,7 +18,7 @@ use crate::offset::node_position;
 use crate::query::{lattice_points, MeshQuery};
 use crate::unified::{farthest_from, local_surface, UnifiedField};
 use rayon::prelude::*;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use surfrecon_geom::{DVec3, TriMesh};
 
 /// A sharp edge of a tool: a box's edge, or a cylinder's cap rim.
@@ -205,6 +205,10 @@ struct LocalError {
 /// excess.
 const EXCESS_FLOOR: f64 = 0.1;
 
+/// Cells (per axis) from a cell whose crop [`local_error`] extracts: a
+/// point kept in one changes the error measured around the others.
+const CROP_REACH: usize = 4;
+
 /// Lattice points per triangle side for the surface's points.
 const SURFACE_LATTICE: usize = 4;
 
@@ -372,6 +376,8 @@ pub(super) fn add_further_points(
     let spec = field.spec;
     let h = spec.spacing;
     let mut kept = 0;
+    // Each cell's error before an offer, until a point kept nearby.
+    let mut errors: HashMap<usize, Option<LocalError>> = HashMap::new();
     let region: BTreeSet<usize> = (groups.iter().flatten())
         .flat_map(|&(c, _)| crate::refine::block(&spec, c, 1))
         .collect();
@@ -393,7 +399,10 @@ pub(super) fn add_further_points(
         }
         let mut best: Option<(f64, usize, DVec3)> = None;
         for &(c, p) in &group {
-            let Some(before) = local_error(field, combined, c, &reference) else {
+            let measured = *errors
+                .entry(c)
+                .or_insert_with(|| local_error(field, combined, c, &reference));
+            let Some(before) = measured else {
                 continue;
             };
             let key = c as u32;
@@ -409,6 +418,12 @@ pub(super) fn add_further_points(
         if let Some((_, c, p)) = best {
             field.cell_points.entry(c as u32).or_default().push(p);
             kept += 1;
+            // The errors measured on crops that hold the cell are stale.
+            let at = spec.unlinear(c);
+            errors.retain(|&d, _| {
+                let other = spec.unlinear(d);
+                (0..3).any(|a| at[a].abs_diff(other[a]) > CROP_REACH)
+            });
         }
     }
     kept
