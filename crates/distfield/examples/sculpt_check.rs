@@ -48,11 +48,12 @@ fn main() {
     let there = deviation(&out, &to_ref, 16);
     let back = deviation(&reference, &to_out, 16);
     println!(
-        "{}: sculpt {seconds:.2} s, repaired {}, thin {}, settled {}, out->ref max {:.3} h mean {:.4} h at {:.3}; ref->out max {:.3} h mean {:.4} h at {:.3}",
+        "{}: sculpt {seconds:.2} s, repaired {}, thin {}, settled {}, further {}, out->ref max {:.3} h mean {:.4} h at {:.3}; ref->out max {:.3} h mean {:.4} h at {:.3}",
         args[1],
         report.repaired,
         report.thin,
         report.settled,
+        report.further,
         there.max / h,
         there.mean / h,
         there.worst,

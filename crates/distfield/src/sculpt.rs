@@ -34,6 +34,8 @@ use surfrecon_grid::marching::{cell_case, crossing_fraction};
 use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_grid::{Field3, GridSpec};
 
+mod further;
+
 /// How a tool combines with the field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Operation {
@@ -177,6 +179,10 @@ pub struct SculptReport {
     /// Samples given the value that makes the interpolated crossing on an
     /// edge from a sample floating in a thin wall exact (UDF).
     pub straightened: usize,
+    /// Further feature points kept beside a cell's own (UDF): corners
+    /// where the tool's own edges cross the object, and old edges' points
+    /// a cell's point on the new edge displaced.
+    pub further: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -376,6 +382,10 @@ pub fn sculpt_udf(
     let mut corners = new_corners(&surface, &features, tool);
     let spec = field.spec;
     let h = spec.spacing;
+    // Where the tool's own edges cross the object: corners of the result
+    // offered as further points at the end.
+    let rim_corners = further::tool_corners(tool, &combined.object, h);
+    let all_corners: Vec<DVec3> = corners.iter().chain(&rim_corners).copied().collect();
     let old_features = cells_with_features(&surface, &features, &spec, |_| true);
     let (changed, mut cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
     // Old directed distances of changed samples no longer describe the
@@ -539,17 +549,33 @@ pub fn sculpt_udf(
     // The old edges' points go back to cells the new edges and corners
     // left without one (a cell's one point keeps the new corner first).
     let taken: BTreeSet<usize> = field.feature_points().into_keys().collect();
+    let mut displaced = Vec::new();
     for (c, p) in unhoused {
         match storage_for(field, c, p).filter(|_| !taken.contains(&c)) {
             Some(n) => {
                 field.extras.insert(n, Extra::FeaturePoint(p));
             }
-            None => report.dropped += 1,
+            None => {
+                report.dropped += 1;
+                displaced.push(p);
+            }
         }
     }
     report.turned = choose_sides(field, &combined, &snapped, &old_features, &corners);
     report.repicked = repick(field, &combined, &cells, &old_features, &corners);
     report.repaired = repair(field, &combined, &surface, &cells, &old_features, &corners);
+    // One or two points per cell leave corners and edges that only a
+    // further point keeps: the tool's own edges first, then the old
+    // edges' points (which may help only once the rim is kept).
+    let offered = further::offers(field, &combined, &rim_corners, &displaced);
+    report.further = further::add_further_points(
+        field,
+        &combined,
+        &surface,
+        &offered,
+        &old_features,
+        &all_corners,
+    );
     Ok(report)
 }
 

@@ -916,6 +916,36 @@ fn sculpting_fandisk_cuts_a_hole_under_a_pocket_without_a_handle() {
     );
 }
 
+/// Sculpting itself offers the points one point per cell cannot keep:
+/// where fandisk − the cylinder's cap rim runs 0.33 h under the pocket's
+/// floor, the rim cells' points keep the floor's concave edge, and their
+/// table triangles cut the rim. Points on the rim (and the concave edge's
+/// old points) become further points of those cells, and the field is
+/// written as `.udf` version 2 and read back equal.
+#[test]
+fn sculpting_keeps_a_rim_under_a_roof_with_further_points() {
+    use surfrecon_distfield::format::{read_udf, write_udf};
+    let (udf, report) = fandisk_minus_cylinder_field(4);
+    let h = udf.spec.spacing;
+    let (mesh, _) = udf.extract();
+    assert_closed_manifold(&mesh, 2);
+    assert!(report.further > 0 && !udf.cell_points.is_empty());
+    assert_eq!(
+        report.further,
+        udf.cell_points.values().map(Vec::len).sum::<usize>()
+    );
+    let cap = cap_error(&mesh, h);
+    // (one point per cell: 0.2225 h, at the rim under the concave edge)
+    assert!(cap < 0.15, "the cap lies {cap} h from the surface");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cut.udf");
+    write_udf(&path, &udf).unwrap();
+    assert_eq!(&std::fs::read(&path).unwrap()[..8], b"SRUDF\0\0\x02");
+    let back = read_udf(&path).unwrap();
+    assert_eq!(back, udf);
+    assert_eq!(back.extract().0.vertices, mesh.vertices);
+}
+
 /// What [`fandisk_minus_cylinder`] measures.
 struct CylinderCut {
     mesh: TriMesh,
@@ -1204,6 +1234,8 @@ fn further_points_keep_a_corner_and_an_edge_one_point_per_cell_cuts() {
     use surfrecon_distfield::features::cell_of;
     use surfrecon_distfield::format::{read_udf, write_udf};
     let (mut udf, _) = fandisk_minus_cylinder_field(4);
+    // One point per cell, as sculpting keeps without further points.
+    udf.cell_points.clear();
     let spec = udf.spec;
     let h = spec.spacing;
     let (one, _) = udf.extract();

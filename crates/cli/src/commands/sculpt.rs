@@ -59,6 +59,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "samples_moved_into_thin_walls": r.thin,
             "samples_raised_to_settle_faces": r.settled,
             "samples_set_to_straighten_floating_edges": r.straightened,
+            "further_feature_points": r.further,
         }));
     }
     field.write(&args.output)?;
