@@ -3,7 +3,7 @@
 
 use surfrecon_distfield::grid_for;
 use surfrecon_distfield::query::{deviation, lattice_points, MeshQuery};
-use surfrecon_distfield::unified::{build_udf, UdfOptions};
+use surfrecon_distfield::unified::{build_udf, UdfOptions, UnifiedField};
 use surfrecon_geom::metrics::topology;
 use surfrecon_geom::shapes::cuboid;
 use surfrecon_geom::{DVec3, TriMesh};
@@ -924,7 +924,6 @@ fn sculpting_fandisk_cuts_a_hole_under_a_pocket_without_a_handle() {
 /// written as `.udf` version 2 and read back equal.
 #[test]
 fn sculpting_keeps_a_rim_under_a_roof_with_further_points() {
-    use surfrecon_distfield::format::{read_udf, write_udf};
     let (udf, report) = fandisk_minus_cylinder_field(4);
     let h = udf.spec.spacing;
     let (mesh, _) = udf.extract();
@@ -938,11 +937,17 @@ fn sculpting_keeps_a_rim_under_a_roof_with_further_points() {
     // (one point per cell: 0.2225 h, at the rim under the concave edge)
     assert!(cap < 0.15, "the cap lies {cap} h from the surface");
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("cut.udf");
-    write_udf(&path, &udf).unwrap();
-    assert_eq!(&std::fs::read(&path).unwrap()[..8], b"SRUDF\0\0\x02");
-    let back = read_udf(&path).unwrap();
-    assert_eq!(back, udf);
+    written_as_version_2(&udf, &mesh, &dir.path().join("cut.udf"));
+}
+
+/// Write `udf` to `path`: a version 2 file that reads back equal and
+/// extracts `mesh`'s vertices again.
+fn written_as_version_2(udf: &UnifiedField, mesh: &TriMesh, path: &std::path::Path) {
+    use surfrecon_distfield::format::{read_udf, write_udf};
+    write_udf(path, udf).unwrap();
+    assert_eq!(&std::fs::read(path).unwrap()[..8], b"SRUDF\0\0\x02");
+    let back = read_udf(path).unwrap();
+    assert_eq!(&back, udf);
     assert_eq!(back.extract().0.vertices, mesh.vertices);
 }
 
@@ -1258,11 +1263,7 @@ fn further_points_keep_a_corner_and_an_edge_one_point_per_cell_cuts() {
     assert!(before > 0.2 && after < 0.15, "{before} h -> {after} h");
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cut.udf");
-    write_udf(&path, &udf).unwrap();
-    assert_eq!(&std::fs::read(&path).unwrap()[..8], b"SRUDF\0\0\x02");
-    let back = read_udf(&path).unwrap();
-    assert_eq!(back, udf);
-    assert_eq!(back.extract().0.vertices, both.vertices);
+    written_as_version_2(&udf, &both, &path);
     // Cut anywhere in its further points (or their count), it is refused.
     let bytes = std::fs::read(&path).unwrap();
     let cut = dir.path().join("cut.udf");

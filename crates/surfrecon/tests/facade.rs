@@ -20,14 +20,20 @@ fn sphere_points(n: usize, normals: bool) -> Geometry {
     Geometry::from_points(cloud)
 }
 
-/// Closed, manifold, genus 0, and every vertex within `tol` of the sphere.
-fn assert_sphere(mesh: &surfrecon::Mesh, tol: f64) {
+/// Closed and manifold (also at its vertices), with `expected`
+/// (components, Euler characteristic).
+fn assert_closed(mesh: &surfrecon::Mesh, expected: (usize, i64)) {
     let t = topology(mesh);
     assert!(
         t.watertight && t.edge_manifold && t.vertex_manifold,
         "{t:?}"
     );
-    assert_eq!((t.components, t.euler), (1, 2), "{t:?}");
+    assert_eq!((t.components, t.euler), expected, "{t:?}");
+}
+
+/// Closed, manifold, genus 0, and every vertex within `tol` of the sphere.
+fn assert_sphere(mesh: &surfrecon::Mesh, tol: f64) {
+    assert_closed(mesh, (1, 2));
     let worst = mesh
         .vertices
         .iter()
@@ -264,12 +270,7 @@ fn svm_smooths_noisy_points_along_their_normals_up_to_the_edges() {
         ..Options::with_method(Method::Svm(SvmOptions::default()))
     };
     let out = reconstruct(&Geometry::from_points(cloud), &options).unwrap();
-    let t = topology(&out.mesh);
-    assert!(
-        t.watertight && t.edge_manifold && t.vertex_manifold,
-        "{t:?}"
-    );
-    assert_eq!((t.components, t.euler), (1, 2), "{t:?}");
+    assert_closed(&out.mesh, (1, 2));
     let off_box = |v: DVec3| {
         let q = (turn.inverse() * v).abs() - half;
         let outside = q.max(DVec3::ZERO).length();
@@ -330,12 +331,7 @@ fn svm_reaches_a_needle_to_its_tip() {
         ..Options::with_method(Method::Svm(SvmOptions::default()))
     };
     let out = reconstruct(&Geometry::from_points(cloud), &options).unwrap();
-    let t = topology(&out.mesh);
-    assert!(
-        t.watertight && t.edge_manifold && t.vertex_manifold,
-        "{t:?}"
-    );
-    assert_eq!((t.components, t.euler), (1, 2), "{t:?}");
+    assert_closed(&out.mesh, (1, 2));
     let json = serde_json::to_value(&out.report).unwrap();
     // Issue #15: every input point within 0.5% of the diagonal.
     let fit = &json["data_fit"];
