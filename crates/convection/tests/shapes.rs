@@ -41,8 +41,8 @@ fn assert_closed_genus(r: &Reconstruction, points: usize, genus: i64) {
     eprintln!("{:?}\n{:?}", r.report, topo);
     assert_eq!(
         r.mesh.vertices.len(),
-        points,
-        "vertices are the input points"
+        points + r.report.curved_edges_split,
+        "vertices are the input points, then those on curved edges"
     );
     assert!(topo.watertight && topo.vertex_manifold, "{topo:?}");
     assert_eq!(topo.components, 1);
@@ -569,4 +569,83 @@ fn sparse_fin_stays_one_piece_when_decimated() {
             assert_closed_genus(&r, points.len(), 0);
         }
     }
+}
+
+/// Mean distance to the unit sphere of points spread evenly over `mesh`.
+fn mean_distance_to_unit_sphere(mesh: &TriMesh) -> f64 {
+    let samples = sample_surface(mesh, 20_000, 9).positions;
+    samples.iter().map(|p| (p.length() - 1.0).abs()).sum::<f64>() / samples.len() as f64
+}
+
+/// A sparsely sampled sphere: flat triangles cut across the surface by
+/// their sagitta; split curved edges put new vertices on it, so the mesh
+/// lies several times closer while it stays a closed sphere through every
+/// input point (the first vertices).
+#[test]
+fn curved_splits_bring_a_sparse_sphere_closer() {
+    let truth = icosphere(DVec3::ZERO, 1.0, 5);
+    let points = sample_surface(&truth, 600, 5).positions;
+    let flat = reconstruct(
+        &points,
+        None,
+        &Params {
+            split_curved_edges: false,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    let curved = run(&points);
+    assert_closed_genus(&curved, points.len(), 0);
+    assert_eq!(&curved.mesh.vertices[..points.len()], &points[..]);
+    let (before, after) = (
+        mean_distance_to_unit_sphere(&flat.mesh),
+        mean_distance_to_unit_sphere(&curved.mesh),
+    );
+    eprintln!(
+        "{} new vertices; mean distance to the sphere {before:.2e} -> {after:.2e}",
+        curved.report.curved_edges_split
+    );
+    assert!(after * 3.0 < before, "{before:.2e} -> {after:.2e}");
+}
+
+/// Sharp edges are not rounded: on a sampled (turned) box, every vertex
+/// the splits add lies on the box (its faces are flat, and the edges
+/// where they meet at 90° are never split), and no more faces leave it
+/// than without the splits.
+#[test]
+fn curved_splits_keep_a_box_sharp() {
+    let half = DVec3::new(1.0, 0.7, 0.5);
+    let mut solid = surfrecon_geom::shapes::cuboid(-half, half);
+    for v in &mut solid.vertices {
+        *v = turn(*v);
+    }
+    let points = sample_surface(&solid, 8000, 4).positions;
+    let flat = reconstruct(
+        &points,
+        None,
+        &Params {
+            split_curved_edges: false,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    let curved = run(&points);
+    assert_closed_genus(&curved, points.len(), 0);
+    let diagonal = 2.0 * half.length();
+    let farthest = curved.mesh.vertices[points.len()..]
+        .iter()
+        .map(|&v| box_distances(unturn(v), half).0)
+        .fold(0.0, f64::max);
+    eprintln!(
+        "{} new vertices, farthest {:.2e} of the diagonal off the box",
+        curved.report.curved_edges_split,
+        farthest / diagonal
+    );
+    assert!(farthest < 1e-4 * diagonal, "{farthest}");
+    let off = |m: &TriMesh| {
+        let centroid = |t: &[u32; 3]| unturn(t.iter().map(|&v| m.vertices[v as usize]).sum::<DVec3>() / 3.0);
+        let far = |t: &&[u32; 3]| box_distances(centroid(t), half).0 > 1e-3 * diagonal;
+        m.triangles.iter().filter(far).count()
+    };
+    assert!(off(&curved.mesh) <= off(&flat.mesh));
 }
