@@ -276,7 +276,10 @@ mod tests {
             let mid = (a + b) * 0.5 + hermite_bulge(a, b, na, -nb);
             let chord_error = 1.0 - half.cos();
             let error = (mid.length() - 1.0).abs();
-            assert!(error < 0.06 * chord_error, "{degrees}°: {error} vs chord {chord_error}");
+            assert!(
+                error < 0.06 * chord_error,
+                "{degrees}°: {error} vs chord {chord_error}"
+            );
         }
     }
 
@@ -314,7 +317,9 @@ mod tests {
         }
         // Spoke middles (the new points nearer the centre than the rim's
         // middles) bulge upwards, above their chords.
-        let spokes = cap.vertices[7..].iter().filter(|v| v.truncate().length() < 0.7);
+        let spokes = cap.vertices[7..]
+            .iter()
+            .filter(|v| v.truncate().length() < 0.7);
         assert_eq!(spokes.clone().count(), 6);
         for v in spokes {
             assert!(v.z > -0.2 * v.truncate().length() + 0.01, "{v}");

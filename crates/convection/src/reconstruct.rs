@@ -1,9 +1,9 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
+use crate::curved::split_curved_edges;
 use crate::decimate::{decimate, Brush, Decimation};
 use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
-use crate::curved::split_curved_edges;
 use crate::flips::flip_to_lower_bending;
 use crate::front::{FrontStart, FrontStats};
 use crate::holes::{open_sampling_holes, HoleRule};
