@@ -25,10 +25,11 @@
 //! normals agree within the same angle. Flat parts, where all normals
 //! agree, get no bulge. Then the
 //! new point must leave the chord by more than [`MIN_BULGE`] of the
-//! median edge length (flat parts and densely sampled ones gain nothing
-//! from more faces). Deterministic: edges in the order of their vertex
+//! median edge length and [`MIN_BULGE_OF_DIAGONAL`] of the diagonal
+//! (flat parts and densely sampled ones gain nothing from more faces). Deterministic: edges in the order of their vertex
 //! numbers.
 
+use rayon::slice::ParallelSliceMut;
 use surfrecon_geom::{DVec3, TriMesh};
 
 /// Largest angle between the normals around an edge that is still split:
@@ -40,6 +41,13 @@ pub const MAX_TURN_DEGREES: f64 = 20.0;
 /// Smallest distance of the new point from the edge's midpoint, as a
 /// fraction of the median edge length, for the edge to be split.
 pub const MIN_BULGE: f64 = 0.005;
+
+/// ... and as a fraction of the bounding box's diagonal. Dense samples
+/// turn by as much per edge as sparse ones where they follow a faceted
+/// surface (the Dragon-scale bunny: 322k of 437k points would get a new
+/// neighbour, Chamfer 0.0897 → 0.0883 ‰); above this floor 88k do
+/// (0.0887 ‰). At 20k points no edge the relative test passes is below it.
+pub const MIN_BULGE_OF_DIAGONAL: f64 = 2e-5;
 
 /// No new vertex on this side of a face.
 const NONE: u32 = u32::MAX;
@@ -55,6 +63,7 @@ pub fn split_curved_edges(mesh: &mut TriMesh) -> usize {
     let sides = sorted_sides(&mesh.triangles);
     let groups = edge_groups(&sides);
     let median = median_edge_length(&mesh.vertices, &sides, &groups);
+    let min_bulge = (MIN_BULGE * median).max(MIN_BULGE_OF_DIAGONAL * mesh.bounds().diagonal());
     let max_turn = MAX_TURN_DEGREES.to_radians().cos();
     let smooth = beside_smooth_vertices(
         &mesh.triangles,
@@ -74,7 +83,7 @@ pub fn split_curved_edges(mesh: &mut TriMesh) -> usize {
         }
         let (pa, pb) = (mesh.vertices[a], mesh.vertices[b]);
         let bulge = hermite_bulge(pa, pb, normals[a], normals[b]);
-        if !(bulge.length() > MIN_BULGE * median) {
+        if !(bulge.length() > min_bulge) {
             continue;
         }
         let index = mesh.vertices.len() as u32;
@@ -118,7 +127,9 @@ fn sorted_sides(triangles: &[[u32; 3]]) -> Vec<Side> {
             });
         }
     }
-    sides.sort_unstable();
+    // Distinct keys (each face side once): the order is unique, so the
+    // parallel sort is as deterministic as a sequential one.
+    sides.par_sort_unstable();
     sides
 }
 
