@@ -65,6 +65,7 @@ def reconstruct(
     open_holes: bool = False,
     no_edge_flips: bool = False,
     on_the_fly: bool = False,
+    no_curved_splits: bool = False,
 ) -> Union[Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]],
            Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], Dict[str, Any]]]:
     """Reconstruct a closed surface; (V, F), or (V, F, report) with report=True.

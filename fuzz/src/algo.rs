@@ -203,6 +203,7 @@ fn convection_options(u: &mut Unstructured) -> Result<surfrecon::ConvectionOptio
         refine_gamma: pick_f64(u, &[d.refine_gamma, 0.5, -1.0])?,
         open_holes: u.arbitrary()?,
         edge_flips: u.arbitrary()?,
+        split_curved_edges: u.arbitrary()?,
     })
 }
 

@@ -19,7 +19,10 @@
 //!    so the mesh is manifold, optionally short holes are closed; the
 //!    boundary edges left are reported; then ([`flips`]) edges are flipped
 //!    across Delaunay tetrahedra where that lowers the surface's bending
-//!    (bevels across sharp edges go, the vertices stay the points).
+//!    (bevels across sharp edges go, the vertices stay the points);
+//!    finally ([`curved`]) edges where the smooth surface bends away from
+//!    its chords get a new vertex on a cubic curve from the vertex
+//!    normals (not across sharp edges, not with decimation).
 //!
 //! 5. thin parts ([`thin`]): the paper's 2D convection over the sheets of
 //!    coupled facets keeps the sheets of parts thinner than the sampling
@@ -54,6 +57,7 @@
 //! the dynamic update itself; the front's decimation as the default (it
 //! costs several times the input-order pass at scale, see BENCHMARKS.md).
 
+pub mod curved;
 pub mod decimate;
 pub mod dynamic;
 mod error;

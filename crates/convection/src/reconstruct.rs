@@ -1,5 +1,6 @@
 //! The reconstruction pipeline: Delaunay, convection, pockets, mesh.
 
+use crate::curved::split_curved_edges;
 use crate::decimate::{decimate, Brush, Decimation};
 use crate::dynamic::DynamicSurface;
 use crate::error::{ConvectionError, Result};
@@ -75,6 +76,12 @@ pub struct Params {
     /// tetrahedra only (see [`crate::flips`]): bevels across sharp edges
     /// and uneven sampling's zig-zags go; the vertices stay the points.
     pub edge_flips: bool,
+    /// Split edges where the smooth surface bends away from them, with new
+    /// vertices on a cubic curve from the vertex normals (see
+    /// [`crate::curved`]); never across sharp edges. The input points stay
+    /// the first vertices; the new ones follow. Not with decimation (`rho`
+    /// asks for fewer vertices).
+    pub split_curved_edges: bool,
 }
 
 impl Default for Params {
@@ -95,6 +102,7 @@ impl Default for Params {
             refine_gamma: 0.0,
             open_holes: None,
             edge_flips: true,
+            split_curved_edges: true,
         }
     }
 }
@@ -118,6 +126,8 @@ pub struct Timings {
     pub output: f64,
     /// The edge flips (part of `output`).
     pub flips: f64,
+    /// The curved edges' splits (after `output`).
+    pub curved_splits: f64,
 }
 
 /// Counts of one reconstruction.
@@ -168,6 +178,9 @@ pub struct Report {
     pub nonmanifold_faces_removed: usize,
     /// Edges flipped to lower the bending (`Params::edge_flips`).
     pub edge_flips: usize,
+    /// Edges split where the surface bends (`Params::split_curved_edges`):
+    /// the vertices added after the input points.
+    pub curved_edges_split: usize,
     /// Short boundary loops closed by ear clipping.
     pub holes_filled: usize,
     /// Holes in the sampling left open (`open_holes`), and the faces
@@ -184,7 +197,8 @@ pub struct Report {
 #[derive(Clone, Debug)]
 pub struct Reconstruction {
     /// Vertices are the input points, by input index (also those no face
-    /// uses); faces are oriented outward.
+    /// uses), then the points added on curved edges
+    /// (`Report::curved_edges_split`); faces are oriented outward.
     pub mesh: TriMesh,
     pub report: Report,
 }
@@ -195,6 +209,30 @@ pub struct Reconstruction {
 /// (fewer than 4, coplanar, collinear, non-finite) or the normals or
 /// parameters are unusable.
 pub fn reconstruct(
+    points: &[DVec3],
+    normals: Option<&[DVec3]>,
+    params: &Params,
+) -> Result<Reconstruction> {
+    let mut r = reconstruct_through_points(points, normals, params)?;
+    let decimates = params.rho > 0.0 || params.brush.is_some_and(|b| b.rho_centre > 0.0);
+    if !decimates {
+        split_curved(&mut r, params);
+    }
+    Ok(r)
+}
+
+/// The last stage without decimation: curved edges split when asked.
+fn split_curved(r: &mut Reconstruction, params: &Params) {
+    if params.split_curved_edges {
+        let clock = Instant::now();
+        r.report.curved_edges_split = split_curved_edges(&mut r.mesh);
+        r.report.facets = r.mesh.triangles.len();
+        r.report.seconds.curved_splits = clock.elapsed().as_secs_f64();
+    }
+}
+
+/// [`reconstruct`]'s mesh with the input points as its only vertices.
+fn reconstruct_through_points(
     points: &[DVec3],
     normals: Option<&[DVec3]>,
     params: &Params,
@@ -367,7 +405,8 @@ impl DynamicSurface {
     /// vertices (no decimation): pockets, thin parts and the manifold
     /// output re-run, globally, on the converged Gabriel surface kept up to
     /// date by the edits. Mesh vertices are the surface's vertices in id
-    /// order ([`Triangulation::vertices`]); normals are estimated.
+    /// order ([`Triangulation::vertices`]), then those added on curved
+    /// edges (`Params::split_curved_edges`); normals are estimated.
     pub fn reconstruction(&self, params: &Params) -> Result<Reconstruction> {
         check_params(params)?;
         let tri = self.triangulation();
@@ -388,7 +427,9 @@ impl DynamicSurface {
         };
         let data = PointData::new(&sites, None, params)?;
         let mesh = finish(tri, surface, &site, &data, params, &mut report);
-        Ok(Reconstruction { mesh, report })
+        let mut r = Reconstruction { mesh, report };
+        split_curved(&mut r, params);
+        Ok(r)
     }
 }
 

@@ -206,7 +206,9 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
 ///   no_thin_parts=False; convection_normal_k=12; open_holes=False leave
 ///   holes in the sampling open (boundary edges) instead of covering them;
 ///   no_edge_flips=False keep the convection's triangles (no flips that
-///   lower the bending).
+///   lower the bending); no_curved_splits=False keep the input points as
+///   the only vertices (no new vertices on edges where the smooth surface
+///   bends away from them).
 ///
 /// Raises ValueError for bad arrays or options (the command line's
 /// messages), OSError for model files, surfrecon.Cancelled when cancelled.
@@ -221,7 +223,7 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
     model_out=None, model_in=None, svm_normal_k=None,
     rho=None, rho_geom=None, rho_topo=None, fill_holes=None, no_pockets=false,
     no_thin_parts=false, convection_normal_k=None, open_holes=false,
-    no_edge_flips=false, on_the_fly=false
+    no_edge_flips=false, on_the_fly=false, no_curved_splits=false
 ))]
 #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python API
 pub fn reconstruct<'py>(
@@ -266,6 +268,7 @@ pub fn reconstruct<'py>(
     open_holes: bool,
     no_edge_flips: bool,
     on_the_fly: bool,
+    no_curved_splits: bool,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let input = input_geometry(points, normals, curves, triangles)?;
     let ls = LevelSetOptions::default();
@@ -308,6 +311,7 @@ pub fn reconstruct<'py>(
             normal_k: convection_normal_k.unwrap_or(cv.normal_k),
             open_holes,
             edge_flips: !no_edge_flips,
+            split_curved_edges: !no_curved_splits,
             // The brush and the quality refinement are CLI and library
             // options only so far.
             brush: None,

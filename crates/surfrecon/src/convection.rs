@@ -29,6 +29,7 @@ pub(crate) fn params(o: &ConvectionOptions) -> Params {
         refine_gamma: o.refine_gamma,
         open_holes: o.open_holes.then(HoleRule::default),
         edge_flips: o.edge_flips,
+        split_curved_edges: o.split_curved_edges,
         ..Params::default()
     }
 }
@@ -45,18 +46,21 @@ pub(crate) fn run(
     // the noise of noisy ones (harness, noise 0.25%: Chamfer +7%). The
     // decimation's front keeps the first points it meets, on a noisy sheet
     // the outermost ones (harness, noise 0.25%: Chamfer +1-9% against
-    // input order): noisy points are decimated in input order.
-    let asks_clean = o.edge_flips || o.decimate_on_the_fly;
+    // input order): noisy points are decimated in input order. Curved
+    // edges are split on clean samples only: on noisy ones the normals
+    // turn with the noise, which the new vertices would amplify.
+    let asks_clean = o.edge_flips || o.decimate_on_the_fly || o.split_curved_edges;
     let noisy_input = asks_clean && is_noisy(&points.positions);
     let params = Params {
         edge_flips: o.edge_flips && !noisy_input,
         decimate_on_the_fly: o.decimate_on_the_fly && !noisy_input,
+        split_curved_edges: o.split_curved_edges && !noisy_input,
         ..params(o)
     };
     let r = reconstruct(&points.positions, points.normals.as_deref(), &params)
         .map_err(|e| e.within("convection reconstruction failed"))?;
     let output_counts = OutputCounts {
-        vertices: r.report.kept_points,
+        vertices: r.report.kept_points + r.report.curved_edges_split,
         ..OutputCounts::mesh(&r.mesh)
     };
     let report = ConvectionReport {

@@ -227,6 +227,10 @@ pub struct ConvectionOptions {
     /// Flip edges where that lowers the surface's bending (across Delaunay
     /// tetrahedra, vertices unchanged).
     pub edge_flips: bool,
+    /// Split edges where the smooth surface bends away from them (new
+    /// vertices after the input points; not across sharp edges, not with
+    /// decimation, not on noisy input).
+    pub split_curved_edges: bool,
 }
 
 impl Default for ConvectionOptions {
@@ -246,6 +250,7 @@ impl Default for ConvectionOptions {
             refine_gamma: p.refine_gamma,
             open_holes: p.open_holes.is_some(),
             edge_flips: p.edge_flips,
+            split_curved_edges: p.split_curved_edges,
         }
     }
 }

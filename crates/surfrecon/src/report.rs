@@ -298,9 +298,9 @@ pub struct SvmMeshReport {
 pub struct ConvectionReport {
     pub method: &'static str,
     pub convection: surfrecon_convection::Report,
-    /// The input was found noisy, so no edges were flipped and the
-    /// decimation ran in input order, not on the fly (tested only when
-    /// flips or the decimation on the fly are on).
+    /// The input was found noisy, so no edges were flipped or split and
+    /// the decimation ran in input order, not on the fly (tested only when
+    /// flips, splits or the decimation on the fly are on).
     pub noisy_input: bool,
     pub output_counts: OutputCounts,
     pub data_fit: Option<DataFitReport>,

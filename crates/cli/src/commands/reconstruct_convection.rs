@@ -65,6 +65,13 @@ pub struct ConvectionArgs {
     /// edges; the vertices are the input points either way).
     #[arg(long)]
     pub no_edge_flips: bool,
+    /// Keep the input points as the only vertices: do not split edges
+    /// where the smooth surface bends away from them (by default such
+    /// edges get a vertex on a cubic curve from the vertex normals, after
+    /// the input points; never across sharp edges, with --rho or on noisy
+    /// input).
+    #[arg(long)]
+    pub no_curved_splits: bool,
     /// Neighbours used to estimate normals (pocket test) when the input has none.
     #[arg(long = "convection-normal-k", default_value_t = 12)]
     pub normal_k: usize,
@@ -87,6 +94,7 @@ impl ConvectionArgs {
             refine_gamma: self.refine_gamma,
             open_holes: self.open_holes,
             edge_flips: !self.no_edge_flips,
+            split_curved_edges: !self.no_curved_splits,
         }
     }
 }
