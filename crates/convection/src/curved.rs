@@ -83,7 +83,9 @@ pub fn split_curved_edges(mesh: &mut TriMesh) -> usize {
         }
         let (pa, pb) = (mesh.vertices[a], mesh.vertices[b]);
         let bulge = hermite_bulge(pa, pb, normals[a], normals[b]);
-        if !(bulge.length() > min_bulge) {
+        // A NaN bulge (degenerate normals) is no bulge either.
+        let length = bulge.length();
+        if length.is_nan() || length <= min_bulge {
             continue;
         }
         let index = mesh.vertices.len() as u32;
