@@ -423,6 +423,16 @@ fn box_distances(q: DVec3, half: DVec3) -> (f64, f64) {
     (surface.abs(), gaps[0].hypot(gaps[1]))
 }
 
+/// 8,000 points sampled on the box of half-extents `half`, turned off the
+/// axes by [`turn`].
+fn turned_box_points(half: DVec3) -> Vec<DVec3> {
+    let mut solid = surfrecon_geom::shapes::cuboid(-half, half);
+    for v in &mut solid.vertices {
+        *v = turn(*v);
+    }
+    sample_surface(&solid, 8000, 4).positions
+}
+
 /// Where two sampled faces of a box meet, the convection keeps bevel
 /// triangles across the edge; the flips put the edge back. The vertices
 /// stay the points, the mesh stays a closed manifold whose faces are all
@@ -431,11 +441,7 @@ fn box_distances(q: DVec3, half: DVec3) -> (f64, f64) {
 #[test]
 fn edge_flips_take_the_bevels_off_a_sampled_box() {
     let half = DVec3::new(1.0, 0.7, 0.5);
-    let mut solid = surfrecon_geom::shapes::cuboid(-half, half);
-    for v in &mut solid.vertices {
-        *v = turn(*v);
-    }
-    let points = sample_surface(&solid, 8000, 4).positions;
+    let points = turned_box_points(half);
     let plain = reconstruct(
         &points,
         None,
@@ -619,11 +625,7 @@ fn curved_splits_bring_a_sparse_sphere_closer() {
 #[test]
 fn curved_splits_keep_a_box_sharp() {
     let half = DVec3::new(1.0, 0.7, 0.5);
-    let mut solid = surfrecon_geom::shapes::cuboid(-half, half);
-    for v in &mut solid.vertices {
-        *v = turn(*v);
-    }
-    let points = sample_surface(&solid, 8000, 4).positions;
+    let points = turned_box_points(half);
     let flat = reconstruct(
         &points,
         None,
