@@ -57,12 +57,6 @@ pub struct SurfaceSamples {
     pub normal_agrees: Vec<bool>,
 }
 
-/// How far, as a share of an off-surface point's distance, a sample must
-/// lie towards the point's side of the tangent plane for its own tangent
-/// plane to be checked against the point (see `contradicted`): more than
-/// noise or normal errors tilt a flat surface's samples over that span.
-const RISE: f64 = 0.25;
-
 /// Scatter of noisy samples about the surface, in noise σ.
 const NOISE_SCATTER: f64 = 2.0;
 
@@ -191,7 +185,6 @@ impl SurfaceSamples {
                 }
                 let position = self.points[i] + self.normals[i] * (sign * d);
                 match self.blocking_sample(position, d) {
-                    None if sign > 0.0 && self.contradicted(i, position, d) => return None,
                     None => {
                         return Some(TrainingPoint {
                             position,
@@ -334,38 +327,6 @@ impl SurfaceSamples {
     /// The noise σ declared with [`Self::set_noise`].
     pub fn noise(&self) -> f64 {
         self.noise
-    }
-
-    /// Whether a nearby sample's tangent plane passes closer to the
-    /// off-surface point `position` of sample `i` (at distance `d` on the
-    /// side `sign`) than the point claims, or on its other side, where the
-    /// surface rises towards the point (a concave junction): one of the
-    /// [`LOCAL_NEIGHBOURS`] samples nearest the point, within 2·`d` of it
-    /// and with a normal that agrees with its neighbours', lies
-    /// [`RISE`]·`d` (plus the noise scatter) towards the point's side of
-    /// `i`'s tangent plane, and the point lies nearer its own tangent plane
-    /// (on the claimed side) than the nearest-sample check allows. A
-    /// sample where a thin part leaves a body (a cone's root) sends its
-    /// outside point up along the part's wall, where the part's samples lie
-    /// too sparse for the nearest-sample check to see (harness spikes,
-    /// 0.25% noise: +0.024 claimed on the +x cone's wall at its root, which
-    /// pinched f positive there and cut the cone off). On a smooth concave
-    /// surface (curvature radius above `d`) every such plane lies at least
-    /// `d` from the point, and a convex edge's other face falls away.
-    fn contradicted(&self, i: usize, position: DVec3, d: f64) -> bool {
-        let (p, n) = (self.points[i], self.normals[i]);
-        let scatter = NOISE_SCATTER * self.noise;
-        let least = (0.9 * d - scatter).max(0.5 * d);
-        self.tree
-            .knn(position, THIN_NEIGHBOURS)
-            .into_iter()
-            .filter(|m| m.index != i && m.distance <= 2.0 * d && self.normal_agrees[m.index])
-            .any(|m| {
-                let q = self.points[m.index];
-                let rises = (q - p).dot(n) > RISE * d + scatter;
-                let nearer = (position - q).dot(self.normals[m.index]) < least;
-                rises && nearer
-            })
     }
 
     /// The sample (index into `points`) nearest to `position` when it is
