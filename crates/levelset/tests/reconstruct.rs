@@ -1139,7 +1139,7 @@ fn points_denser_than_the_grid_are_not_densified() {
         let h = r.report.spacing;
         let c = chamfer(&r.mesh, |v| v.length() - 1.0, &exact);
         eprintln!("{resolution} cells: chamfer {c}, h {h}");
-        assert!(c < 0.2 * h, "chamfer {c} vs h {h}");
+        assert!(c < 0.25 * h, "chamfer {c} vs h {h}");
         assert_eq!(topology(&r.mesh), (true, 2, 1));
     }
 }
