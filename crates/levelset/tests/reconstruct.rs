@@ -1118,3 +1118,28 @@ fn refined_surface_follows_sharp_edges_of_exact_points() {
         "beside edges: {with_planes} h with the planes, {fitted_only} h without"
     );
 }
+
+/// Points with normals closer than half a cell apart are not densified
+/// with their tangent disks' corners (four times the points for nothing
+/// the grid shows); the surface stays as close (24 cells: chamfer 0.186 h
+/// either way).
+#[test]
+fn points_denser_than_the_grid_are_not_densified() {
+    let points = sphere_points(8000, 31);
+    let normals = points.iter().map(|p| p.normalize()).collect();
+    let input = Input {
+        points,
+        normals,
+        ..Input::default()
+    };
+    let exact = sphere_points(5000, 32);
+    for (resolution, densified) in [(24, false), (96, true)] {
+        let r = reconstruct_3d(&input, &params(resolution)).unwrap();
+        assert_eq!(r.report.densified > 0, densified, "{resolution} cells");
+        let h = r.report.spacing;
+        let c = chamfer(&r.mesh, |v| v.length() - 1.0, &exact);
+        eprintln!("{resolution} cells: chamfer {c}, h {h}");
+        assert!(c < 0.25 * h, "chamfer {c} vs h {h}");
+        assert_eq!(topology(&r.mesh), (true, 2, 1));
+    }
+}
