@@ -18,7 +18,7 @@ const HILBERT_BITS: u32 = 10;
 /// less one (the last holds 7/8 of the points), the ratio of CGAL's
 /// multiscale sort. Each round's pass along the curve meets the earlier
 /// rounds' tetrahedra cold in cache; with doubling rounds (12 for a
-/// million points, 5 now) that cost a fifth more L1 misses, and about 5 %
+/// million points, 4 now) that cost a fifth more L1 misses, and about 5 %
 /// more build time.
 const ROUND_RATIO: usize = 8;
 
@@ -27,8 +27,8 @@ const FIRST_ROUND_MIN: usize = 256;
 
 /// Indices of `points` in BRIO order: shuffled (fixed seed, so a run is
 /// reproducible), split into rounds growing by [`ROUND_RATIO`] (the last
-/// round holds 7/8 of the points), each round sorted along the Hilbert curve through
-/// the points' bounding box.
+/// round holds 7/8 of the points), each round sorted along the Hilbert
+/// curve through the points' bounding box.
 pub fn brio_order(points: &[DVec3]) -> Vec<u32> {
     let mut order: Vec<u32> = (0..points.len() as u32).collect();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(0x5eed_de1a_0a11);
