@@ -4,7 +4,7 @@
 use crate::error::{DelaunayError, Result};
 use crate::insert::Scratch;
 use crate::order::brio_order;
-use crate::predicates::orient3d;
+use crate::predicates::{orient3d, StaticFilter};
 use crate::triangulation::{Triangulation, FACET, INF, MAX_TETS, MAX_VERTICES, NONE};
 use glam::DVec3;
 
@@ -85,7 +85,11 @@ impl Triangulation {
     /// and its four ghosts.
     fn with_first_tet(points: Vec<DVec3>, first: [u32; 4]) -> Triangulation {
         let expected_tets = points.len() * 7 + 16;
+        let lo = points.iter().fold(DVec3::INFINITY, |lo, &p| lo.min(p));
+        let hi = points.iter().fold(DVec3::NEG_INFINITY, |hi, &p| hi.max(p));
         let mut tri = Triangulation {
+            bounds: [lo, hi],
+            filter: StaticFilter::for_box(lo, hi),
             vertex_tet: vec![NONE; points.len()],
             points,
             cells: Vec::with_capacity(expected_tets),

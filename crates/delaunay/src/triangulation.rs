@@ -15,7 +15,7 @@
 //! - every tetrahedron is Delaunay for the symbolically perturbed points
 //!   (see [`crate::predicates::insphere_sos`]).
 
-use crate::predicates::orient3d;
+use crate::predicates::{orient3d, StaticFilter};
 use glam::DVec3;
 
 /// The infinite vertex, apex of every ghost tetrahedron (slot 3).
@@ -91,6 +91,10 @@ pub struct Triangulation {
     /// One tetrahedron incident to each vertex, `NONE` if not a vertex.
     pub(crate) vertex_tet: Vec<u32>,
     pub(crate) cells: Vec<Cell>,
+    /// A box holding every point (`lo`, `hi`) and the predicates' static
+    /// error bounds for it.
+    pub(crate) bounds: [DVec3; 2],
+    pub(crate) filter: StaticFilter,
     /// Freed tetrahedron slots for reuse.
     pub(crate) free: Vec<u32>,
     /// Input points merged into an existing vertex by `bulk_load`.

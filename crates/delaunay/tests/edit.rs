@@ -281,3 +281,22 @@ fn nearest_vertex_matches_brute_force() {
         }
     }
 }
+
+/// Points inserted far outside the box of the loaded points (the box the
+/// predicates' static error bounds are computed for), on lattices whose
+/// coordinates are not exact in binary, so rounding matters in the many
+/// coplanar and cospherical tests: the result stays exactly valid and
+/// Delaunay, so the bounds grew with the box.
+#[test]
+fn insert_far_outside_the_loaded_box_on_lattices() {
+    let small: Vec<DVec3> = lattice(4).iter().map(|&p| p * 0.1).collect();
+    let mut tri = Triangulation::bulk_load(&small).unwrap();
+    for p in lattice(4) {
+        tri.insert(p * 70.1 + DVec3::splat(0.3)).unwrap();
+    }
+    for p in lattice(3) {
+        tri.insert(p * -0.7 - DVec3::splat(0.1)).unwrap();
+    }
+    assert_valid(&tri, 64 + 64 + 27);
+    assert_globally_delaunay(&tri);
+}
