@@ -3,6 +3,7 @@
 //! dense, and lies close to the true surface.
 
 use surfrecon_convection::{reconstruct, DynamicSurface, Params, Reconstruction};
+use surfrecon_geom::intersections::self_intersections;
 use surfrecon_geom::metrics::{evaluate, topology, EvalOptions, Surface};
 use surfrecon_geom::shapes::{icosphere, sample_surface, torus};
 use surfrecon_geom::{io, DVec3, TriMesh};
@@ -48,6 +49,10 @@ fn assert_closed_genus(r: &Reconstruction, points: usize, genus: i64) {
     assert_eq!(topo.components, 1);
     assert_eq!(topo.euler, 2 - 2 * genus);
     assert_eq!(r.report.boundary_edges, 0);
+    // New points on curved edges leave the chords: no face may cross
+    // another sheet.
+    let crossing = self_intersections(&r.mesh);
+    assert!(crossing.is_empty(), "crossing faces {crossing:?}");
 }
 
 #[test]
