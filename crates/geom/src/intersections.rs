@@ -50,10 +50,11 @@ pub fn self_intersections(mesh: &TriMesh) -> Vec<[u32; 2]> {
                     let (bf, bg) = (&boxes[f as usize], &boxes[g as usize]);
                     // Each overlapping pair once: in the cell holding the
                     // low corner of the boxes' overlap.
-                    if overlap(bf, bg) && grid.key(bf.min.max(bg.min)) == key {
-                        if faces.meet(f as usize, g as usize) {
-                            found.push([f.min(g), f.max(g)]);
-                        }
+                    if overlap(bf, bg)
+                        && grid.key(bf.min.max(bg.min)) == key
+                        && faces.meet(f as usize, g as usize)
+                    {
+                        found.push([f.min(g), f.max(g)]);
                     }
                 }
             }
