@@ -249,3 +249,35 @@ fn eval_data_reports_how_closely_the_data_is_reached() {
     assert!(!points_only.status.success());
     assert!(String::from_utf8_lossy(&points_only.stderr).contains("holds no triangles"));
 }
+
+/// `--self-intersections` counts the crossing face pairs: none on a
+/// sphere, and the pairs along the circle where two overlapping spheres
+/// meet; the key is only there when asked for.
+#[test]
+fn eval_counts_self_intersections_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let single = write_sphere(dir.path(), "one.ply", 1.0);
+    let mut two = icosphere(DVec3::ZERO, 1.0, 2);
+    let other = icosphere(DVec3::new(1.0, 0.0, 0.0), 1.0, 2);
+    let offset = two.vertices.len() as u32;
+    two.normals = None;
+    two.vertices.extend(&other.vertices);
+    two.triangles
+        .extend(other.triangles.iter().map(|t| t.map(|v| v + offset)));
+    let pair = dir.path().join("two.ply");
+    io::write(&pair, &Geometry::from_mesh(two)).unwrap();
+    let count = |path: &Path| {
+        let out = surfrecon(&["eval", path_str(path), "--self-intersections", "--json"]);
+        json_of(&out)["self_intersecting_pairs"].as_u64().unwrap()
+    };
+    assert_eq!(count(&single), 0);
+    assert!(count(&pair) > 16, "{}", count(&pair));
+    let without = json_of(&surfrecon(&[
+        "eval",
+        path_str(&single),
+        "--data",
+        path_str(&single),
+        "--json",
+    ]));
+    assert!(without.get("self_intersecting_pairs").is_none());
+}

@@ -8,8 +8,10 @@ use surfrecon_delaunay::DelaunayError;
 pub enum ConvectionError {
     /// The points span no tetrahedron (fewer than 4, all coplanar or
     /// collinear, non-finite coordinates, ...).
+    /// (Its message holds the Delaunay error's; not also given as the
+    /// source, or error chains print it twice.)
     #[error("cannot tetrahedralize the points: {0}")]
-    Delaunay(#[from] DelaunayError),
+    Delaunay(DelaunayError),
     #[error("{normals} normals given for {points} points")]
     NormalCount { points: usize, normals: usize },
     #[error("normal {index} is zero or not finite")]
@@ -20,6 +22,12 @@ pub enum ConvectionError {
         value: f64,
         range: &'static str,
     },
+}
+
+impl From<DelaunayError> for ConvectionError {
+    fn from(e: DelaunayError) -> Self {
+        ConvectionError::Delaunay(e)
+    }
 }
 
 pub type Result<T> = std::result::Result<T, ConvectionError>;

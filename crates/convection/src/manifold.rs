@@ -9,6 +9,7 @@
 
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
+use surfrecon_geom::intersections::faces_meet;
 use surfrecon_geom::DVec3;
 
 fn directed_edges(&[a, b, c]: &[u32; 3]) -> [(u32, u32); 3] {
@@ -249,7 +250,10 @@ pub fn boundary_edges(triangles: &[[u32; 3]]) -> usize {
 
 /// Close every boundary loop of at most `max_edges` edges by ear clipping
 /// (shortest new diagonal first, never an edge the mesh already has), so a
-/// manifold mesh stays manifold. Returns the number of loops closed.
+/// manifold mesh stays manifold. An ear that would cross the faces near the
+/// hole (two rings around its vertices, and the ears already added) is
+/// passed over for the next shortest; only when every ear would cross is
+/// the shortest taken. Returns the number of loops closed.
 pub fn fill_small_holes(
     triangles: &mut Vec<[u32; 3]>,
     points: &[DVec3],
@@ -276,17 +280,80 @@ pub fn fill_small_holes(
         next.insert(b, a);
     }
     let mut starts: Vec<u32> = next.keys().copied().collect();
+    if starts.is_empty() {
+        return 0;
+    }
     starts.sort_unstable();
+    let mut near = Nearby::new(triangles);
     let mut filled = 0;
     for start in starts {
         let Some(hole) = take_loop(&mut next, start, max_edges) else {
             continue;
         };
-        if clip_ears(hole, points, &mut edges, triangles) {
+        if clip_ears(hole, points, &mut edges, &mut near, triangles) {
             filled += 1;
         }
     }
     filled
+}
+
+/// The faces around each vertex: those of the mesh before the holes were
+/// filled, in compressed rows, and those the filling added.
+struct Nearby {
+    offsets: Vec<usize>,
+    faces: Vec<u32>,
+    added: HashMap<u32, Vec<u32>>,
+}
+
+impl Nearby {
+    fn new(triangles: &[[u32; 3]]) -> Nearby {
+        let (offsets, faces) = rows(triangles, |f, t| t.map(|v| (v, f)));
+        Nearby {
+            offsets,
+            faces,
+            added: HashMap::new(),
+        }
+    }
+
+    fn around(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
+        let v = v as usize;
+        let own = match v + 1 < self.offsets.len() {
+            true => &self.faces[self.offsets[v]..self.offsets[v + 1]],
+            false => &[],
+        };
+        let added = self.added.get(&(v as u32)).map_or(&[][..], |a| &a[..]);
+        own.iter().chain(added).copied()
+    }
+
+    /// Faces with a corner on a face around one of `vertices`.
+    fn two_rings(&self, vertices: &[u32], triangles: &[[u32; 3]]) -> Vec<u32> {
+        let ring: HashSet<u32> = vertices.iter().flat_map(|&v| self.around(v)).collect();
+        let corners: HashSet<u32> = ring.iter().flat_map(|&f| triangles[f as usize]).collect();
+        let mut faces: Vec<u32> = corners.iter().flat_map(|&v| self.around(v)).collect();
+        faces.sort_unstable();
+        faces.dedup();
+        faces
+    }
+
+    fn add(&mut self, f: u32, t: [u32; 3]) {
+        for v in t {
+            self.added.entry(v).or_default().push(f);
+        }
+    }
+}
+
+/// Whether the face `t` meets any of the faces `near` (beyond the corners
+/// and edge it shares with them; exact).
+fn crosses(t: [u32; 3], near: &[u32], points: &[DVec3], triangles: &[[u32; 3]]) -> bool {
+    let corners = |t: [u32; 3]| t.map(|v| points[v as usize]);
+    let pt = corners(t);
+    let (lo, hi) = (pt[0].min(pt[1]).min(pt[2]), pt[0].max(pt[1]).max(pt[2]));
+    near.iter().any(|&f| {
+        let u = triangles[f as usize];
+        let pu = corners(u);
+        let (ulo, uhi) = (pu[0].min(pu[1]).min(pu[2]), pu[0].max(pu[1]).max(pu[2]));
+        lo.cmple(uhi).all() && ulo.cmple(hi).all() && faces_meet(t, &pt, u, &pu)
+    })
 }
 
 /// The hole loop through `start` (removed from `next`), if it closes within
@@ -328,31 +395,46 @@ fn clip_ears(
     mut hole: Vec<u32>,
     points: &[DVec3],
     edges: &mut NewEdges,
+    near: &mut Nearby,
     triangles: &mut Vec<[u32; 3]>,
 ) -> bool {
+    let mut around = near.two_rings(&hole, triangles);
+    let add =
+        |t: [u32; 3], near: &mut Nearby, around: &mut Vec<u32>, triangles: &mut Vec<[u32; 3]>| {
+            let f = triangles.len() as u32;
+            triangles.push(t);
+            near.add(f, t);
+            around.push(f);
+        };
     while hole.len() > 3 {
         let n = hole.len();
-        let ear = (0..n)
+        let ear_at = |i: usize| [hole[(i + n - 1) % n], hole[i], hole[(i + 1) % n]];
+        let mut ears: Vec<usize> = (0..n)
             .filter(|&i| {
-                let (p, q) = (hole[(i + n - 1) % n], hole[(i + 1) % n]);
+                let [p, _, q] = ear_at(i);
                 !edges.contains(&(p.min(q), p.max(q)))
             })
-            .min_by(|&i, &j| {
-                let diagonal = |i: usize| {
-                    points[hole[(i + n - 1) % n] as usize]
-                        .distance(points[hole[(i + 1) % n] as usize])
-                };
-                diagonal(i).total_cmp(&diagonal(j))
-            });
-        let Some(i) = ear else {
+            .collect();
+        let diagonal = |i: usize| {
+            let [p, _, q] = ear_at(i);
+            points[p as usize].distance(points[q as usize])
+        };
+        // Stable: equal diagonals keep the hole's order, as before.
+        ears.sort_by(|&i, &j| diagonal(i).total_cmp(&diagonal(j)));
+        let Some(&shortest) = ears.first() else {
             return false;
         };
-        let (p, v, q) = (hole[(i + n - 1) % n], hole[i], hole[(i + 1) % n]);
-        triangles.push([p, v, q]);
+        let clear = ears
+            .iter()
+            .copied()
+            .find(|&i| !crosses(ear_at(i), &around, points, triangles));
+        let i = clear.unwrap_or(shortest);
+        let [p, v, q] = ear_at(i);
+        add([p, v, q], near, &mut around, triangles);
         edges.insert((p.min(q), p.max(q)));
         hole.remove(i);
     }
-    triangles.push([hole[0], hole[1], hole[2]]);
+    add([hole[0], hole[1], hole[2]], near, &mut around, triangles);
     true
 }
 
@@ -424,5 +506,58 @@ mod tests {
         assert_eq!(boundary_edges(&t), 0);
         assert_eq!(t.len(), 6);
         assert_eq!(make_manifold(&mut t), 0);
+    }
+
+    /// A non-planar quad hole with a face standing under its middle: the
+    /// shortest diagonal (a valley through the middle) would cut that
+    /// face, the longer one (a ridge above it) does not, and is taken.
+    #[test]
+    fn hole_filling_passes_over_ears_that_cross_nearby_faces() {
+        let points: Vec<DVec3> = [
+            [-1.0, 0.0, 0.0], // a
+            [0.0, -1.1, 0.5], // b
+            [1.0, 0.0, 0.0],  // c
+            [0.0, 1.1, 0.5],  // d
+            [0.0, -0.3, -1.0],
+            [0.0, 0.3, -1.0],
+            [0.0, 0.0, 0.25],
+        ]
+        .map(DVec3::from_array)
+        .to_vec();
+        // A rim face on the hole's edge a-b, and the standing face beside it.
+        let mut triangles = vec![[1, 0, 4], [4, 5, 6]];
+        let corners = |t: [u32; 3]| t.map(|v| points[v as usize]);
+        let valley = [0, 1, 2];
+        assert!(points[0].distance(points[2]) < points[1].distance(points[3]));
+        assert!(faces_meet(
+            valley,
+            &corners(valley),
+            [4, 5, 6],
+            &corners([4, 5, 6])
+        ));
+        let counts = PairedEdges::new(&triangles);
+        let mut edges = NewEdges {
+            mesh: &counts.out,
+            added: HashSet::new(),
+        };
+        let mut near = Nearby::new(&triangles);
+        let mut out = triangles.clone();
+        assert!(clip_ears(
+            vec![0, 1, 2, 3],
+            &points,
+            &mut edges,
+            &mut near,
+            &mut out
+        ));
+        triangles = out;
+        assert_eq!(triangles.len(), 4);
+        for (f, &t) in triangles.iter().enumerate() {
+            for &u in &triangles[f + 1..] {
+                assert!(
+                    !faces_meet(t, &corners(t), u, &corners(u)),
+                    "{t:?} crosses {u:?}"
+                );
+            }
+        }
     }
 }

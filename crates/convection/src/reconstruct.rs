@@ -497,6 +497,20 @@ impl PointData {
         if let Some(n) = normals {
             check_normals(points, n)?;
         }
+        // Copies of a point would fill its neighbour lists (ten copies of a
+        // cube's corners: every fit degenerate, the pockets opening the cube
+        // to a tetrahedron): the data of each copy are those of the first.
+        if let Some(distinct) = Distinct::of(points) {
+            let given = normals.map(|n| {
+                distinct
+                    .first
+                    .iter()
+                    .map(|&i| n[i as usize])
+                    .collect::<Vec<_>>()
+            });
+            let data = PointData::new(&distinct.points, given.as_deref(), params)?;
+            return Ok(data.spread(&distinct.of_point));
+        }
         let needs_spacing = params.pockets || params.thin_size > 0.0 || params.open_holes.is_some();
         let clock = Instant::now();
         let (normals, shared_spacing) = match (params.pockets, normals) {
@@ -521,6 +535,70 @@ impl PointData {
             spacing,
             normal_seconds,
             spacing_seconds: clock.elapsed().as_secs_f64(),
+        })
+    }
+}
+
+impl PointData {
+    /// The data of distinct points given to every copy: `of_point[i]` is
+    /// the distinct point of input point `i`.
+    fn spread(self, of_point: &[u32]) -> PointData {
+        let each = |v: &[f64]| match v.is_empty() {
+            true => Vec::new(),
+            false => of_point.iter().map(|&d| v[d as usize]).collect(),
+        };
+        let normals = match self.normals.is_empty() {
+            true => Vec::new(),
+            false => of_point.iter().map(|&d| self.normals[d as usize]).collect(),
+        };
+        PointData {
+            normals,
+            spacing: each(&self.spacing),
+            ..self
+        }
+    }
+}
+
+/// The distinct points of an input with exact duplicates.
+struct Distinct {
+    points: Vec<DVec3>,
+    /// Input number of each distinct point's first copy.
+    first: Vec<u32>,
+    /// Distinct number of each input point.
+    of_point: Vec<u32>,
+}
+
+impl Distinct {
+    /// `None` when no two points are equal.
+    fn of(points: &[DVec3]) -> Option<Distinct> {
+        let bits = |i: u32| points[i as usize].to_array().map(f64::to_bits);
+        let mut order: Vec<u32> = (0..points.len() as u32).collect();
+        order.par_sort_unstable_by_key(|&i| (bits(i), i));
+        if order.windows(2).all(|w| bits(w[0]) != bits(w[1])) {
+            return None;
+        }
+        let mut first_of = vec![0u32; points.len()];
+        for (k, &i) in order.iter().enumerate() {
+            first_of[i as usize] = match k > 0 && bits(order[k - 1]) == bits(i) {
+                true => first_of[order[k - 1] as usize],
+                false => i,
+            };
+        }
+        // Distinct points in input order of their first copies.
+        let mut number = vec![u32::MAX; points.len()];
+        let mut first = Vec::new();
+        for i in 0..points.len() {
+            if first_of[i] as usize == i {
+                number[i] = first.len() as u32;
+                first.push(i as u32);
+            }
+        }
+        let of_point = first_of.iter().map(|&f| number[f as usize]).collect();
+        let points = first.iter().map(|&i| points[i as usize]).collect();
+        Some(Distinct {
+            points,
+            first,
+            of_point,
         })
     }
 }

@@ -94,6 +94,25 @@ fn duplicated_cube_corners_give_the_closed_hull() {
     assert_eq!(corners.len(), 8);
 }
 
+/// Many copies of each corner: the neighbours of a corner are its own
+/// copies, so normals and spacing must come from the distinct points (with
+/// them taken per copy, ten copies gave a tetrahedron, fifty no surface).
+#[test]
+fn many_copies_of_the_cube_corners_give_the_closed_hull() {
+    for copies in [10, 50] {
+        let points: Vec<DVec3> = (0..copies).flat_map(|_| cube_corners()).collect();
+        let r = reconstruct(&points, None, &Params::default()).unwrap();
+        assert_eq!(r.report.duplicates, 8 * (copies - 1), "{copies}");
+        assert_eq!(r.report.kept_points, 8, "{copies}");
+        let topo = topology(&r.mesh);
+        assert!(
+            topo.watertight && topo.vertex_manifold,
+            "{copies}: {topo:?}"
+        );
+        assert_eq!((topo.faces, topo.euler), (12, 2), "{copies}");
+    }
+}
+
 #[test]
 fn decimation_settings_out_of_range_are_errors() {
     for (rho, rho_topo) in [(1.5, 0.95), (f64::NAN, 0.95), (-0.1, 0.95), (0.01, 2.0)] {

@@ -11,6 +11,7 @@
 //!   crossings and the surface normals they imply.
 //! - [`normals`]: plane-fit estimation and globally consistent orientation.
 //! - [`fairing`]: smooth (bi-Laplacian) fills for unsupported mesh parts.
+//! - [`intersections`]: exact self-intersection test of triangle meshes.
 //! - [`metrics`]: Chamfer, Hausdorff, F-score, normal consistency, topology.
 //! - [`data_fit`]: how closely a mesh reaches the data it was built from.
 //! - [`progress`]: the progress-and-cancel hook long computations call.
@@ -24,6 +25,7 @@ pub mod disjoint_sets;
 pub mod error;
 pub mod fairing;
 pub mod geometry;
+pub mod intersections;
 pub mod io;
 pub mod linalg;
 pub mod metrics;

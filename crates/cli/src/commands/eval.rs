@@ -7,15 +7,15 @@ use crate::context::Context;
 use anyhow::{bail, Context as _};
 use std::path::{Path, PathBuf};
 use surfrecon_geom::data_fit::{self, DataFit};
-use surfrecon_geom::io;
 use surfrecon_geom::metrics::{self, EvalOptions, EvalReport, Surface};
+use surfrecon_geom::{intersections, io};
 
 #[derive(clap::Args)]
 pub struct Args {
     /// The reconstruction to score: a mesh (or a point set).
     pub input: PathBuf,
     /// The reference surface: a mesh (or a point set).
-    #[arg(short, long, required_unless_present = "data")]
+    #[arg(short, long, required_unless_present_any = ["data", "self_intersections"])]
     pub reference: Option<PathBuf>,
     /// The data the reconstruction was built from (any geometry file: its
     /// points, curve and patch vertices): reports the distance from every
@@ -28,6 +28,10 @@ pub struct Args {
     /// Seed of the sampling (same seed, same scores).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Also count the pairs of the mesh's faces that cross or touch away
+    /// from the corners and edge they share (exact test).
+    #[arg(long)]
+    pub self_intersections: bool,
 }
 
 pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
@@ -44,6 +48,10 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         Some(data) => Some(fit_to_data(&args.input, &candidate, data)?),
         None => None,
     };
+    let crossing = match args.self_intersections {
+        true => Some(count_self_intersections(&args.input, &candidate)?),
+        false => None,
+    };
     spinner.finish_and_clear();
     if ctx.json {
         let mut value = match &report {
@@ -53,6 +61,9 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         if let Some(fit) = &fit {
             value["data_fit"] = serde_json::to_value(fit)?;
         }
+        if let Some(n) = crossing {
+            value["self_intersecting_pairs"] = n.into();
+        }
         ctx.emit_json(&value);
     } else if !ctx.quiet {
         if let (Some(r), Some(reference)) = (&report, &args.reference) {
@@ -60,6 +71,12 @@ pub fn run(args: Args, ctx: &Context) -> anyhow::Result<()> {
         }
         if let Some(fit) = &fit {
             print!("{}", data_fit_table(fit));
+        }
+        if let Some(n) = crossing {
+            print!(
+                "{}",
+                aligned(&[("self-intersecting face pairs".into(), n.to_string())])
+            );
         }
     }
     ctx.detail(format!("done in {:.2} s", ctx.elapsed()));
@@ -95,6 +112,16 @@ fn fit_to_data(input: &Path, candidate: &Surface, data: &Path) -> anyhow::Result
             input.display()
         )
     })
+}
+
+fn count_self_intersections(input: &Path, candidate: &Surface) -> anyhow::Result<usize> {
+    let Surface::Mesh(mesh) = candidate else {
+        bail!(
+            "--self-intersections needs a mesh; {} holds no triangles",
+            input.display()
+        );
+    };
+    Ok(intersections::self_intersections(mesh).len())
 }
 
 fn read_surface(path: &Path) -> anyhow::Result<Surface> {
