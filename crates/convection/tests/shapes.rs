@@ -434,6 +434,19 @@ fn box_distances(q: DVec3, half: DVec3) -> (f64, f64) {
     (surface.abs(), gaps[0].hypot(gaps[1]))
 }
 
+/// The centroid of face `t` of `m`, in the turned box's frame.
+fn unturned_centroid(m: &TriMesh, t: &[u32; 3]) -> DVec3 {
+    unturn(t.iter().map(|&v| m.vertices[v as usize]).sum::<DVec3>() / 3.0)
+}
+
+/// Faces of `m` whose centroid lies off the turned box of half-extents
+/// `half` by more than 1e-3 of its diagonal: bevels across its edges.
+fn faces_off_the_box(m: &TriMesh, half: DVec3) -> usize {
+    let tolerance = 1e-3 * 2.0 * half.length();
+    let far = |t: &&[u32; 3]| box_distances(unturned_centroid(m, t), half).0 > tolerance;
+    m.triangles.iter().filter(far).count()
+}
+
 /// 8,000 points sampled on the box of half-extents `half`, turned off the
 /// axes by [`turn`].
 fn turned_box_points(half: DVec3) -> Vec<DVec3> {
@@ -466,15 +479,10 @@ fn edge_flips_take_the_bevels_off_a_sampled_box() {
     assert!(flipped.report.edge_flips > 0);
     assert_closed_genus(&flipped, points.len(), 0);
 
-    let diagonal = 2.0 * half.length();
-    let centroid = |m: &TriMesh, t: &[u32; 3]| {
-        unturn(t.iter().map(|&v| m.vertices[v as usize]).sum::<DVec3>() / 3.0)
-    };
-    let off = |m: &TriMesh| {
-        let far = |t: &&[u32; 3]| box_distances(centroid(m, t), half).0 > 1e-3 * diagonal;
-        m.triangles.iter().filter(far).count()
-    };
-    let (before, after) = (off(&plain.mesh), off(&flipped.mesh));
+    let (before, after) = (
+        faces_off_the_box(&plain.mesh, half),
+        faces_off_the_box(&flipped.mesh, half),
+    );
     eprintln!("faces off the box: {before} -> {after}");
     assert!(after * 3 < before, "faces off the box: {before} -> {after}");
 
@@ -482,7 +490,7 @@ fn edge_flips_take_the_bevels_off_a_sampled_box() {
     let plain_faces = face_set(&plain.mesh);
     let far_from_edges = face_set(&flipped.mesh)
         .difference(&plain_faces)
-        .filter(|t| box_distances(centroid(&flipped.mesh, t), half).1 > 0.15)
+        .filter(|t| box_distances(unturned_centroid(&flipped.mesh, t), half).1 > 0.15)
         .count();
     assert_eq!(far_from_edges, 0, "flips on the flat faces");
 
@@ -662,13 +670,7 @@ fn curved_splits_keep_a_box_sharp() {
         farthest / diagonal
     );
     assert!(farthest < 1e-4 * diagonal, "{farthest}");
-    let off = |m: &TriMesh| {
-        let centroid =
-            |t: &[u32; 3]| unturn(t.iter().map(|&v| m.vertices[v as usize]).sum::<DVec3>() / 3.0);
-        let far = |t: &&[u32; 3]| box_distances(centroid(t), half).0 > 1e-3 * diagonal;
-        m.triangles.iter().filter(far).count()
-    };
-    assert!(off(&curved.mesh) <= off(&flat.mesh));
+    assert!(faces_off_the_box(&curved.mesh, half) <= faces_off_the_box(&flat.mesh, half));
 }
 
 /// A dome: the upper half of a sampled unit sphere on a sampled disc
