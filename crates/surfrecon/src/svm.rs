@@ -75,6 +75,7 @@ pub(crate) fn run(
         o,
         by,
         noise_floor,
+        data_noise: cleaning.map_or(0.0, |(_, report)| report.rms_shift),
         resolution: resolution.unwrap_or(DEFAULT_RESOLUTION),
         exact,
     };
@@ -164,6 +165,9 @@ struct SurfaceSettings<'a> {
     /// The points' move towards the origin (undone on the model saved).
     by: DVec3,
     noise_floor: f64,
+    /// The raw points' noise as the cleaning measured it (its RMS shift;
+    /// 0 for points not cleaned): where the mesh may join across a pinch.
+    data_noise: f64,
     resolution: usize,
     /// Refine the mesh onto the points (see `run`).
     exact: bool,
@@ -207,6 +211,7 @@ fn surface(points: &PointCloud, s: &SurfaceSettings, hook: Hook) -> Result<Surfa
     check(hook, "mesh")?;
     let opts = MeshOptions {
         resolution: s.resolution,
+        data_noise: s.data_noise,
         ..Default::default()
     };
     let (mut mesh, meshing) = mesh_model(meshed, &points.positions, points.bounds(), &opts)

@@ -99,17 +99,25 @@ fn pack(n: [i64; 3]) -> u64 {
 /// f pinches a sampled part there (harness spikes outliers: the +x cone's
 /// tip a crumb beyond such a pinch, samples within 0.2 cells of its
 /// axis). Two separate bodies two cells apart leave the gap's middle a
-/// cell from their samples, so they stay apart.
+/// cell from their samples, so they stay apart. Noisy seeds may lie
+/// their noise farther off (see [`bridge_thin_parts`]).
 const SAMPLED_GAP_CELLS: f64 = 0.5;
 
 /// Join the pieces of inside nodes of `nodes` that `model` joins below the
 /// grid's resolution (see the module doc), or that the data `seeds` join
-/// across a pinch of f ([`SAMPLED_GAP_CELLS`]); returns the number of
-/// joins. Nodes added by a join are appended (the caller sorts).
+/// across a pinch of f: a seed within [`SAMPLED_GAP_CELLS`] plus
+/// `data_noise` (the data's RMS distance from the surface) of every point
+/// where f is not negative. Noise scatters a thin part's samples off its wall
+/// and the fit then pinches it below the noise's scale (harness spikes
+/// with 0.25% and 1% noise: the +x cone, 1.4 cells thick at its root, cut
+/// there over 2.4 cells, its nearest cleaned samples up to 1.25 cells off
+/// the axis). Returns the number of joins. Nodes added by a join are
+/// appended (the caller sorts).
 pub fn bridge_thin_parts(
     model: &(impl Implicit + ?Sized),
     spec: &GridSpec<3>,
     seeds: &KdTree,
+    data_noise: f64,
     nodes: &mut Vec<([usize; 3], f64)>,
 ) -> usize {
     let mut band = Band::new(nodes, spec.dims);
@@ -133,7 +141,7 @@ pub fn bridge_thin_parts(
     let sampled = |p: DVec3| {
         seeds
             .nearest(p)
-            .is_some_and(|n| n.distance <= SAMPLED_GAP_CELLS * spec.spacing)
+            .is_some_and(|n| n.distance <= SAMPLED_GAP_CELLS * spec.spacing + data_noise)
     };
     // Inside all along, or sampled wherever f is not.
     let inside_all_along = |k: usize| {
@@ -183,11 +191,12 @@ const THROUGH: f64 = 1.0;
 /// number of joins and of nodes left set. The reach runs before the joins:
 /// on a tip f cuts into crumbs, the nodes grown from the crumbs let the
 /// joins tie them to the body (300k spikes: the +x cone reached to x 2.07
-/// rather than 1.95).
+/// rather than 1.95). `data_noise` as in [`bridge_thin_parts`].
 pub fn join_and_reach_thin_parts(
     model: &(impl Implicit + ?Sized),
     spec: &GridSpec<3>,
     seeds: &[DVec3],
+    data_noise: f64,
     nodes: &mut Vec<([usize; 3], f64)>,
 ) -> (usize, usize) {
     let anchors = nodes_of_pieces_beyond_specks(&Band::new(nodes, spec.dims));
@@ -200,7 +209,7 @@ pub fn join_and_reach_thin_parts(
         .collect();
     let depth = BRIDGE_DEPTH * spec.spacing;
     grow_from_inside(&mut band, set.iter().map(|(n, _)| *n).collect(), depth);
-    let joins = bridge_thin_parts(model, spec, &KdTree::new(seeds), nodes);
+    let joins = bridge_thin_parts(model, spec, &KdTree::new(seeds), data_noise, nodes);
     let reached = keep_where_anchored(&mut Band::new(nodes, spec.dims), &anchors, &set);
     (joins, reached)
 }

@@ -76,6 +76,7 @@ pub fn reconstruct_from_curves(
     let mesh_options = MeshOptions {
         resolution,
         margin: 0.1,
+        ..Default::default()
     };
     let (mut mesh, mesh_report) = mesh_model(&fit, &positions, bounds, &mesh_options)?;
     let mesh_fit =

@@ -28,6 +28,12 @@ pub struct MeshOptions {
     /// Extra room around the data bounds, relative to their diagonal, so
     /// surfaces that bulge past the data (e.g. over holes) stay closed.
     pub margin: f64,
+    /// The noise of the data the seeds come from (RMS distance from the
+    /// surface, world units): 0 for exact samples. Below this scale the
+    /// data cannot tell a pinch of f from a thin part, so data this much
+    /// farther off a pinch still run across it (see
+    /// [`crate::bridges::bridge_thin_parts`]).
+    pub data_noise: f64,
 }
 
 impl Default for MeshOptions {
@@ -35,6 +41,7 @@ impl Default for MeshOptions {
         MeshOptions {
             resolution: 128,
             margin: 0.05,
+            data_noise: 0.0,
         }
     }
 }
@@ -111,7 +118,7 @@ pub fn mesh_model(
     let mut values = follow_surface(model, seeds, &spec)?;
     let (cells_visited, nodes_evaluated) = (values.cells_visited, values.nodes.len());
     let (thin_joins, thin_samples_reached) =
-        join_and_reach_thin_parts(model, &spec, seeds, &mut values.nodes);
+        join_and_reach_thin_parts(model, &spec, seeds, opts.data_noise, &mut values.nodes);
     let background = 2.0 * spec.spacing;
     let nodes = outside_on_the_rim(values.nodes, spec.dims, background);
     let grid = BlockGrid::from_nodes(spec, background, nodes)?;
@@ -413,6 +420,7 @@ mod tests {
         let opts = MeshOptions {
             resolution: 128,
             margin: 0.1,
+            ..Default::default()
         };
         let (mesh, report) = mesh_model(&balls, &seeds, Aabb::from_points(&seeds), &opts).unwrap();
         assert_eq!(report.specks_removed, 1);
@@ -483,6 +491,7 @@ mod tests {
         let opts = MeshOptions {
             resolution: 96,
             margin: 0.0,
+            ..Default::default()
         };
         let bounds = Aabb {
             min: DVec3::new(-0.6, -0.6, -0.6),
@@ -528,6 +537,7 @@ mod tests {
         let opts = MeshOptions {
             resolution: 128,
             margin: 0.1,
+            ..Default::default()
         };
         let (mesh, report) = mesh_model(&balls, &seeds, Aabb::from_points(&seeds), &opts).unwrap();
         assert_eq!(report.thin_joins, 0);
@@ -576,6 +586,7 @@ mod tests {
         let opts = MeshOptions {
             resolution: 96,
             margin: 0.0,
+            ..Default::default()
         };
         let bounds = Aabb {
             min: DVec3::splat(-1.0),
@@ -644,11 +655,17 @@ mod tests {
             rod.max(pinch).min(p.length() - 0.5)
         }
 
-        fn seeds(&self, samples_in_the_pinch: bool) -> Vec<DVec3> {
+        /// Samples along the rod, `off_axis` cells from its axis (turning
+        /// around it, as noise scatters a thin part's samples).
+        fn seeds(&self, samples_in_the_pinch: bool, off_axis: f64) -> Vec<DVec3> {
             let pinch_x = self.start.x + Self::PINCH_CELLS * self.cell;
             let rod = (0..200)
                 .map(|i| {
-                    self.start + DVec3::X * (Self::LENGTH_CELLS * self.cell * i as f64 / 200.0)
+                    let around = i as f64 * 2.399963;
+                    let off = DVec3::new(0.0, around.cos(), around.sin()) * (off_axis * self.cell);
+                    self.start
+                        + DVec3::X * (Self::LENGTH_CELLS * self.cell * i as f64 / 200.0)
+                        + off
                 })
                 .filter(|p| samples_in_the_pinch || (p.x - pinch_x).abs() > 1.5 * self.cell);
             fibonacci_sphere(2000, 0.5).into_iter().chain(rod).collect()
@@ -664,13 +681,32 @@ mod tests {
             cell: spec.spacing,
         };
         // Samples run on through the pinch: the data say it is one part.
-        let (mesh, report) = mesh_model(&shape, &shape.seeds(true), bounds, &opts).unwrap();
+        let (mesh, report) = mesh_model(&shape, &shape.seeds(true, 0.0), bounds, &opts).unwrap();
         assert_eq!(mesh.piece_count(), 1, "{report:?}");
         let farthest = mesh.vertices.iter().map(|v| v.x).fold(f64::MIN, f64::max);
         let end = shape.start.x + 0.9 * PinchedRod::LENGTH_CELLS * spec.spacing;
         assert!(farthest > end, "the rod ends at x = {farthest}, not {end}");
         // Without samples in the pinch f's gap stands: two pieces.
-        let (mesh, report) = mesh_model(&shape, &shape.seeds(false), bounds, &opts).unwrap();
+        let (mesh, report) = mesh_model(&shape, &shape.seeds(false, 0.0), bounds, &opts).unwrap();
         assert_eq!(mesh.piece_count(), 2, "{report:?}");
+    }
+
+    #[test]
+    fn noisy_samples_across_a_pinch_join_it_within_their_noise() {
+        let (mut opts, bounds, spec) = rod_layout(1.0);
+        let node = |p: DVec3| DVec3::from_array(spec.position(cell_of(&spec, p).unwrap()));
+        let shape = PinchedRod {
+            start: node(DVec3::new(0.45, 0.0, 0.0)),
+            cell: spec.spacing,
+        };
+        // The rod's samples 1.2 cells off its axis: taken as exact, they
+        // lie too far from the pinch to say the rod runs on across it.
+        let seeds = shape.seeds(true, 1.2);
+        let (mesh, report) = mesh_model(&shape, &seeds, bounds, &opts).unwrap();
+        assert_eq!(mesh.piece_count(), 2, "{report:?}");
+        // Data that noisy cannot tell the pinch from the rod: one piece.
+        opts.data_noise = 0.8 * spec.spacing;
+        let (mesh, report) = mesh_model(&shape, &seeds, bounds, &opts).unwrap();
+        assert_eq!(mesh.piece_count(), 1, "{report:?}");
     }
 }
