@@ -34,9 +34,23 @@ fn main() {
         vec![String::new()]
     };
     for set in &sets {
+        let mut field = field.clone();
+        for item in set.split(';').filter(|s| s.starts_with("v:")) {
+            let (node, value) = item[2..].split_once('=').unwrap();
+            let node = field.spec.linear(triple(node).map(|x| x as usize));
+            field.values[node] = value.parse::<f64>().unwrap() * h;
+        }
+        let (first, seconds, further) = (
+            field.feature_points(),
+            field.second_points(&field.feature_points()),
+            field.more_points(),
+        );
         let (mut features, mut second) = (first.clone(), seconds.clone());
         let mut more = further.clone();
-        for item in set.split(';').filter(|s| !s.is_empty()) {
+        for item in set
+            .split(';')
+            .filter(|s| !s.is_empty() && !s.starts_with("v:"))
+        {
             let (cell, point) = item.split_once('=').unwrap();
             let cell = field.spec.linear(triple(cell).map(|x| x as usize));
             second.remove(&cell);
