@@ -1092,10 +1092,10 @@ mod tests {
         let more = BTreeMap::from([(cell, vec![second, inner])]);
         let (mesh, report) = extract_points(&field, &features, &BTreeMap::new(), &more);
         assert!(
-            mesh.vertices.iter().any(|&v| v == inner),
+            mesh.vertices.contains(&inner),
             "the inner corner is a vertex of the surface"
         );
-        assert!(mesh.vertices.iter().any(|&v| v == second));
+        assert!(mesh.vertices.contains(&second));
         assert_eq!((report.fans, report.fans_refused), (1, 0));
         let t = topology(&mesh);
         assert!(t.watertight && t.vertex_manifold, "{t:?}");
