@@ -3,10 +3,10 @@
 //! surface lies from a reference both ways (every vertex and 16 points per
 //! triangle, as `examples/sculpt_check.rs`), with the worst cells.
 //! cargo run --release -p surfrecon-distfield --example try_points -- FIELD.udf REF H [SET ...]
-//! SET: `i,j,k=x,y,z;i,j,k=none;i,j,k=x,y,z+x,y,z;...` (a cell's point,
+//! SET: `i,j,k=x,y,z;i,j,k=none;i,j,k=x,y,z+x,y,z;v:i,j,k=V;...` (a cell's point,
 //! none, or a first point and further points `+x,y,z+...`, kept as the
-//! cell's further points ([`UnifiedField::cell_points`]); changes applied
-//! together; an empty SET measures the field as it is). With
+//! cell's further points ([`UnifiedField::cell_points`]); `v:` gives
+//! sample i,j,k the value V spacings; changes applied together; an empty SET measures the field as it is). With
 //! `TRY_OUT=PATH.ply` the last SET's surface is written there.
 use std::collections::BTreeMap;
 use surfrecon_distfield::extract::extract_points;
@@ -34,9 +34,18 @@ fn main() {
         vec![String::new()]
     };
     for set in &sets {
+        let mut field = field.clone();
+        for item in set.split(';').filter(|s| s.starts_with("v:")) {
+            let (node, value) = item[2..].split_once('=').unwrap();
+            let node = field.spec.linear(triple(node).map(|x| x as usize));
+            field.values[node] = value.parse::<f64>().unwrap() * h;
+        }
         let (mut features, mut second) = (first.clone(), seconds.clone());
         let mut more = further.clone();
-        for item in set.split(';').filter(|s| !s.is_empty()) {
+        for item in set
+            .split(';')
+            .filter(|s| !s.is_empty() && !s.starts_with("v:"))
+        {
             let (cell, point) = item.split_once('=').unwrap();
             let cell = field.spec.linear(triple(cell).map(|x| x as usize));
             second.remove(&cell);

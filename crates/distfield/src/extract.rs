@@ -723,10 +723,14 @@ fn fan_two(
 /// `points` (of equal distances the earlier point's), each run fanned to
 /// its point; where the run changes, a triangle on the crossing shared by
 /// both fans joins the two points, and the polygon the points then bound
-/// (three or more) is closed by a fan from the first run's point. Only
-/// when the loop is one, each point has exactly one run, and no triangle
-/// turns against a crossing's inside-to-outside direction (as
-/// [`fan_over`]) or against the loop's (the points' polygon).
+/// (three or more) is closed by a fan from the first run's point. A
+/// point nearest no crossing (a corner inside the loop, between the lines
+/// the others keep: fandisk's ridge ending on a box's face, a sliver of
+/// that face beside it) is then inserted into the triangle passing
+/// nearest it (see [`insert_point`]). Only when the loop is one, no point
+/// has two runs, and no triangle turns against a crossing's
+/// inside-to-outside direction (as [`fan_over`]) or against the loop's
+/// (the points' polygon).
 fn fan_runs(
     boundary: &[(Vertex, Vertex)],
     points: &[DVec3],
@@ -761,8 +765,8 @@ fn fan_runs(
     let mut seen = runs.clone();
     seen.sort_unstable();
     seen.dedup();
-    if runs.len() != points.len() || seen.len() != points.len() {
-        return None;
+    if runs.len() != seen.len() {
+        return None; // a point with two runs
     }
     let apex = |k: usize| Vertex::Extra(label[k] as u32);
     let mut triangles = Vec::new();
@@ -778,20 +782,38 @@ fn fan_runs(
     let inner: Vec<[Vertex; 3]> = (1..runs.len().saturating_sub(1))
         .map(|i| [runs[0], runs[i], runs[i + 1]].map(|r| Vertex::Extra(r as u32)))
         .collect();
+    triangles.extend(inner);
     let extra = points.to_vec();
-    let h = field.spec().spacing;
-    let min_area2 = (1e-8 * h * h).powi(2);
     let pos = |v: Vertex| match v {
         Vertex::Edge(i) => vertices[i as usize],
         Vertex::Extra(i) => extra[i as usize],
     };
+    // Points nearest no crossing lie inside the loop: each splits the
+    // triangle passing nearest it (before, the cell fell back to a fan
+    // around its first point and lost them).
+    let fanned = if runs.is_empty() {
+        vec![label[0]]
+    } else {
+        runs
+    };
+    for q in (0..points.len()).filter(|q| !fanned.contains(q)) {
+        let gap = |t: &[Vertex; 3]| {
+            let corners = t.map(pos);
+            points[q].distance(closest_point_on_triangle(points[q], corners))
+        };
+        let nearest = (0..triangles.len())
+            .min_by(|&a, &b| gap(&triangles[a]).total_cmp(&gap(&triangles[b])))?;
+        insert_point(&mut triangles, nearest, Vertex::Extra(q as u32), pos);
+    }
+    let h = field.spec().spacing;
+    let min_area2 = (1e-8 * h * h).powi(2);
     let loop_out: DVec3 = (order.iter())
         .filter_map(|&v| match v {
             Vertex::Edge(i) => Some(outward(field, keys[i as usize])),
             Vertex::Extra(_) => None,
         })
         .sum();
-    for t in triangles.iter().chain(&inner) {
+    for t in &triangles {
         let normal = triangle_normal(t.map(pos));
         if normal.length_squared() < min_area2 {
             return None;
@@ -806,12 +828,47 @@ fn fan_runs(
             return None;
         }
     }
-    triangles.extend(inner);
     Some(Patch {
         triangles,
         extra,
         fanned: Some(true),
     })
+}
+
+/// Splits triangle `t` of `triangles` at `v` (a point near it): into
+/// three, or, where `v` lies beyond one of its edges (one of the three
+/// would turn over), the two triangles on that edge into four around `v`.
+fn insert_point(
+    triangles: &mut Vec<[Vertex; 3]>,
+    t: usize,
+    v: Vertex,
+    pos: impl Fn(Vertex) -> DVec3,
+) {
+    let [a, b, c] = triangles[t];
+    let normal = triangle_normal([a, b, c].map(&pos));
+    let turned = |x: Vertex, y: Vertex| triangle_normal([x, y, v].map(&pos)).dot(normal) <= 0.0;
+    let beyond = [(a, b, c), (b, c, a), (c, a, b)]
+        .into_iter()
+        .find(|&(x, y, _)| turned(x, y));
+    let across = beyond.and_then(|(x, y, _)| {
+        (0..triangles.len()).find(|&k| {
+            let u = triangles[k];
+            (0..3).any(|i| u[i] == y && u[(i + 1) % 3] == x)
+        })
+    });
+    match (beyond, across) {
+        (Some((x, y, z)), Some(k)) => {
+            let w = third(triangles[k], x, y);
+            let (first, second) = (t.max(k), t.min(k));
+            triangles.swap_remove(first);
+            triangles.swap_remove(second);
+            triangles.extend([[y, z, v], [z, x, v], [x, w, v], [w, y, v]]);
+        }
+        _ => {
+            triangles.swap_remove(t);
+            triangles.extend([[a, b, v], [b, c, v], [c, a, v]]);
+        }
+    }
 }
 
 /// `cell`'s patch with each of `points` given to the sheet whose table
@@ -985,8 +1042,63 @@ fn rotate_to_edge(t: [u32; 3], a: u32, b: u32) -> (u32, u32, u32) {
     (t[(k + 1) % 3], t[(k + 2) % 3], t[k])
 }
 
-fn third(t: [u32; 3], a: u32, b: u32) -> u32 {
+fn third<T: Copy + PartialEq>(t: [T; 3], a: T, b: T) -> T {
     *t.iter()
         .find(|&&v| v != a && v != b)
         .expect("edge of the triangle")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use surfrecon_geom::metrics::topology;
+
+    /// Three nodes a side, the centre inside: an octahedron of six
+    /// crossings, one triangle of them in each of the eight cells.
+    struct Octahedron(GridSpec<3>);
+
+    impl SampledField for Octahedron {
+        fn spec(&self) -> &GridSpec<3> {
+            &self.0
+        }
+        fn value(&self, node: usize) -> f64 {
+            if node == self.0.linear([1, 1, 1]) {
+                -0.5
+            } else {
+                0.5
+            }
+        }
+        fn position(&self, node: usize) -> DVec3 {
+            DVec3::from_array(self.0.position(self.0.unlinear(node)))
+        }
+    }
+
+    #[test]
+    fn a_point_nearest_no_crossing_splits_the_fan_inside_the_loop() {
+        let field = Octahedron(GridSpec {
+            origin: [0.0; 3],
+            spacing: 1.0,
+            dims: [3; 3],
+        });
+        let cell = field.0.linear([0, 0, 0]);
+        // Crossings (0.5, 1, 1), (1, 0.5, 1), (1, 1, 0.5): the first
+        // nearest `first`, the other two nearest `second`; `inner` is
+        // nearer `first` or `second` than any crossing is to it, so it
+        // has no run of its own: a corner inside the loop.
+        let first = DVec3::new(0.55, 0.95, 0.95);
+        let second = DVec3::new(0.95, 0.7, 0.7);
+        let inner = DVec3::new(0.78, 0.86, 0.78);
+        let features = BTreeMap::from([(cell, first)]);
+        let more = BTreeMap::from([(cell, vec![second, inner])]);
+        let (mesh, report) = extract_points(&field, &features, &BTreeMap::new(), &more);
+        assert!(
+            mesh.vertices.contains(&inner),
+            "the inner corner is a vertex of the surface"
+        );
+        assert!(mesh.vertices.contains(&second));
+        assert_eq!((report.fans, report.fans_refused), (1, 0));
+        let t = topology(&mesh);
+        assert!(t.watertight && t.vertex_manifold, "{t:?}");
+        assert_eq!((t.components, t.euler), (1, 2), "{t:?}");
+    }
 }
