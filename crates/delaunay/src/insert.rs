@@ -24,8 +24,99 @@ pub(crate) struct Scratch {
     /// positive side, and the encoded neighbour outside the hole.
     pub(crate) boundary: Vec<([u32; 3], u32)>,
     edges: EdgeTable,
+    rim: RimNumbers,
     /// The tetrahedra `cone` made, one per boundary facet.
     created: Vec<u32>,
+}
+
+/// Pairs the new tetrahedra's facets through the apex without hashing:
+/// the hole's rim has few vertices (about 16 for 27 boundary facets on
+/// uniform points), so each gets a small local number, and the facet
+/// stored under the directed edge (u, w) sits at row u, column w of a
+/// square table of width the next power of two (1 KB for 16 vertices,
+/// always warm in L1). No probe loop and no branch that depends on the
+/// data: the edge table's probes were most of the cone's time.
+///
+/// Local numbers live in `mark`, one entry per vertex id (the last for the
+/// infinite vertex): `stamp << 8 | number`, valid for the current hole
+/// when its stamp is current, so nothing is cleared between holes. Holes
+/// with more than 256 rim vertices are left to the edge table.
+#[derive(Clone, Debug, Default)]
+struct RimNumbers {
+    mark: Vec<u32>,
+    stamp: u32,
+    /// Per boundary facet: the local numbers of its vertices and its
+    /// infinite-slot shift (see [`infinite_slot_shift`]).
+    facets: Vec<[u8; 4]>,
+    /// log2 of the table's width for the current hole.
+    shift: u32,
+    table: Vec<u32>,
+}
+
+/// Rim numbers fit in the low 8 bits of a mark.
+const RIM_LIMIT: u32 = 256;
+/// Marks hold the stamp above the number; it restarts before overflowing.
+const RIM_STAMP_LIMIT: u32 = 1 << 24;
+
+impl RimNumbers {
+    /// Number the vertices of `boundary` (vertex ids below `vertices`, or
+    /// the infinite vertex) in order of first appearance. False if there
+    /// are more than [`RIM_LIMIT`].
+    fn number(&mut self, boundary: &[([u32; 3], u32)], vertices: usize) -> bool {
+        self.start_hole(vertices);
+        self.facets.clear();
+        let mut count = 0;
+        for &(f, _) in boundary {
+            let [a, b, c] = f.map(|v| self.local(v, &mut count));
+            self.facets.push([a, b, c, infinite_slot_shift(f) as u8]);
+        }
+        if count > RIM_LIMIT {
+            return false;
+        }
+        self.shift = count.max(2).next_power_of_two().trailing_zeros();
+        let size = 1 << (2 * self.shift);
+        if self.table.len() < size {
+            self.table.resize(size, NONE);
+        }
+        true
+    }
+
+    /// A new stamp, and a mark for every vertex id below `vertices` plus
+    /// the infinite vertex's (the last entry).
+    fn start_hole(&mut self, vertices: usize) {
+        if self.mark.len() < vertices + 1 {
+            let old = self.mark.len();
+            self.mark.resize((vertices + 1).max(2 * old), 0);
+            // The old infinite vertex's entry now belongs to a vertex id.
+            if let Some(m) = old.checked_sub(1) {
+                self.mark[m] = 0;
+            }
+        }
+        self.stamp += 1;
+        if self.stamp == RIM_STAMP_LIMIT {
+            self.mark.fill(0);
+            self.stamp = 1;
+        }
+    }
+
+    /// The local number of vertex `v`, the next one (`count`) if it has
+    /// none yet. Branch-free: whether a vertex is new is as good as random.
+    #[inline(always)]
+    fn local(&mut self, v: u32, count: &mut u32) -> u8 {
+        // Real vertex ids are below the last entry; the infinite one maps to it.
+        let i = (v as usize).min(self.mark.len() - 1);
+        let mark = self.mark[i];
+        let fresh = mark >> 8 != self.stamp;
+        let number = if fresh { *count } else { mark & 0xff } & 0xff;
+        self.mark[i] = self.stamp << 8 | number;
+        *count += u32::from(fresh);
+        number as u8
+    }
+
+    #[inline(always)]
+    fn slot(&self, u: u8, w: u8) -> usize {
+        ((u as usize) << self.shift) | w as usize
+    }
 }
 
 /// Open-addressing table pairing the new tetrahedra's facets through the
@@ -519,23 +610,14 @@ impl Triangulation {
 
     /// Fill the hole described by `scratch.boundary` with the cone from
     /// `apex`: one tetrahedron per boundary facet, glued to the outside
-    /// neighbour and, through the edge table, to each other. `seeds` are
-    /// existing facets through the apex on the hole's rim, given like the
-    /// boundary (hole on the positive side, outside neighbour).
+    /// neighbour and to each other (see [`RimNumbers`], or the edge table
+    /// for very large holes and for seeds). `seeds` are existing facets
+    /// through the apex on the hole's rim, given like the boundary (hole on
+    /// the positive side, outside neighbour).
     pub(crate) fn cone(&mut self, apex: u32, seeds: &[([u32; 3], u32)]) {
         let boundary = std::mem::take(&mut self.scratch.boundary);
-        let mut edges = std::mem::take(&mut self.scratch.edges);
         let mut created = std::mem::take(&mut self.scratch.created);
         created.clear();
-        edges.reset(3 * boundary.len() + seeds.len());
-        for &(facet, outside) in seeds {
-            // The seed (apex, u, w) has the hole on its positive side: the
-            // new tetrahedron behind it traverses the edge as (w, u) and
-            // looks its partner up under (u, w).
-            let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
-            let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
-            edges.insert(u, w, outside);
-        }
         for &([a, b, c], outside) in &boundary {
             let x = infinite_slot_shift([a, b, c]);
             // Slot `s` holds corner `s ^ x` of (a, b, c, apex); spelled out
@@ -551,11 +633,6 @@ impl Triangulation {
             let t = self.alloc_tet(verts);
             created.push(t);
             self.link(t * 4 + (3 ^ x) as u32, outside);
-            // The facet through the apex opposite a holds the edge (b, c);
-            // likewise for b and c.
-            edges.insert(b, c, t * 4 + x as u32);
-            edges.insert(c, a, t * 4 + (1 ^ x) as u32);
-            edges.insert(a, b, t * 4 + (2 ^ x) as u32);
             if self.track_vertex_tets {
                 for &y in &verts {
                     if y != INF {
@@ -567,6 +644,80 @@ impl Triangulation {
                 self.hint = t;
             }
         }
+        if seeds.is_empty() && self.pair_by_rim_numbers(&boundary, &created) {
+            // Done without the edge table.
+        } else {
+            self.pair_by_edge_table(apex, seeds, &boundary, &created);
+        }
+        self.scratch.boundary = boundary;
+        self.scratch.created = created;
+    }
+
+    /// Glue the cone's tetrahedra `created` (one per facet of `boundary`)
+    /// to each other through [`RimNumbers`]. False, with nothing glued,
+    /// if the rim has too many vertices.
+    fn pair_by_rim_numbers(&mut self, boundary: &[([u32; 3], u32)], created: &[u32]) -> bool {
+        let mut rim = std::mem::take(&mut self.scratch.rim);
+        let numbered = rim.number(boundary, self.points.len());
+        if numbered {
+            // Facet (a, b, c) traversed in that cyclic order gives its
+            // tetrahedron the facets through the apex opposite a, b, c,
+            // holding the directed edges (b, c), (c, a), (a, b); the
+            // neighbouring boundary facet traverses the shared edge the
+            // other way, so every facet is stored first, then found under
+            // its reversed edge (every directed edge of the closed rim is
+            // stored once).
+            for (&[a, b, c, x], &t) in rim.facets.iter().zip(created) {
+                let (t, x) = (t * 4, x as u32);
+                let slots = [rim.slot(b, c), rim.slot(c, a), rim.slot(a, b)];
+                rim.table[slots[0]] = t + x;
+                rim.table[slots[1]] = t + (1 ^ x);
+                rim.table[slots[2]] = t + (2 ^ x);
+            }
+            for (&[a, b, c, x], &t) in rim.facets.iter().zip(created) {
+                let x = x as usize;
+                let n = [
+                    rim.table[rim.slot(c, b)],
+                    rim.table[rim.slot(a, c)],
+                    rim.table[rim.slot(b, a)],
+                ];
+                let cell = &mut self.cells[t as usize];
+                cell.n[x] = n[0];
+                cell.n[1 ^ x] = n[1];
+                cell.n[2 ^ x] = n[2];
+            }
+        }
+        self.scratch.rim = rim;
+        numbered
+    }
+
+    /// Glue the cone's tetrahedra `created` (one per facet of `boundary`)
+    /// to each other and to `seeds` through the hashed [`EdgeTable`].
+    fn pair_by_edge_table(
+        &mut self,
+        apex: u32,
+        seeds: &[([u32; 3], u32)],
+        boundary: &[([u32; 3], u32)],
+        created: &[u32],
+    ) {
+        let mut edges = std::mem::take(&mut self.scratch.edges);
+        edges.reset(3 * boundary.len() + seeds.len());
+        for &(facet, outside) in seeds {
+            // The seed (apex, u, w) has the hole on its positive side: the
+            // new tetrahedron behind it traverses the edge as (w, u) and
+            // looks its partner up under (u, w).
+            let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
+            let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
+            edges.insert(u, w, outside);
+        }
+        for (&([a, b, c], _), &t) in boundary.iter().zip(created) {
+            let x = infinite_slot_shift([a, b, c]) as u32;
+            // The facet through the apex opposite a holds the edge (b, c);
+            // likewise for b and c.
+            edges.insert(b, c, t * 4 + x);
+            edges.insert(c, a, t * 4 + (1 ^ x));
+            edges.insert(a, b, t * 4 + (2 ^ x));
+        }
         // Each new facet through the apex sets its own side; the partner
         // sets the other when its turn comes, except seeds, linked here.
         for &(facet, outside) in seeds {
@@ -576,7 +727,7 @@ impl Triangulation {
                 self.link(here, outside);
             }
         }
-        for (&([a, b, c], _), &t) in boundary.iter().zip(&created) {
+        for (&([a, b, c], _), &t) in boundary.iter().zip(created) {
             let x = infinite_slot_shift([a, b, c]);
             let cell = &mut self.cells[t as usize];
             for (slot, u, w) in [(x, c, b), (1 ^ x, a, c), (2 ^ x, b, a)] {
@@ -587,9 +738,7 @@ impl Triangulation {
                 }
             }
         }
-        self.scratch.boundary = boundary;
         self.scratch.edges = edges;
-        self.scratch.created = created;
     }
 
     /// Make two encoded facets neighbours of each other.
