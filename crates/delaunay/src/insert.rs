@@ -233,6 +233,28 @@ fn infinite_slot_shift([a, b, c]: [u32; 3]) -> usize {
     }
 }
 
+/// A cell's vertex ids without the search flags (only slots 0 and 1
+/// carry them; slot 3 may be the infinite vertex, whose id has the top
+/// bit set).
+#[inline(always)]
+fn unflagged(v: [u32; 4]) -> [u32; 4] {
+    [v[0] & !FLAGS, v[1] & !FLAGS, v[2], v[3]]
+}
+
+/// Append `item` to `list` if `keep`, with no branch on `keep`: the item is
+/// written past the end either way and the length grows by `keep`.
+#[inline(always)]
+fn push_if<T: Copy>(list: &mut Vec<T>, item: T, keep: bool) {
+    if list.len() == list.capacity() {
+        list.reserve(list.len().max(16));
+    }
+    list.spare_capacity_mut()[0].write(item);
+    // SAFETY: the element at `len` was just initialised and lies within
+    // the capacity; `T: Copy`, so the written item needs no drop if it is
+    // not kept.
+    unsafe { list.set_len(list.len() + usize::from(keep)) };
+}
+
 /// Cheap xorshift step for the walk's random facet order.
 #[inline]
 fn next_random(state: &mut u32) -> u32 {
@@ -523,11 +545,17 @@ impl Triangulation {
     /// cost one more cache miss per test. Before a neighbour's in-sphere
     /// test, its own neighbours are prefetched: the test takes long enough
     /// to hide much of their load if it joins the cavity (about half do).
-    /// The search stays depth first: the new tetrahedra are numbered in the
-    /// order of the boundary it lists, and callers' results can depend on
-    /// that numbering (a breadth-first search, as fast, changed the
-    /// convection's result on the thin-fin test; the convection's mesh no
-    /// longer depends on it, other callers' may).
+    /// The search stays depth first, each cell's facets in slot order: the
+    /// new tetrahedra are numbered in the order of the boundary it lists,
+    /// and callers' results can depend on that numbering (a breadth-first
+    /// search, as fast, changed the convection's result on the thin-fin
+    /// test; the convection's mesh no longer depends on it, other callers'
+    /// may).
+    ///
+    /// The stack holds each cell with the facet it was reached through
+    /// (encoded like a neighbour), and that facet, whose other side is in
+    /// the cavity, is not visited again: it was half of the "already in
+    /// the cavity" outcomes, as good as random to the branch predictor.
     fn find_cavity(&mut self, start: u32, v: u32) {
         let mut s = std::mem::take(&mut self.scratch);
         s.stack.clear();
@@ -535,20 +563,24 @@ impl Triangulation {
         s.boundary.clear();
         s.rejected.clear();
         self.cells[start as usize].v[0] |= IN_CAVITY;
-        s.stack.push(start);
         s.cavity.push(start);
         self.prefetch_neighbours(start);
-        while let Some(t) = s.stack.pop() {
-            let cell = self.cells[t as usize];
-            // Only slots 0 and 1 carry flags (slot 3 may be the infinite
-            // vertex, whose id has the top bit set).
-            let verts = [cell.v[0] & !FLAGS, cell.v[1] & !FLAGS, cell.v[2], cell.v[3]];
-            // Spelled out, not a loop: each facet's branches get their own
-            // history in the predictor, and no loop branch mispredicts.
-            self.visit_neighbour(&mut s, &verts, 0, cell.n[0], v);
-            self.visit_neighbour(&mut s, &verts, 1, cell.n[1], v);
-            self.visit_neighbour(&mut s, &verts, 2, cell.n[2], v);
-            self.visit_neighbour(&mut s, &verts, 3, cell.n[3], v);
+        let cell = self.cells[start as usize];
+        let verts = unflagged(cell.v);
+        for i in 0..4 {
+            self.visit_neighbour(&mut s, &verts, i, cell.n[i], v);
+        }
+        while let Some(reached) = s.stack.pop() {
+            let (t, entry) = ((reached >> 2) as usize, (reached & 3) as usize);
+            let cell = self.cells[t];
+            let verts = unflagged(cell.v);
+            // The other three slots in increasing order (the order of a
+            // visit of all four, so the same boundary order); spelled out,
+            // as a loop its branch mispredicted once per cell.
+            let [i, j, k] = [0, 1, 2].map(|k| k + usize::from(k >= entry));
+            self.visit_neighbour(&mut s, &verts, i, cell.n[i], v);
+            self.visit_neighbour(&mut s, &verts, j, cell.n[j], v);
+            self.visit_neighbour(&mut s, &verts, k, cell.n[k], v);
         }
         for &t in &s.rejected {
             self.cells[t as usize].v[1] &= !REJECTED;
@@ -559,6 +591,13 @@ impl Triangulation {
     /// One step of [`Triangulation::find_cavity`]: the neighbour `across`
     /// facet `i` of a cavity cell with vertices `verts` joins the cavity,
     /// or that facet joins the boundary.
+    ///
+    /// The in-sphere test's outcome, as good as random, drives no branch:
+    /// each list the neighbour or the facet could go to gets the entry and
+    /// keeps it or not ([`push_if`]), and one of the neighbour's two flags
+    /// is set by index. A mispredicted branch on it threw away the tests
+    /// of the cell's other neighbours that had started meanwhile; now they
+    /// overlap.
     #[inline(always)]
     fn visit_neighbour(
         &mut self,
@@ -573,22 +612,23 @@ impl Triangulation {
         if other.v[0] & IN_CAVITY != 0 {
             return;
         }
-        if other.v[1] & REJECTED == 0 {
+        // Rejected already (reached through another facet): rare.
+        let conflict = if other.v[1] & REJECTED == 0 {
             // Whether `n` joins the cavity is known only after its test;
             // start loading its neighbours now, in case.
             self.prefetch_neighbours(n);
-            if self.in_conflict(n, v) {
-                self.cells[n as usize].v[0] |= IN_CAVITY;
-                s.stack.push(n);
-                s.cavity.push(n);
-                return;
-            }
-            self.cells[n as usize].v[1] |= REJECTED;
-            s.rejected.push(n);
-        }
+            self.in_conflict(n, v)
+        } else {
+            false
+        };
+        // IN_CAVITY on slot 0 if in conflict, else REJECTED on slot 1.
+        self.cells[n as usize].v[usize::from(!conflict)] |= FLAGS;
+        push_if(&mut s.stack, across, conflict);
+        push_if(&mut s.cavity, n, conflict);
+        push_if(&mut s.rejected, n, !conflict);
         let f = &FACET[i];
-        s.boundary
-            .push(([verts[f[0]], verts[f[1]], verts[f[2]]], across));
+        let facet = [verts[f[0]], verts[f[1]], verts[f[2]]];
+        push_if(&mut s.boundary, (facet, across), !conflict);
     }
 
     /// Start loading the neighbours of `t` (no effect on results): their
