@@ -6,7 +6,7 @@
 //! replaced by the cone from the new point over the cavity's boundary.
 
 use crate::error::{DelaunayError, Result};
-use crate::predicates::{insphere_sos_filtered, orient3d, orient3d_filtered, StaticFilter};
+use crate::predicates::{insphere_sos, insphere_static, orient3d, orient3d_filtered, StaticFilter};
 use crate::triangulation::{
     Cell, Location, TetId, Triangulation, VertexId, FACET, INF, MAX_TETS, MAX_VERTICES, NONE,
 };
@@ -524,16 +524,27 @@ impl Triangulation {
     #[inline]
     fn finite_conflict(&self, t: u32, v: u32) -> bool {
         // `t` may be flagged when reached from a coplanar ghost.
-        let [i0, i1, i2, i3] = self.cells[t as usize].v;
-        let (i0, i1) = (i0 & !FLAGS, i1 & !FLAGS);
-        let pts = [
-            self.points[i0 as usize],
-            self.points[i1 as usize],
-            self.points[i2 as usize],
-            self.points[i3 as usize],
-            self.points[v as usize],
-        ];
-        insphere_sos_filtered(pts, [i0, i1, i2, i3, v], self.filter.insphere)
+        let ids = unflagged(self.cells[t as usize].v);
+        // One by one: an array of points went through the stack, and
+        // reading it back in other widths stalled on store forwarding.
+        let a = self.points[ids[0] as usize];
+        let b = self.points[ids[1] as usize];
+        let c = self.points[ids[2] as usize];
+        let d = self.points[ids[3] as usize];
+        let e = self.points[v as usize];
+        match insphere_static(a, b, c, d, e, self.filter.insphere) {
+            Some(det) => det > 0.0,
+            None => self.finite_conflict_exact(ids, v),
+        }
+    }
+
+    /// [`Triangulation::finite_conflict`] when the static filter does not
+    /// decide: the exact test with its symbolic perturbation.
+    #[cold]
+    #[inline(never)]
+    fn finite_conflict_exact(&self, [i0, i1, i2, i3]: [u32; 4], v: u32) -> bool {
+        let pts = [i0, i1, i2, i3, v].map(|i| self.points[i as usize]);
+        insphere_sos(pts, [i0, i1, i2, i3, v])
     }
 
     /// Fill `scratch.cavity` with the tetrahedra in conflict with `v`
