@@ -402,9 +402,7 @@ impl Triangulation {
             return Err(DelaunayError::TooLarge);
         }
         let cavity = std::mem::take(&mut self.scratch.cavity);
-        for &t in &cavity {
-            self.free_tet(t);
-        }
+        self.free_tets(&cavity);
         self.scratch.cavity = cavity;
         self.cone(v, &[]);
         self.live_vertices += 1;
@@ -669,6 +667,7 @@ impl Triangulation {
         let boundary = std::mem::take(&mut self.scratch.boundary);
         let mut created = std::mem::take(&mut self.scratch.created);
         created.clear();
+        let mut ghosts = 0;
         for &([a, b, c], outside) in &boundary {
             let x = infinite_slot_shift([a, b, c]);
             // Slot `s` holds corner `s ^ x` of (a, b, c, apex); spelled out
@@ -681,7 +680,8 @@ impl Triangulation {
                 2 => [c, apex, a, b],
                 _ => [apex, c, b, a],
             };
-            let t = self.alloc_tet(verts);
+            let t = self.alloc_uncounted(verts);
+            ghosts += usize::from(verts[3] == INF);
             created.push(t);
             self.link(t * 4 + (3 ^ x) as u32, outside);
             if self.track_vertex_tets {
@@ -695,6 +695,7 @@ impl Triangulation {
                 self.hint = t;
             }
         }
+        self.count_tets(boundary.len() - ghosts, ghosts);
         if seeds.is_empty() && self.pair_by_rim_numbers(&boundary, &created) {
             // Done without the edge table.
         } else {
@@ -801,11 +802,23 @@ impl Triangulation {
 
     #[inline]
     pub(crate) fn alloc_tet(&mut self, verts: [u32; 4]) -> u32 {
-        if verts[3] == INF {
-            self.ghost_tets += 1;
-        } else {
-            self.finite_tets += 1;
-        }
+        self.count_tets(usize::from(verts[3] != INF), usize::from(verts[3] == INF));
+        self.alloc_uncounted(verts)
+    }
+
+    /// Add to the counts of finite and ghost tetrahedra. Callers that make
+    /// or free many sum them first: counting each in place compiled to an
+    /// add to memory at an address chosen by the ghost test, each waiting
+    /// for the one before.
+    #[inline]
+    fn count_tets(&mut self, finite: usize, ghosts: usize) {
+        self.finite_tets += finite;
+        self.ghost_tets += ghosts;
+    }
+
+    /// [`Triangulation::alloc_tet`] without counting it.
+    #[inline]
+    fn alloc_uncounted(&mut self, verts: [u32; 4]) -> u32 {
         let t = match self.free.pop() {
             Some(t) => {
                 self.cells[t as usize].v = verts;
@@ -823,6 +836,22 @@ impl Triangulation {
             c.created.push(TetId(t));
         }
         t
+    }
+
+    /// [`Triangulation::free_tet`] for each of `tets`, counted once.
+    fn free_tets(&mut self, tets: &[u32]) {
+        let mut ghosts = 0;
+        for &t in tets {
+            let cell = &mut self.cells[t as usize];
+            ghosts += usize::from(cell.v[3] == INF);
+            cell.v[0] = NONE;
+        }
+        self.finite_tets -= tets.len() - ghosts;
+        self.ghost_tets -= ghosts;
+        self.free.extend_from_slice(tets);
+        if let Some(c) = &mut self.changes {
+            c.freed.extend(tets.iter().map(|&t| TetId(t)));
+        }
     }
 
     pub(crate) fn free_tet(&mut self, t: u32) {
