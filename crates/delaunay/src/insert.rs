@@ -17,8 +17,6 @@ use glam::DVec3;
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Scratch {
     stack: Vec<u32>,
-    /// Tetrahedra tested and found not in conflict (flag to clear).
-    rejected: Vec<u32>,
     pub(crate) cavity: Vec<u32>,
     /// Facets of the hole to fill: vertices ordered with the hole on their
     /// positive side, and the encoded neighbour outside the hole.
@@ -570,7 +568,6 @@ impl Triangulation {
         s.stack.clear();
         s.cavity.clear();
         s.boundary.clear();
-        s.rejected.clear();
         self.cells[start as usize].v[0] |= IN_CAVITY;
         s.cavity.push(start);
         self.prefetch_neighbours(start);
@@ -591,8 +588,10 @@ impl Triangulation {
             self.visit_neighbour(&mut s, &verts, j, cell.n[j], v);
             self.visit_neighbour(&mut s, &verts, k, cell.n[k], v);
         }
-        for &t in &s.rejected {
-            self.cells[t as usize].v[1] &= !REJECTED;
+        // The tetrahedra tested and found not in conflict are those
+        // behind the boundary.
+        for &(_, outside) in &s.boundary {
+            self.cells[(outside >> 2) as usize].v[1] &= !REJECTED;
         }
         self.scratch = s;
     }
@@ -634,7 +633,6 @@ impl Triangulation {
         self.cells[n as usize].v[usize::from(!conflict)] |= FLAGS;
         push_if(&mut s.stack, across, conflict);
         push_if(&mut s.cavity, n, conflict);
-        push_if(&mut s.rejected, n, !conflict);
         let f = &FACET[i];
         let facet = [verts[f[0]], verts[f[1]], verts[f[2]]];
         push_if(&mut s.boundary, (facet, across), !conflict);
