@@ -6,7 +6,7 @@
 //! replaced by the cone from the new point over the cavity's boundary.
 
 use crate::error::{DelaunayError, Result};
-use crate::predicates::{insphere_sos_filtered, orient3d, orient3d_filtered, StaticFilter};
+use crate::predicates::{insphere_sos, insphere_static, orient3d, orient3d_filtered, StaticFilter};
 use crate::triangulation::{
     Cell, Location, TetId, Triangulation, VertexId, FACET, INF, MAX_TETS, MAX_VERTICES, NONE,
 };
@@ -17,15 +17,104 @@ use glam::DVec3;
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Scratch {
     stack: Vec<u32>,
-    /// Tetrahedra tested and found not in conflict (flag to clear).
-    rejected: Vec<u32>,
     pub(crate) cavity: Vec<u32>,
     /// Facets of the hole to fill: vertices ordered with the hole on their
     /// positive side, and the encoded neighbour outside the hole.
     pub(crate) boundary: Vec<([u32; 3], u32)>,
     edges: EdgeTable,
+    rim: RimNumbers,
     /// The tetrahedra `cone` made, one per boundary facet.
     created: Vec<u32>,
+}
+
+/// Pairs the new tetrahedra's facets through the apex without hashing:
+/// the hole's rim has few vertices (about 16 for 27 boundary facets on
+/// uniform points), so each gets a small local number, and the facet
+/// stored under the directed edge (u, w) sits at row u, column w of a
+/// square table of width the next power of two (1 KB for 16 vertices,
+/// always warm in L1). No probe loop and no branch that depends on the
+/// data: the edge table's probes were most of the cone's time.
+///
+/// Local numbers live in `mark`, one entry per vertex id (the last for the
+/// infinite vertex): `stamp << 8 | number`, valid for the current hole
+/// when its stamp is current, so nothing is cleared between holes. Holes
+/// with more than 256 rim vertices are left to the edge table.
+#[derive(Clone, Debug, Default)]
+struct RimNumbers {
+    mark: Vec<u32>,
+    stamp: u32,
+    /// Per boundary facet: the local numbers of its vertices and its
+    /// infinite-slot shift (see [`infinite_slot_shift`]).
+    facets: Vec<[u8; 4]>,
+    /// log2 of the table's width for the current hole.
+    shift: u32,
+    table: Vec<u32>,
+}
+
+/// Rim numbers fit in the low 8 bits of a mark.
+const RIM_LIMIT: u32 = 256;
+/// Marks hold the stamp above the number; it restarts before overflowing.
+const RIM_STAMP_LIMIT: u32 = 1 << 24;
+
+impl RimNumbers {
+    /// Number the vertices of `boundary` (vertex ids below `vertices`, or
+    /// the infinite vertex) in order of first appearance. False if there
+    /// are more than [`RIM_LIMIT`].
+    fn number(&mut self, boundary: &[([u32; 3], u32)], vertices: usize) -> bool {
+        self.start_hole(vertices);
+        self.facets.clear();
+        let mut count = 0;
+        for &(f, _) in boundary {
+            let [a, b, c] = f.map(|v| self.local(v, &mut count));
+            self.facets.push([a, b, c, infinite_slot_shift(f) as u8]);
+        }
+        if count > RIM_LIMIT {
+            return false;
+        }
+        self.shift = count.max(2).next_power_of_two().trailing_zeros();
+        let size = 1 << (2 * self.shift);
+        if self.table.len() < size {
+            self.table.resize(size, NONE);
+        }
+        true
+    }
+
+    /// A new stamp, and a mark for every vertex id below `vertices` plus
+    /// the infinite vertex's (the last entry).
+    fn start_hole(&mut self, vertices: usize) {
+        if self.mark.len() < vertices + 1 {
+            let old = self.mark.len();
+            self.mark.resize((vertices + 1).max(2 * old), 0);
+            // The old infinite vertex's entry now belongs to a vertex id.
+            if let Some(m) = old.checked_sub(1) {
+                self.mark[m] = 0;
+            }
+        }
+        self.stamp += 1;
+        if self.stamp == RIM_STAMP_LIMIT {
+            self.mark.fill(0);
+            self.stamp = 1;
+        }
+    }
+
+    /// The local number of vertex `v`, the next one (`count`) if it has
+    /// none yet. Branch-free: whether a vertex is new is as good as random.
+    #[inline(always)]
+    fn local(&mut self, v: u32, count: &mut u32) -> u8 {
+        // Real vertex ids are below the last entry; the infinite one maps to it.
+        let i = (v as usize).min(self.mark.len() - 1);
+        let mark = self.mark[i];
+        let fresh = mark >> 8 != self.stamp;
+        let number = if fresh { *count } else { mark & 0xff } & 0xff;
+        self.mark[i] = self.stamp << 8 | number;
+        *count += u32::from(fresh);
+        number as u8
+    }
+
+    #[inline(always)]
+    fn slot(&self, u: u8, w: u8) -> usize {
+        ((u as usize) << self.shift) | w as usize
+    }
 }
 
 /// Open-addressing table pairing the new tetrahedra's facets through the
@@ -140,6 +229,28 @@ fn infinite_slot_shift([a, b, c]: [u32; 3]) -> usize {
     } else {
         0
     }
+}
+
+/// A cell's vertex ids without the search flags (only slots 0 and 1
+/// carry them; slot 3 may be the infinite vertex, whose id has the top
+/// bit set).
+#[inline(always)]
+fn unflagged(v: [u32; 4]) -> [u32; 4] {
+    [v[0] & !FLAGS, v[1] & !FLAGS, v[2], v[3]]
+}
+
+/// Append `item` to `list` if `keep`, with no branch on `keep`: the item is
+/// written past the end either way and the length grows by `keep`.
+#[inline(always)]
+fn push_if<T: Copy>(list: &mut Vec<T>, item: T, keep: bool) {
+    if list.len() == list.capacity() {
+        list.reserve(list.len().max(16));
+    }
+    list.spare_capacity_mut()[0].write(item);
+    // SAFETY: the element at `len` was just initialised and lies within
+    // the capacity; `T: Copy`, so the written item needs no drop if it is
+    // not kept.
+    unsafe { list.set_len(list.len() + usize::from(keep)) };
 }
 
 /// Cheap xorshift step for the walk's random facet order.
@@ -289,9 +400,7 @@ impl Triangulation {
             return Err(DelaunayError::TooLarge);
         }
         let cavity = std::mem::take(&mut self.scratch.cavity);
-        for &t in &cavity {
-            self.free_tet(t);
-        }
+        self.free_tets(&cavity);
         self.scratch.cavity = cavity;
         self.cone(v, &[]);
         self.live_vertices += 1;
@@ -411,16 +520,27 @@ impl Triangulation {
     #[inline]
     fn finite_conflict(&self, t: u32, v: u32) -> bool {
         // `t` may be flagged when reached from a coplanar ghost.
-        let [i0, i1, i2, i3] = self.cells[t as usize].v;
-        let (i0, i1) = (i0 & !FLAGS, i1 & !FLAGS);
-        let pts = [
-            self.points[i0 as usize],
-            self.points[i1 as usize],
-            self.points[i2 as usize],
-            self.points[i3 as usize],
-            self.points[v as usize],
-        ];
-        insphere_sos_filtered(pts, [i0, i1, i2, i3, v], self.filter.insphere)
+        let ids = unflagged(self.cells[t as usize].v);
+        // One by one: an array of points went through the stack, and
+        // reading it back in other widths stalled on store forwarding.
+        let a = self.points[ids[0] as usize];
+        let b = self.points[ids[1] as usize];
+        let c = self.points[ids[2] as usize];
+        let d = self.points[ids[3] as usize];
+        let e = self.points[v as usize];
+        match insphere_static(a, b, c, d, e, self.filter.insphere) {
+            Some(det) => det > 0.0,
+            None => self.finite_conflict_exact(ids, v),
+        }
+    }
+
+    /// [`Triangulation::finite_conflict`] when the static filter does not
+    /// decide: the exact test with its symbolic perturbation.
+    #[cold]
+    #[inline(never)]
+    fn finite_conflict_exact(&self, [i0, i1, i2, i3]: [u32; 4], v: u32) -> bool {
+        let pts = [i0, i1, i2, i3, v].map(|i| self.points[i as usize]);
+        insphere_sos(pts, [i0, i1, i2, i3, v])
     }
 
     /// Fill `scratch.cavity` with the tetrahedra in conflict with `v`
@@ -432,35 +552,46 @@ impl Triangulation {
     /// cost one more cache miss per test. Before a neighbour's in-sphere
     /// test, its own neighbours are prefetched: the test takes long enough
     /// to hide much of their load if it joins the cavity (about half do).
-    /// The search stays depth first: the new tetrahedra are numbered in the
-    /// order of the boundary it lists, and callers' results can depend on
-    /// that numbering (a breadth-first search, as fast, changed the
-    /// convection's result on the thin-fin test; the convection's mesh no
-    /// longer depends on it, other callers' may).
+    /// The search stays depth first, each cell's facets in slot order: the
+    /// new tetrahedra are numbered in the order of the boundary it lists,
+    /// and callers' results can depend on that numbering (a breadth-first
+    /// search, as fast, changed the convection's result on the thin-fin
+    /// test; the convection's mesh no longer depends on it, other callers'
+    /// may).
+    ///
+    /// The stack holds each cell with the facet it was reached through
+    /// (encoded like a neighbour), and that facet, whose other side is in
+    /// the cavity, is not visited again: it was half of the "already in
+    /// the cavity" outcomes, as good as random to the branch predictor.
     fn find_cavity(&mut self, start: u32, v: u32) {
         let mut s = std::mem::take(&mut self.scratch);
         s.stack.clear();
         s.cavity.clear();
         s.boundary.clear();
-        s.rejected.clear();
         self.cells[start as usize].v[0] |= IN_CAVITY;
-        s.stack.push(start);
         s.cavity.push(start);
         self.prefetch_neighbours(start);
-        while let Some(t) = s.stack.pop() {
-            let cell = self.cells[t as usize];
-            // Only slots 0 and 1 carry flags (slot 3 may be the infinite
-            // vertex, whose id has the top bit set).
-            let verts = [cell.v[0] & !FLAGS, cell.v[1] & !FLAGS, cell.v[2], cell.v[3]];
-            // Spelled out, not a loop: each facet's branches get their own
-            // history in the predictor, and no loop branch mispredicts.
-            self.visit_neighbour(&mut s, &verts, 0, cell.n[0], v);
-            self.visit_neighbour(&mut s, &verts, 1, cell.n[1], v);
-            self.visit_neighbour(&mut s, &verts, 2, cell.n[2], v);
-            self.visit_neighbour(&mut s, &verts, 3, cell.n[3], v);
+        let cell = self.cells[start as usize];
+        let verts = unflagged(cell.v);
+        for i in 0..4 {
+            self.visit_neighbour(&mut s, &verts, i, cell.n[i], v);
         }
-        for &t in &s.rejected {
-            self.cells[t as usize].v[1] &= !REJECTED;
+        while let Some(reached) = s.stack.pop() {
+            let (t, entry) = ((reached >> 2) as usize, (reached & 3) as usize);
+            let cell = self.cells[t];
+            let verts = unflagged(cell.v);
+            // The other three slots in increasing order (the order of a
+            // visit of all four, so the same boundary order); spelled out,
+            // as a loop its branch mispredicted once per cell.
+            let [i, j, k] = [0, 1, 2].map(|k| k + usize::from(k >= entry));
+            self.visit_neighbour(&mut s, &verts, i, cell.n[i], v);
+            self.visit_neighbour(&mut s, &verts, j, cell.n[j], v);
+            self.visit_neighbour(&mut s, &verts, k, cell.n[k], v);
+        }
+        // The tetrahedra tested and found not in conflict are those
+        // behind the boundary.
+        for &(_, outside) in &s.boundary {
+            self.cells[(outside >> 2) as usize].v[1] &= !REJECTED;
         }
         self.scratch = s;
     }
@@ -468,6 +599,13 @@ impl Triangulation {
     /// One step of [`Triangulation::find_cavity`]: the neighbour `across`
     /// facet `i` of a cavity cell with vertices `verts` joins the cavity,
     /// or that facet joins the boundary.
+    ///
+    /// The in-sphere test's outcome, as good as random, drives no branch:
+    /// each list the neighbour or the facet could go to gets the entry and
+    /// keeps it or not ([`push_if`]), and one of the neighbour's two flags
+    /// is set by index. A mispredicted branch on it threw away the tests
+    /// of the cell's other neighbours that had started meanwhile; now they
+    /// overlap.
     #[inline(always)]
     fn visit_neighbour(
         &mut self,
@@ -482,22 +620,22 @@ impl Triangulation {
         if other.v[0] & IN_CAVITY != 0 {
             return;
         }
-        if other.v[1] & REJECTED == 0 {
+        // Rejected already (reached through another facet): rare.
+        let conflict = if other.v[1] & REJECTED == 0 {
             // Whether `n` joins the cavity is known only after its test;
             // start loading its neighbours now, in case.
             self.prefetch_neighbours(n);
-            if self.in_conflict(n, v) {
-                self.cells[n as usize].v[0] |= IN_CAVITY;
-                s.stack.push(n);
-                s.cavity.push(n);
-                return;
-            }
-            self.cells[n as usize].v[1] |= REJECTED;
-            s.rejected.push(n);
-        }
+            self.in_conflict(n, v)
+        } else {
+            false
+        };
+        // IN_CAVITY on slot 0 if in conflict, else REJECTED on slot 1.
+        self.cells[n as usize].v[usize::from(!conflict)] |= FLAGS;
+        push_if(&mut s.stack, across, conflict);
+        push_if(&mut s.cavity, n, conflict);
         let f = &FACET[i];
-        s.boundary
-            .push(([verts[f[0]], verts[f[1]], verts[f[2]]], across));
+        let facet = [verts[f[0]], verts[f[1]], verts[f[2]]];
+        push_if(&mut s.boundary, (facet, across), !conflict);
     }
 
     /// Start loading the neighbours of `t` (no effect on results): their
@@ -519,23 +657,15 @@ impl Triangulation {
 
     /// Fill the hole described by `scratch.boundary` with the cone from
     /// `apex`: one tetrahedron per boundary facet, glued to the outside
-    /// neighbour and, through the edge table, to each other. `seeds` are
-    /// existing facets through the apex on the hole's rim, given like the
-    /// boundary (hole on the positive side, outside neighbour).
+    /// neighbour and to each other (see [`RimNumbers`], or the edge table
+    /// for very large holes and for seeds). `seeds` are existing facets
+    /// through the apex on the hole's rim, given like the boundary (hole on
+    /// the positive side, outside neighbour).
     pub(crate) fn cone(&mut self, apex: u32, seeds: &[([u32; 3], u32)]) {
         let boundary = std::mem::take(&mut self.scratch.boundary);
-        let mut edges = std::mem::take(&mut self.scratch.edges);
         let mut created = std::mem::take(&mut self.scratch.created);
         created.clear();
-        edges.reset(3 * boundary.len() + seeds.len());
-        for &(facet, outside) in seeds {
-            // The seed (apex, u, w) has the hole on its positive side: the
-            // new tetrahedron behind it traverses the edge as (w, u) and
-            // looks its partner up under (u, w).
-            let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
-            let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
-            edges.insert(u, w, outside);
-        }
+        let mut ghosts = 0;
         for &([a, b, c], outside) in &boundary {
             let x = infinite_slot_shift([a, b, c]);
             // Slot `s` holds corner `s ^ x` of (a, b, c, apex); spelled out
@@ -548,14 +678,10 @@ impl Triangulation {
                 2 => [c, apex, a, b],
                 _ => [apex, c, b, a],
             };
-            let t = self.alloc_tet(verts);
+            let t = self.alloc_uncounted(verts);
+            ghosts += usize::from(verts[3] == INF);
             created.push(t);
             self.link(t * 4 + (3 ^ x) as u32, outside);
-            // The facet through the apex opposite a holds the edge (b, c);
-            // likewise for b and c.
-            edges.insert(b, c, t * 4 + x as u32);
-            edges.insert(c, a, t * 4 + (1 ^ x) as u32);
-            edges.insert(a, b, t * 4 + (2 ^ x) as u32);
             if self.track_vertex_tets {
                 for &y in &verts {
                     if y != INF {
@@ -567,6 +693,81 @@ impl Triangulation {
                 self.hint = t;
             }
         }
+        self.count_tets(boundary.len() - ghosts, ghosts);
+        if seeds.is_empty() && self.pair_by_rim_numbers(&boundary, &created) {
+            // Done without the edge table.
+        } else {
+            self.pair_by_edge_table(apex, seeds, &boundary, &created);
+        }
+        self.scratch.boundary = boundary;
+        self.scratch.created = created;
+    }
+
+    /// Glue the cone's tetrahedra `created` (one per facet of `boundary`)
+    /// to each other through [`RimNumbers`]. False, with nothing glued,
+    /// if the rim has too many vertices.
+    fn pair_by_rim_numbers(&mut self, boundary: &[([u32; 3], u32)], created: &[u32]) -> bool {
+        let mut rim = std::mem::take(&mut self.scratch.rim);
+        let numbered = rim.number(boundary, self.points.len());
+        if numbered {
+            // Facet (a, b, c) traversed in that cyclic order gives its
+            // tetrahedron the facets through the apex opposite a, b, c,
+            // holding the directed edges (b, c), (c, a), (a, b); the
+            // neighbouring boundary facet traverses the shared edge the
+            // other way, so every facet is stored first, then found under
+            // its reversed edge (every directed edge of the closed rim is
+            // stored once).
+            for (&[a, b, c, x], &t) in rim.facets.iter().zip(created) {
+                let (t, x) = (t * 4, x as u32);
+                let slots = [rim.slot(b, c), rim.slot(c, a), rim.slot(a, b)];
+                rim.table[slots[0]] = t + x;
+                rim.table[slots[1]] = t + (1 ^ x);
+                rim.table[slots[2]] = t + (2 ^ x);
+            }
+            for (&[a, b, c, x], &t) in rim.facets.iter().zip(created) {
+                let x = x as usize;
+                let n = [
+                    rim.table[rim.slot(c, b)],
+                    rim.table[rim.slot(a, c)],
+                    rim.table[rim.slot(b, a)],
+                ];
+                let cell = &mut self.cells[t as usize];
+                cell.n[x] = n[0];
+                cell.n[1 ^ x] = n[1];
+                cell.n[2 ^ x] = n[2];
+            }
+        }
+        self.scratch.rim = rim;
+        numbered
+    }
+
+    /// Glue the cone's tetrahedra `created` (one per facet of `boundary`)
+    /// to each other and to `seeds` through the hashed [`EdgeTable`].
+    fn pair_by_edge_table(
+        &mut self,
+        apex: u32,
+        seeds: &[([u32; 3], u32)],
+        boundary: &[([u32; 3], u32)],
+        created: &[u32],
+    ) {
+        let mut edges = std::mem::take(&mut self.scratch.edges);
+        edges.reset(3 * boundary.len() + seeds.len());
+        for &(facet, outside) in seeds {
+            // The seed (apex, u, w) has the hole on its positive side: the
+            // new tetrahedron behind it traverses the edge as (w, u) and
+            // looks its partner up under (u, w).
+            let k = facet.iter().position(|&x| x == apex).unwrap_or(0);
+            let (u, w) = (facet[(k + 1) % 3], facet[(k + 2) % 3]);
+            edges.insert(u, w, outside);
+        }
+        for (&([a, b, c], _), &t) in boundary.iter().zip(created) {
+            let x = infinite_slot_shift([a, b, c]) as u32;
+            // The facet through the apex opposite a holds the edge (b, c);
+            // likewise for b and c.
+            edges.insert(b, c, t * 4 + x);
+            edges.insert(c, a, t * 4 + (1 ^ x));
+            edges.insert(a, b, t * 4 + (2 ^ x));
+        }
         // Each new facet through the apex sets its own side; the partner
         // sets the other when its turn comes, except seeds, linked here.
         for &(facet, outside) in seeds {
@@ -576,7 +777,7 @@ impl Triangulation {
                 self.link(here, outside);
             }
         }
-        for (&([a, b, c], _), &t) in boundary.iter().zip(&created) {
+        for (&([a, b, c], _), &t) in boundary.iter().zip(created) {
             let x = infinite_slot_shift([a, b, c]);
             let cell = &mut self.cells[t as usize];
             for (slot, u, w) in [(x, c, b), (1 ^ x, a, c), (2 ^ x, b, a)] {
@@ -587,9 +788,7 @@ impl Triangulation {
                 }
             }
         }
-        self.scratch.boundary = boundary;
         self.scratch.edges = edges;
-        self.scratch.created = created;
     }
 
     /// Make two encoded facets neighbours of each other.
@@ -601,11 +800,23 @@ impl Triangulation {
 
     #[inline]
     pub(crate) fn alloc_tet(&mut self, verts: [u32; 4]) -> u32 {
-        if verts[3] == INF {
-            self.ghost_tets += 1;
-        } else {
-            self.finite_tets += 1;
-        }
+        self.count_tets(usize::from(verts[3] != INF), usize::from(verts[3] == INF));
+        self.alloc_uncounted(verts)
+    }
+
+    /// Add to the counts of finite and ghost tetrahedra. Callers that make
+    /// or free many sum them first: counting each in place compiled to an
+    /// add to memory at an address chosen by the ghost test, each waiting
+    /// for the one before.
+    #[inline]
+    fn count_tets(&mut self, finite: usize, ghosts: usize) {
+        self.finite_tets += finite;
+        self.ghost_tets += ghosts;
+    }
+
+    /// [`Triangulation::alloc_tet`] without counting it.
+    #[inline]
+    fn alloc_uncounted(&mut self, verts: [u32; 4]) -> u32 {
         let t = match self.free.pop() {
             Some(t) => {
                 self.cells[t as usize].v = verts;
@@ -623,6 +834,22 @@ impl Triangulation {
             c.created.push(TetId(t));
         }
         t
+    }
+
+    /// [`Triangulation::free_tet`] for each of `tets`, counted once.
+    fn free_tets(&mut self, tets: &[u32]) {
+        let mut ghosts = 0;
+        for &t in tets {
+            let cell = &mut self.cells[t as usize];
+            ghosts += usize::from(cell.v[3] == INF);
+            cell.v[0] = NONE;
+        }
+        self.finite_tets -= tets.len() - ghosts;
+        self.ghost_tets -= ghosts;
+        self.free.extend_from_slice(tets);
+        if let Some(c) = &mut self.changes {
+            c.freed.extend(tets.iter().map(|&t| TetId(t)));
+        }
     }
 
     pub(crate) fn free_tet(&mut self, t: u32) {

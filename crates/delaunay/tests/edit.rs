@@ -300,3 +300,27 @@ fn insert_far_outside_the_loaded_box_on_lattices() {
     assert_valid(&tri, 64 + 64 + 27);
     assert_globally_delaunay(&tri);
 }
+
+/// A point at the centre of points on a sphere is in conflict with every
+/// tetrahedron: the hole is the whole hull, its rim every vertex. With 100
+/// vertices the new tetrahedra are glued through the rim's local numbers,
+/// with 600 (over their limit of 256) through the edge table; either way
+/// the result is the cone from the centre over the hull.
+#[test]
+fn holes_with_large_rims_are_filled() {
+    for n in [100, 600] {
+        let mut r = rng(n as u64);
+        let points: Vec<DVec3> = (0..n)
+            .map(|_| {
+                let p = DVec3::new(r.random(), r.random(), r.random()) * 2.0 - 1.0;
+                p.normalize()
+            })
+            .collect();
+        let mut tri = Triangulation::bulk_load(&points).unwrap();
+        let hull = tri.num_hull_facets();
+        tri.insert(DVec3::ZERO).unwrap();
+        assert_valid(&tri, n + 1);
+        assert_globally_delaunay(&tri);
+        assert_eq!((tri.num_tets(), tri.num_hull_facets()), (hull, hull), "{n}");
+    }
+}
