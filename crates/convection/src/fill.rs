@@ -196,7 +196,10 @@ impl<'a> Search<'a> {
         let mut apexes: Vec<usize> = (i + 1..j)
             .filter(|&k| self.split_bound(i, k, j).is_finite())
             .collect();
-        apexes.sort_by(|&k, &m| self.split_bound(i, k, j).total_cmp(&self.split_bound(i, m, j)));
+        apexes.sort_by(|&k, &m| {
+            self.split_bound(i, k, j)
+                .total_cmp(&self.split_bound(i, m, j))
+        });
         for k in apexes {
             self.tried += 1;
             let t = self.face(i, k, j);
@@ -252,5 +255,37 @@ mod tests {
             .sum();
         let polygon = 0.5 * n as f64 * (std::f64::consts::TAU / n as f64).sin();
         assert!((area - polygon).abs() < 1e-12, "{area} vs {polygon}");
+    }
+
+    /// A square loop pierced through its middle by a standing face: every
+    /// triangulation of the square covers its middle, so none is clear.
+    #[test]
+    fn pierced_loop_has_no_clear_triangulation() {
+        let points: Vec<DVec3> = [
+            [-1.0, -1.0, 0.0],
+            [1.0, -1.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 1.0, 0.0],
+            [0.1, 0.1, -1.0],
+            [-0.1, -0.1, -1.0],
+            [0.0, 0.0, 1.0],
+        ]
+        .map(DVec3::from_array)
+        .to_vec();
+        let standing = [[4, 5, 6]];
+        let around = Surroundings {
+            points: &points,
+            triangles: &standing,
+            near: &[0],
+            is_edge: &no_edges,
+        };
+        assert!(least_area_triangulation(&[0, 1, 2, 3], &around).is_none());
+        // Without the standing face either diagonal will do.
+        let open = Surroundings {
+            near: &[],
+            ..around
+        };
+        let faces = least_area_triangulation(&[0, 1, 2, 3], &open).unwrap();
+        assert_eq!(faces.len(), 2);
     }
 }

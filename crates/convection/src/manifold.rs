@@ -7,10 +7,9 @@
 //! they leave are boundary edges, of which [`fill_small_holes`] closes the
 //! short loops by ear clipping through their own vertices.
 
+use crate::fill::{least_area_triangulation, Surroundings};
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
-use crate::fill::{least_area_triangulation, Surroundings};
-use surfrecon_geom::spatial::CellGrid;
 use surfrecon_geom::Aabb;
 use surfrecon_geom::DVec3;
 
@@ -301,7 +300,12 @@ struct Pass {
     to_remove: Vec<u32>,
 }
 
-fn fill_pass(triangles: &mut Vec<[u32; 3]>, points: &[DVec3], max_edges: usize, last: bool) -> Pass {
+fn fill_pass(
+    triangles: &mut Vec<[u32; 3]>,
+    points: &[DVec3],
+    max_edges: usize,
+    last: bool,
+) -> Pass {
     let mut pass = Pass {
         closed: 0,
         to_remove: Vec::new(),
@@ -346,74 +350,91 @@ fn fill_pass(triangles: &mut Vec<[u32; 3]>, points: &[DVec3], max_edges: usize, 
     pass
 }
 
-/// The faces around each vertex (those of the mesh before the holes were
-/// filled, in compressed rows, and those the filling added), and the
-/// vertices in a grid, to find every face a hole's fill could cross.
+/// The faces of the mesh and of the fills so far in a grid of cubes by
+/// their boxes, to find every face a hole's fill could cross.
 struct Nearby {
-    offsets: Vec<usize>,
-    faces: Vec<u32>,
-    added: HashMap<u32, Vec<u32>>,
-    grid: CellGrid,
-    /// The longest edge of any face: a face meeting a point lies within
-    /// that distance of it with all its corners.
-    longest_edge: f64,
+    cell: f64,
+    cells: HashMap<[i64; 3], Vec<u32>>,
+    /// Faces over more than [`MAX_CUBES`] cubes, looked at for every hole.
+    large: Vec<u32>,
 }
+
+/// Cubes a face is entered in before it counts as large.
+const MAX_CUBES: usize = 64;
 
 impl Nearby {
     fn new(triangles: &[[u32; 3]], points: &[DVec3]) -> Nearby {
-        let (offsets, faces) = rows(triangles, |f, t| t.map(|v| (v, f)));
-        let longest_edge = triangles
-            .par_iter()
-            .map(|&t| longest_edge(t, points))
-            .reduce(|| 0.0, f64::max);
-        Nearby {
-            offsets,
-            faces,
-            added: HashMap::new(),
-            grid: CellGrid::new(points, longest_edge),
-            longest_edge,
-        }
-    }
-
-    fn around(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
-        let v = v as usize;
-        let own = match v + 1 < self.offsets.len() {
-            true => &self.faces[self.offsets[v]..self.offsets[v + 1]],
-            false => &[],
+        // Cubes about twice the median edge: most faces in one to eight.
+        let mut lengths: Vec<f64> = triangles
+            .iter()
+            .map(|&[a, b, _]| points[a as usize].distance(points[b as usize]))
+            .collect();
+        let middle = lengths.len() / 2;
+        let median = match lengths.is_empty() {
+            true => 1.0,
+            false => *lengths.select_nth_unstable_by(middle, f64::total_cmp).1,
         };
-        let added = self.added.get(&(v as u32)).map_or(&[][..], |a| &a[..]);
-        own.iter().chain(added).copied()
+        let mut near = Nearby {
+            cell: if median > 0.0 { 2.0 * median } else { 1.0 },
+            cells: HashMap::new(),
+            large: Vec::new(),
+        };
+        for (f, &t) in triangles.iter().enumerate() {
+            near.add(f as u32, t, points);
+        }
+        near
     }
 
-    /// Every face that meets the box of `vertices` (and some more): a face
-    /// spanning those vertices lies in their box, so these are all it
-    /// could cross.
-    fn in_box(&self, vertices: &[u32], points: &[DVec3]) -> Vec<u32> {
-        let corners: Vec<DVec3> = vertices.iter().map(|&v| points[v as usize]).collect();
-        let bounds = Aabb::from_points(&corners);
-        let reach = 0.5 * bounds.diagonal() + self.longest_edge;
-        let mut faces = Vec::new();
-        self.grid.for_each_within(bounds.center(), reach, |n| {
-            faces.extend(self.around(n.index as u32));
-        });
+    fn key(&self, p: DVec3) -> [i64; 3] {
+        (p / self.cell).floor().to_array().map(|x| x as i64)
+    }
+
+    /// The cubes a box meets.
+    fn cubes(&self, bounds: &Aabb) -> impl Iterator<Item = [i64; 3]> {
+        let (lo, hi) = (self.key(bounds.min), self.key(bounds.max));
+        (lo[0]..=hi[0]).flat_map(move |x| {
+            (lo[1]..=hi[1]).flat_map(move |y| (lo[2]..=hi[2]).map(move |z| [x, y, z]))
+        })
+    }
+
+    /// Every face whose box meets the box of `vertices`: a face spanning
+    /// those vertices lies in their box, so these are all it could cross.
+    fn in_box(&self, vertices: &[u32], points: &[DVec3], triangles: &[[u32; 3]]) -> Vec<u32> {
+        let bounds = Aabb::from_points(
+            &vertices
+                .iter()
+                .map(|&v| points[v as usize])
+                .collect::<Vec<_>>(),
+        );
+        let mut faces: Vec<u32> = self
+            .cubes(&bounds)
+            .filter_map(|c| self.cells.get(&c))
+            .flatten()
+            .chain(&self.large)
+            .copied()
+            .collect();
         faces.sort_unstable();
         faces.dedup();
+        faces.retain(|&f| {
+            let face = Aabb::from_points(&triangles[f as usize].map(|v| points[v as usize]));
+            face.min.cmple(bounds.max).all() && bounds.min.cmple(face.max).all()
+        });
         faces
     }
 
     fn add(&mut self, f: u32, t: [u32; 3], points: &[DVec3]) {
-        for v in t {
-            self.added.entry(v).or_default().push(f);
+        let bounds = Aabb::from_points(&t.map(|v| points[v as usize]));
+        let (lo, hi) = (self.key(bounds.min), self.key(bounds.max));
+        let count: i64 = (0..3).map(|a| hi[a] - lo[a] + 1).product();
+        if count > MAX_CUBES as i64 {
+            self.large.push(f);
+            return;
         }
-        self.longest_edge = self.longest_edge.max(longest_edge(t, points));
+        let cubes: Vec<[i64; 3]> = self.cubes(&bounds).collect();
+        for c in cubes {
+            self.cells.entry(c).or_default().push(f);
+        }
     }
-}
-
-fn longest_edge(t: [u32; 3], points: &[DVec3]) -> f64 {
-    directed_edges(&t)
-        .iter()
-        .map(|&(a, b)| points[a as usize].distance(points[b as usize]))
-        .fold(0.0, f64::max)
 }
 
 /// The hole loop through `start` (removed from `next`), if it closes within
@@ -471,7 +492,7 @@ fn fill_hole(
     near: &mut Nearby,
     triangles: &mut Vec<[u32; 3]>,
 ) -> Filled {
-    let nearby = near.in_box(&hole, points);
+    let nearby = near.in_box(&hole, points, triangles);
     let is_edge = |a: u32, b: u32| edges.contains(&(a.min(b), a.max(b)));
     let around = Surroundings {
         points,
@@ -553,10 +574,7 @@ fn clip_ears(mut hole: Vec<u32>, around: &Surroundings) -> (Vec<[u32; 3]>, Ears)
         let Some(&shortest) = ears.first() else {
             return (faces, Ears::Stuck);
         };
-        let clear = ears
-            .iter()
-            .copied()
-            .find(|&i| !crosses(ear_at(i), &faces));
+        let clear = ears.iter().copied().find(|&i| !crosses(ear_at(i), &faces));
         crossed |= clear.is_none();
         let i = clear.unwrap_or(shortest);
         let [p, v, q] = ear_at(i);
