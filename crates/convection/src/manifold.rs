@@ -332,11 +332,14 @@ fn fill_pass(
         return pass;
     }
     starts.sort_unstable();
-    let mut near = Nearby::new(triangles, points);
-    for start in starts {
-        let Some(hole) = take_loop(&mut next, start, max_edges) else {
-            continue;
-        };
+    // Loops in vertex order as before; all found first, so that only the
+    // faces near some loop are indexed.
+    let holes: Vec<Vec<u32>> = starts
+        .into_iter()
+        .filter_map(|start| take_loop(&mut next, start, max_edges))
+        .collect();
+    let mut near = Nearby::new(triangles, points, &holes);
+    for hole in holes {
         match fill_hole(hole, points, &mut edges, &mut near, triangles) {
             Filled::Clear => pass.closed += 1,
             Filled::Crossing { .. } if last => pass.closed += 1,
@@ -354,6 +357,7 @@ fn fill_pass(
 /// their boxes, to find every face a hole's fill could cross.
 struct Nearby {
     cell: f64,
+    /// The faces in each cube that a hole's box meets (no others).
     cells: HashMap<[i64; 3], Vec<u32>>,
     /// Faces over more than [`MAX_CUBES`] cubes, looked at for every hole.
     large: Vec<u32>,
@@ -363,7 +367,7 @@ struct Nearby {
 const MAX_CUBES: usize = 64;
 
 impl Nearby {
-    fn new(triangles: &[[u32; 3]], points: &[DVec3]) -> Nearby {
+    fn new(triangles: &[[u32; 3]], points: &[DVec3], holes: &[Vec<u32>]) -> Nearby {
         // Cubes about twice the median edge: most faces in one to eight.
         let mut lengths: Vec<f64> = triangles
             .iter()
@@ -379,10 +383,21 @@ impl Nearby {
             cells: HashMap::new(),
             large: Vec::new(),
         };
+        let boxes: Vec<Aabb> = holes.iter().map(|h| near.bounds(h, points)).collect();
+        for bounds in &boxes {
+            for c in near.cubes(bounds).collect::<Vec<_>>() {
+                near.cells.entry(c).or_default();
+            }
+        }
         for (f, &t) in triangles.iter().enumerate() {
             near.add(f as u32, t, points);
         }
         near
+    }
+
+    fn bounds(&self, vertices: &[u32], points: &[DVec3]) -> Aabb {
+        let corners: Vec<DVec3> = vertices.iter().map(|&v| points[v as usize]).collect();
+        Aabb::from_points(&corners)
     }
 
     fn key(&self, p: DVec3) -> [i64; 3] {
@@ -432,7 +447,9 @@ impl Nearby {
         }
         let cubes: Vec<[i64; 3]> = self.cubes(&bounds).collect();
         for c in cubes {
-            self.cells.entry(c).or_default().push(f);
+            if let Some(faces) = self.cells.get_mut(&c) {
+                faces.push(f);
+            }
         }
     }
 }
@@ -694,7 +711,7 @@ mod tests {
             mesh: &counts.out,
             added: HashSet::new(),
         };
-        let mut near = Nearby::new(&triangles, &points);
+        let mut near = Nearby::new(&triangles, &points, &[vec![0, 1, 2, 3]]);
         let mut out = triangles.clone();
         let filled = fill_hole(vec![0, 1, 2, 3], &points, &mut edges, &mut near, &mut out);
         assert!(matches!(filled, Filled::Clear));
