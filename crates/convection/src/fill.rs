@@ -5,20 +5,22 @@
 //! loop crosses a nearby face (at a cone's sparse tip, on a noisy sheet)
 //! it has to take a crossing one. The loop's triangulations are the
 //! polygon triangulations of its vertex sequence (a Catalan number of
-//! them): the least total area over the faces that cross nothing nearby is
-//! a dynamic programme over the loop's intervals (Barequet–Sharir, Liepa);
-//! faces of one triangulation can still cross each other in 3D, which the
-//! programme cannot see, so a branch-and-bound search over the apexes,
-//! with the programme's sub-interval optima as its lower bounds, finds the
-//! least-area triangulation free of those crossings too.
+//! them). The least total area is a dynamic programme over the loop's
+//! intervals (Barequet–Sharir, Liepa); it cannot see crossings among the
+//! new faces, and testing every candidate face against the faces nearby
+//! (exactly) is the cost, so the programme's sub-interval optima serve as
+//! lower bounds of a branch-and-bound search over the apexes, which tests
+//! only the faces it places: the least-area triangulation crossing
+//! nothing.
 
 use surfrecon_geom::intersections::faces_meet;
 use surfrecon_geom::DVec3;
 
-/// Faces the search places before it gives up on a loop: a loop of 24
+/// Faces the search tries before it gives up on a loop (a loop of 24
 /// edges has 10^11 triangulations; the bounds leave a handful to try
-/// unless the loop's own faces keep crossing each other.
-const SEARCH_BUDGET: usize = 20_000;
+/// unless faces keep crossing). A loop given up on is opened wider and
+/// tried again (`manifold::fill_small_holes`).
+const SEARCH_BUDGET: usize = 2_000;
 
 /// What a hole's faces must respect.
 pub(crate) struct Surroundings<'a> {
@@ -49,9 +51,12 @@ impl Surroundings<'_> {
         })
     }
 
-    /// Whether the faces `t` and `u` (both new) meet beyond what they share.
+    /// Whether the faces `t` and `u` meet beyond what they share (exact;
+    /// apart boxes first, the common case).
     pub fn meet(&self, t: [u32; 3], u: [u32; 3]) -> bool {
-        faces_meet(t, &self.corners(t), u, &self.corners(u))
+        let (pt, pu) = (self.corners(t), self.corners(u));
+        let ((lo, hi), (ulo, uhi)) = (bounds(&pt), bounds(&pu));
+        lo.cmple(uhi).all() && ulo.cmple(hi).all() && faces_meet(t, &pt, u, &pu)
     }
 }
 
@@ -81,10 +86,13 @@ struct Search<'a> {
     hole: &'a [u32],
     around: &'a Surroundings<'a>,
     /// Area of the face (i, k, j) of loop positions, infinite when it
-    /// crosses a nearby face or adds an edge the mesh has.
+    /// adds an edge the mesh has.
     areas: Vec<f64>,
+    /// Whether the face (i, k, j) crosses no nearby face, once asked (the
+    /// exact test is the cost: asked only of faces the search places).
+    clear: Vec<Option<bool>>,
     /// Least area of the interval i..=j closed by its chord (i, j),
-    /// ignoring crossings among the new faces.
+    /// ignoring crossings.
     lower_bounds: Vec<f64>,
     placed: Vec<[u32; 3]>,
     best: Option<(f64, Vec<[u32; 3]>)>,
@@ -98,6 +106,7 @@ impl<'a> Search<'a> {
             hole,
             around,
             areas: vec![f64::INFINITY; n * n * n],
+            clear: vec![None; n * n * n],
             lower_bounds: vec![f64::INFINITY; n * n],
             placed: Vec::new(),
             best: None,
@@ -140,11 +149,7 @@ impl<'a> Search<'a> {
                     if !self.chord_allowed(k, j) || !self.chord_allowed(i, j) {
                         continue;
                     }
-                    let t = self.face(i, k, j);
-                    if self.around.crosses_near(t) {
-                        continue;
-                    }
-                    let [a, b, c] = t.map(|v| points[v as usize]);
+                    let [a, b, c] = self.face(i, k, j).map(|v| points[v as usize]);
                     let area = 0.5 * (b - a).cross(c - a).length();
                     let at = self.triple(i, k, j);
                     self.areas[at] = area;
@@ -179,6 +184,12 @@ impl<'a> Search<'a> {
             + self.lower_bounds[self.interval(k, j)]
     }
 
+    fn is_clear(&mut self, i: usize, k: usize, j: usize) -> bool {
+        let at = self.triple(i, k, j);
+        let face = self.face(i, k, j);
+        *self.clear[at].get_or_insert_with(|| !self.around.crosses_near(face))
+    }
+
     fn branch(&mut self, pending: &mut Vec<(usize, usize)>, area: f64) {
         let bound: f64 = area
             + pending
@@ -203,7 +214,7 @@ impl<'a> Search<'a> {
         for k in apexes {
             self.tried += 1;
             let t = self.face(i, k, j);
-            if self.placed.iter().any(|&u| self.around.meet(t, u)) {
+            if !self.is_clear(i, k, j) || self.placed.iter().any(|&u| self.around.meet(t, u)) {
                 continue;
             }
             let depth = pending.len();

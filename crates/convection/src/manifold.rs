@@ -359,8 +359,9 @@ struct Nearby {
     cell: f64,
     /// The faces in each cube that a hole's box meets (no others).
     cells: HashMap<[i64; 3], Vec<u32>>,
-    /// Faces over more than [`MAX_CUBES`] cubes, looked at for every hole.
-    large: Vec<u32>,
+    /// Faces over more than [`MAX_CUBES`] cubes, with their boxes, looked
+    /// at for every hole.
+    large: Vec<(u32, Aabb)>,
 }
 
 /// Cubes a face is entered in before it counts as large.
@@ -368,7 +369,6 @@ const MAX_CUBES: usize = 64;
 
 impl Nearby {
     fn new(triangles: &[[u32; 3]], points: &[DVec3], holes: &[Vec<u32>]) -> Nearby {
-        // Cubes about twice the median edge: most faces in one to eight.
         let mut lengths: Vec<f64> = triangles
             .iter()
             .map(|&[a, b, _]| points[a as usize].distance(points[b as usize]))
@@ -378,12 +378,19 @@ impl Nearby {
             true => 1.0,
             false => *lengths.select_nth_unstable_by(middle, f64::total_cmp).1,
         };
+        let boxes: Vec<Aabb> = holes.iter().map(|h| bounds_of(h, points)).collect();
+        // Cubes about twice the median edge, but no loop over more than
+        // 16 along an axis (a long loop of long edges would touch millions).
+        let widest = boxes
+            .iter()
+            .map(|b| b.size().max_element())
+            .fold(0.0, f64::max);
+        let cell = (2.0 * median).max(widest / 16.0);
         let mut near = Nearby {
-            cell: if median > 0.0 { 2.0 * median } else { 1.0 },
+            cell: if cell > 0.0 { cell } else { 1.0 },
             cells: HashMap::new(),
             large: Vec::new(),
         };
-        let boxes: Vec<Aabb> = holes.iter().map(|h| near.bounds(h, points)).collect();
         for bounds in &boxes {
             for c in near.cubes(bounds).collect::<Vec<_>>() {
                 near.cells.entry(c).or_default();
@@ -393,11 +400,6 @@ impl Nearby {
             near.add(f as u32, t, points);
         }
         near
-    }
-
-    fn bounds(&self, vertices: &[u32], points: &[DVec3]) -> Aabb {
-        let corners: Vec<DVec3> = vertices.iter().map(|&v| points[v as usize]).collect();
-        Aabb::from_points(&corners)
     }
 
     fn key(&self, p: DVec3) -> [i64; 3] {
@@ -415,24 +417,21 @@ impl Nearby {
     /// Every face whose box meets the box of `vertices`: a face spanning
     /// those vertices lies in their box, so these are all it could cross.
     fn in_box(&self, vertices: &[u32], points: &[DVec3], triangles: &[[u32; 3]]) -> Vec<u32> {
-        let bounds = Aabb::from_points(
-            &vertices
-                .iter()
-                .map(|&v| points[v as usize])
-                .collect::<Vec<_>>(),
-        );
+        let bounds = bounds_of(vertices, points);
+        let meets = |b: &Aabb| b.min.cmple(bounds.max).all() && bounds.min.cmple(b.max).all();
         let mut faces: Vec<u32> = self
             .cubes(&bounds)
             .filter_map(|c| self.cells.get(&c))
             .flatten()
-            .chain(&self.large)
             .copied()
             .collect();
+        faces.extend(self.large.iter().filter(|(_, b)| meets(b)).map(|&(f, _)| f));
         faces.sort_unstable();
         faces.dedup();
         faces.retain(|&f| {
-            let face = Aabb::from_points(&triangles[f as usize].map(|v| points[v as usize]));
-            face.min.cmple(bounds.max).all() && bounds.min.cmple(face.max).all()
+            meets(&Aabb::from_points(
+                &triangles[f as usize].map(|v| points[v as usize]),
+            ))
         });
         faces
     }
@@ -442,7 +441,7 @@ impl Nearby {
         let (lo, hi) = (self.key(bounds.min), self.key(bounds.max));
         let count: i64 = (0..3).map(|a| hi[a] - lo[a] + 1).product();
         if count > MAX_CUBES as i64 {
-            self.large.push(f);
+            self.large.push((f, bounds));
             return;
         }
         let cubes: Vec<[i64; 3]> = self.cubes(&bounds).collect();
@@ -452,6 +451,11 @@ impl Nearby {
             }
         }
     }
+}
+
+fn bounds_of(vertices: &[u32], points: &[DVec3]) -> Aabb {
+    let corners: Vec<DVec3> = vertices.iter().map(|&v| points[v as usize]).collect();
+    Aabb::from_points(&corners)
 }
 
 /// The hole loop through `start` (removed from `next`), if it closes within
