@@ -61,6 +61,7 @@ pub mod curved;
 pub mod decimate;
 pub mod dynamic;
 mod error;
+mod fill;
 pub mod flips;
 pub mod front;
 pub mod gabriel;

@@ -7,9 +7,10 @@
 //! they leave are boundary edges, of which [`fill_small_holes`] closes the
 //! short loops by ear clipping through their own vertices.
 
+use crate::fill::{least_area_triangulation, Surroundings};
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
-use surfrecon_geom::intersections::faces_meet;
+use surfrecon_geom::Aabb;
 use surfrecon_geom::DVec3;
 
 fn directed_edges(&[a, b, c]: &[u32; 3]) -> [(u32, u32); 3] {
@@ -248,12 +249,16 @@ pub fn boundary_edges(triangles: &[[u32; 3]]) -> usize {
         .sum()
 }
 
-/// Close every boundary loop of at most `max_edges` edges by ear clipping
-/// (shortest new diagonal first, never an edge the mesh already has), so a
-/// manifold mesh stays manifold. An ear that would cross the faces near the
-/// hole (two rings around its vertices, and the ears already added) is
-/// passed over for the next shortest; only when every ear would cross is
-/// the shortest taken. Returns the number of loops closed.
+/// Close every boundary loop of at most `max_edges` edges through its own
+/// vertices, so a manifold mesh stays manifold and no new face crosses
+/// another face: by ear clipping (shortest new diagonal first, passing over
+/// ears that would cross), else by the least-area crossing-free
+/// triangulation of the loop ([`crate::fill`]). A loop with neither (a
+/// face of the mesh pokes through every way of spanning it, as at a
+/// cone's sparse tip) is opened wider: its fill and the faces it crossed
+/// are removed, the mesh made manifold again, and the larger loop filled
+/// in the next round. After the last round such a loop keeps the ear
+/// clipping's crossing faces. Returns the number of loops closed.
 pub fn fill_small_holes(
     triangles: &mut Vec<[u32; 3]>,
     points: &[DVec3],
@@ -262,6 +267,49 @@ pub fn fill_small_holes(
     if max_edges < 3 {
         return 0;
     }
+    let mut filled = 0;
+    for round in 1..=FILL_ROUNDS {
+        let pass = fill_pass(triangles, points, max_edges, round == FILL_ROUNDS);
+        filled += pass.closed;
+        if pass.to_remove.is_empty() {
+            break;
+        }
+        let mut doomed = vec![false; triangles.len()];
+        for f in pass.to_remove {
+            doomed[f as usize] = true;
+        }
+        let mut index = 0;
+        triangles.retain(|_| {
+            index += 1;
+            !doomed[index - 1]
+        });
+        make_manifold(triangles);
+    }
+    filled
+}
+
+/// Rounds of hole filling: each may open the loops it could not close
+/// without crossings for the next.
+const FILL_ROUNDS: usize = 4;
+
+/// One round of [`fill_small_holes`].
+struct Pass {
+    closed: usize,
+    /// Faces to remove before the next round: the fills that crossed and
+    /// the faces they crossed.
+    to_remove: Vec<u32>,
+}
+
+fn fill_pass(
+    triangles: &mut Vec<[u32; 3]>,
+    points: &[DVec3],
+    max_edges: usize,
+    last: bool,
+) -> Pass {
+    let mut pass = Pass {
+        closed: 0,
+        to_remove: Vec::new(),
+    };
     let counts = PairedEdges::new(triangles);
     // Edges the ear clipping adds (the mesh's own are in `counts`).
     let mut edges = NewEdges {
@@ -281,79 +329,133 @@ pub fn fill_small_holes(
     }
     let mut starts: Vec<u32> = next.keys().copied().collect();
     if starts.is_empty() {
-        return 0;
+        return pass;
     }
     starts.sort_unstable();
-    let mut near = Nearby::new(triangles);
-    let mut filled = 0;
-    for start in starts {
-        let Some(hole) = take_loop(&mut next, start, max_edges) else {
-            continue;
-        };
-        if clip_ears(hole, points, &mut edges, &mut near, triangles) {
-            filled += 1;
+    // Loops in vertex order as before; all found first, so that only the
+    // faces near some loop are indexed.
+    let holes: Vec<Vec<u32>> = starts
+        .into_iter()
+        .filter_map(|start| take_loop(&mut next, start, max_edges))
+        .collect();
+    let mut near = Nearby::new(triangles, points, &holes);
+    for hole in holes {
+        match fill_hole(hole, points, &mut edges, &mut near, triangles) {
+            Filled::Clear => pass.closed += 1,
+            Filled::Crossing { .. } if last => pass.closed += 1,
+            Filled::Crossing { fill, crossed } => {
+                pass.to_remove.extend(fill);
+                pass.to_remove.extend(crossed);
+            }
+            Filled::Stuck => {}
         }
     }
-    filled
+    pass
 }
 
-/// The faces around each vertex: those of the mesh before the holes were
-/// filled, in compressed rows, and those the filling added.
+/// The faces of the mesh and of the fills so far in a grid of cubes by
+/// their boxes, to find every face a hole's fill could cross.
 struct Nearby {
-    offsets: Vec<usize>,
-    faces: Vec<u32>,
-    added: HashMap<u32, Vec<u32>>,
+    cell: f64,
+    /// The faces in each cube that a hole's box meets (no others).
+    cells: HashMap<[i64; 3], Vec<u32>>,
+    /// Faces over more than [`MAX_CUBES`] cubes, with their boxes, looked
+    /// at for every hole.
+    large: Vec<(u32, Aabb)>,
 }
+
+/// Cubes a face is entered in before it counts as large.
+const MAX_CUBES: usize = 64;
 
 impl Nearby {
-    fn new(triangles: &[[u32; 3]]) -> Nearby {
-        let (offsets, faces) = rows(triangles, |f, t| t.map(|v| (v, f)));
-        Nearby {
-            offsets,
-            faces,
-            added: HashMap::new(),
-        }
-    }
-
-    fn around(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
-        let v = v as usize;
-        let own = match v + 1 < self.offsets.len() {
-            true => &self.faces[self.offsets[v]..self.offsets[v + 1]],
-            false => &[],
+    fn new(triangles: &[[u32; 3]], points: &[DVec3], holes: &[Vec<u32>]) -> Nearby {
+        let mut lengths: Vec<f64> = triangles
+            .iter()
+            .map(|&[a, b, _]| points[a as usize].distance(points[b as usize]))
+            .collect();
+        let middle = lengths.len() / 2;
+        let median = match lengths.is_empty() {
+            true => 1.0,
+            false => *lengths.select_nth_unstable_by(middle, f64::total_cmp).1,
         };
-        let added = self.added.get(&(v as u32)).map_or(&[][..], |a| &a[..]);
-        own.iter().chain(added).copied()
+        let boxes: Vec<Aabb> = holes.iter().map(|h| bounds_of(h, points)).collect();
+        // Cubes about twice the median edge, but no loop over more than
+        // 16 along an axis (a long loop of long edges would touch millions).
+        let widest = boxes
+            .iter()
+            .map(|b| b.size().max_element())
+            .fold(0.0, f64::max);
+        let cell = (2.0 * median).max(widest / 16.0);
+        let mut near = Nearby {
+            cell: if cell > 0.0 { cell } else { 1.0 },
+            cells: HashMap::new(),
+            large: Vec::new(),
+        };
+        for bounds in &boxes {
+            for c in near.cubes(bounds).collect::<Vec<_>>() {
+                near.cells.entry(c).or_default();
+            }
+        }
+        for (f, &t) in triangles.iter().enumerate() {
+            near.add(f as u32, t, points);
+        }
+        near
     }
 
-    /// Faces with a corner on a face around one of `vertices`.
-    fn two_rings(&self, vertices: &[u32], triangles: &[[u32; 3]]) -> Vec<u32> {
-        let ring: HashSet<u32> = vertices.iter().flat_map(|&v| self.around(v)).collect();
-        let corners: HashSet<u32> = ring.iter().flat_map(|&f| triangles[f as usize]).collect();
-        let mut faces: Vec<u32> = corners.iter().flat_map(|&v| self.around(v)).collect();
+    fn key(&self, p: DVec3) -> [i64; 3] {
+        (p / self.cell).floor().to_array().map(|x| x as i64)
+    }
+
+    /// The cubes a box meets.
+    fn cubes(&self, bounds: &Aabb) -> impl Iterator<Item = [i64; 3]> {
+        let (lo, hi) = (self.key(bounds.min), self.key(bounds.max));
+        (lo[0]..=hi[0]).flat_map(move |x| {
+            (lo[1]..=hi[1]).flat_map(move |y| (lo[2]..=hi[2]).map(move |z| [x, y, z]))
+        })
+    }
+
+    /// Every face whose box meets the box of `vertices`: a face spanning
+    /// those vertices lies in their box, so these are all it could cross.
+    fn in_box(&self, vertices: &[u32], points: &[DVec3], triangles: &[[u32; 3]]) -> Vec<u32> {
+        let bounds = bounds_of(vertices, points);
+        let meets = |b: &Aabb| b.min.cmple(bounds.max).all() && bounds.min.cmple(b.max).all();
+        let mut faces: Vec<u32> = self
+            .cubes(&bounds)
+            .filter_map(|c| self.cells.get(&c))
+            .flatten()
+            .copied()
+            .collect();
+        faces.extend(self.large.iter().filter(|(_, b)| meets(b)).map(|&(f, _)| f));
         faces.sort_unstable();
         faces.dedup();
+        faces.retain(|&f| {
+            meets(&Aabb::from_points(
+                &triangles[f as usize].map(|v| points[v as usize]),
+            ))
+        });
         faces
     }
 
-    fn add(&mut self, f: u32, t: [u32; 3]) {
-        for v in t {
-            self.added.entry(v).or_default().push(f);
+    fn add(&mut self, f: u32, t: [u32; 3], points: &[DVec3]) {
+        let bounds = Aabb::from_points(&t.map(|v| points[v as usize]));
+        let (lo, hi) = (self.key(bounds.min), self.key(bounds.max));
+        let count: i64 = (0..3).map(|a| hi[a] - lo[a] + 1).product();
+        if count > MAX_CUBES as i64 {
+            self.large.push((f, bounds));
+            return;
+        }
+        let cubes: Vec<[i64; 3]> = self.cubes(&bounds).collect();
+        for c in cubes {
+            if let Some(faces) = self.cells.get_mut(&c) {
+                faces.push(f);
+            }
         }
     }
 }
 
-/// Whether the face `t` meets any of the faces `near` (beyond the corners
-/// and edge it shares with them; exact).
-fn crosses(t: [u32; 3], near: &[u32], points: &[DVec3], triangles: &[[u32; 3]]) -> bool {
-    let corners = |t: [u32; 3]| t.map(|v| points[v as usize]);
-    let pt = corners(t);
-    let (lo, hi) = (pt[0].min(pt[1]).min(pt[2]), pt[0].max(pt[1]).max(pt[2]));
-    near.iter().any(|&f| {
-        let u = triangles[f as usize];
-        let pu = corners(u);
-        let (ulo, uhi) = (pu[0].min(pu[1]).min(pu[2]), pu[0].max(pu[1]).max(pu[2]));
-        lo.cmple(uhi).all() && ulo.cmple(hi).all() && faces_meet(t, &pt, u, &pu)
-    })
+fn bounds_of(vertices: &[u32], points: &[DVec3]) -> Aabb {
+    let corners: Vec<DVec3> = vertices.iter().map(|&v| points[v as usize]).collect();
+    Aabb::from_points(&corners)
 }
 
 /// The hole loop through `start` (removed from `next`), if it closes within
@@ -390,29 +492,98 @@ impl NewEdges<'_> {
     }
 }
 
-/// Triangulate one hole; false if it had to stop early (no valid ear).
-fn clip_ears(
-    mut hole: Vec<u32>,
+/// How a hole was closed.
+enum Filled {
+    /// With faces that cross nothing.
+    Clear,
+    /// Only with faces (`fill`, indices) that cross faces of the mesh or
+    /// earlier fills (`crossed`).
+    Crossing { fill: Vec<u32>, crossed: Vec<u32> },
+    /// Not at all: no ear with a new diagonal (the faces found so far are
+    /// kept).
+    Stuck,
+}
+
+/// Close one hole: ear clipping, else the least-area crossing-free
+/// triangulation, else the ear clipping's crossing faces.
+fn fill_hole(
+    hole: Vec<u32>,
     points: &[DVec3],
     edges: &mut NewEdges,
     near: &mut Nearby,
     triangles: &mut Vec<[u32; 3]>,
-) -> bool {
-    let mut around = near.two_rings(&hole, triangles);
-    let add =
-        |t: [u32; 3], near: &mut Nearby, around: &mut Vec<u32>, triangles: &mut Vec<[u32; 3]>| {
-            let f = triangles.len() as u32;
-            triangles.push(t);
-            near.add(f, t);
-            around.push(f);
-        };
+) -> Filled {
+    let nearby = near.in_box(&hole, points, triangles);
+    let is_edge = |a: u32, b: u32| edges.contains(&(a.min(b), a.max(b)));
+    let around = Surroundings {
+        points,
+        triangles,
+        near: &nearby,
+        is_edge: &is_edge,
+    };
+    let (ears, outcome) = clip_ears(hole.clone(), &around);
+    let (faces, outcome) = match outcome {
+        Ears::Clear => (ears, Ears::Clear),
+        Ears::Crossing | Ears::Stuck => match least_area_triangulation(&hole, &around) {
+            Some(found) => (found, Ears::Clear),
+            None => (ears, outcome),
+        },
+    };
+    let crossed: Vec<u32> = match outcome {
+        Ears::Crossing => nearby
+            .iter()
+            .copied()
+            .filter(|&f| faces.iter().any(|&t| around.meet(t, triangles[f as usize])))
+            .collect(),
+        _ => Vec::new(),
+    };
+    let first = triangles.len() as u32;
+    for &t in &faces {
+        let f = triangles.len() as u32;
+        triangles.push(t);
+        near.add(f, t, points);
+        for (a, b) in directed_edges(&t) {
+            edges.insert((a.min(b), a.max(b)));
+        }
+    }
+    match outcome {
+        Ears::Clear => Filled::Clear,
+        Ears::Crossing => Filled::Crossing {
+            fill: (first..triangles.len() as u32).collect(),
+            crossed,
+        },
+        Ears::Stuck => Filled::Stuck,
+    }
+}
+
+/// How the ear clipping ended: its faces all clear of nearby faces, some
+/// crossing, or stopped early for want of an ear with a new diagonal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Ears {
+    Clear,
+    Crossing,
+    Stuck,
+}
+
+/// Ear clipping, shortest new diagonal first; an ear that would cross a
+/// nearby face or an ear already cut is passed over for the next shortest,
+/// and only when every ear would cross is the shortest taken.
+fn clip_ears(mut hole: Vec<u32>, around: &Surroundings) -> (Vec<[u32; 3]>, Ears) {
+    let points = around.points;
+    let mut faces: Vec<[u32; 3]> = Vec::new();
+    let mut diagonals: Vec<(u32, u32)> = Vec::new();
+    let mut crossed = false;
+    let crosses = |t: [u32; 3], faces: &[[u32; 3]]| {
+        around.crosses_near(t) || faces.iter().any(|&u| around.meet(t, u))
+    };
     while hole.len() > 3 {
         let n = hole.len();
         let ear_at = |i: usize| [hole[(i + n - 1) % n], hole[i], hole[(i + 1) % n]];
         let mut ears: Vec<usize> = (0..n)
             .filter(|&i| {
                 let [p, _, q] = ear_at(i);
-                !edges.contains(&(p.min(q), p.max(q)))
+                let e = (p.min(q), p.max(q));
+                !(around.is_edge)(p, q) && !diagonals.contains(&e)
             })
             .collect();
         let diagonal = |i: usize| {
@@ -422,25 +593,29 @@ fn clip_ears(
         // Stable: equal diagonals keep the hole's order, as before.
         ears.sort_by(|&i, &j| diagonal(i).total_cmp(&diagonal(j)));
         let Some(&shortest) = ears.first() else {
-            return false;
+            return (faces, Ears::Stuck);
         };
-        let clear = ears
-            .iter()
-            .copied()
-            .find(|&i| !crosses(ear_at(i), &around, points, triangles));
+        let clear = ears.iter().copied().find(|&i| !crosses(ear_at(i), &faces));
+        crossed |= clear.is_none();
         let i = clear.unwrap_or(shortest);
         let [p, v, q] = ear_at(i);
-        add([p, v, q], near, &mut around, triangles);
-        edges.insert((p.min(q), p.max(q)));
+        faces.push([p, v, q]);
+        diagonals.push((p.min(q), p.max(q)));
         hole.remove(i);
     }
-    add([hole[0], hole[1], hole[2]], near, &mut around, triangles);
-    true
+    let last = [hole[0], hole[1], hole[2]];
+    crossed |= crosses(last, &faces);
+    faces.push(last);
+    match crossed {
+        true => (faces, Ears::Crossing),
+        false => (faces, Ears::Clear),
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use surfrecon_geom::intersections::faces_meet;
 
     fn octahedron() -> Vec<[u32; 3]> {
         // Vertices 0..6: ±x, ±y, ±z; outward faces.
@@ -540,15 +715,10 @@ mod tests {
             mesh: &counts.out,
             added: HashSet::new(),
         };
-        let mut near = Nearby::new(&triangles);
+        let mut near = Nearby::new(&triangles, &points, &[vec![0, 1, 2, 3]]);
         let mut out = triangles.clone();
-        assert!(clip_ears(
-            vec![0, 1, 2, 3],
-            &points,
-            &mut edges,
-            &mut near,
-            &mut out
-        ));
+        let filled = fill_hole(vec![0, 1, 2, 3], &points, &mut edges, &mut near, &mut out);
+        assert!(matches!(filled, Filled::Clear));
         triangles = out;
         assert_eq!(triangles.len(), 4);
         for (f, &t) in triangles.iter().enumerate() {

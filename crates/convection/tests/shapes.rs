@@ -591,10 +591,10 @@ fn sparse_fin_stays_one_piece_when_decimated() {
                 r.report
             );
             assert!(r.report.thin_tets_restored > 0, "{:?}", r.report);
-            // Not `assert_closed_genus`: of the 34 holes closed around the
-            // sparse fin (seed 2, input order), some close only across
-            // nearby faces (9 crossing pairs; BENCHMARKS, session 31).
-            assert_closed_genus_topology(&r, points.len(), 0);
+            // Of the 34 holes closed around the sparse fin (seed 2, input
+            // order), some had no crossing-free ear clipping (9 crossing
+            // pairs before the hole filling searched the triangulations).
+            assert_closed_genus(&r, points.len(), 0);
         }
     }
 }
