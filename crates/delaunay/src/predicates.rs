@@ -314,6 +314,18 @@ fn perturbed_sign(pts: [DVec3; 5], ids: [u32; 5]) -> f64 {
 mod tests {
     use super::*;
 
+    /// Uniform numbers in [0, 1) from a fixed seed (a 64-bit LCG's high
+    /// bits): the same inputs on every run.
+    fn uniform_stream(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     fn cube_corner(i: u32) -> DVec3 {
         DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64)
     }
@@ -333,13 +345,7 @@ mod tests {
     /// random and on nearly degenerate inputs.
     #[test]
     fn filters_agree_with_robust() {
-        let mut state = 12345u64;
-        let mut random = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut random = uniform_stream(12345);
         let mut point = || DVec3::new(random(), random(), random());
         for k in 0..200_000 {
             let (a, b, c, mut d, mut e) = (point(), point(), point(), point(), point());
@@ -367,13 +373,7 @@ mod tests {
     /// loose or tight), and the static stage decides most random tests.
     #[test]
     fn static_filter_keeps_signs() {
-        let mut state = 4242u64;
-        let mut random = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut random = uniform_stream(4242);
         for (scale, offset) in [(1.0, 0.0), (1e-3, 0.5), (1e4, -3e4), (1e-9, 1.0)] {
             let lo = DVec3::splat(offset);
             let hi = lo + DVec3::splat(scale);
@@ -422,13 +422,7 @@ mod tests {
     /// several scales.
     #[test]
     fn paired_insphere_determinant_is_the_plain_one() {
-        let mut state = 777u64;
-        let mut random = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut random = uniform_stream(777);
         for k in 0..100_000 {
             let scale = [1.0, 1e-7, 3e5][k % 3];
             let mut point = || DVec3::new(random(), random(), random()) * scale;
