@@ -418,7 +418,7 @@ impl Nearby {
     /// those vertices lies in their box, so these are all it could cross.
     fn in_box(&self, vertices: &[u32], points: &[DVec3], triangles: &[[u32; 3]]) -> Vec<u32> {
         let bounds = bounds_of(vertices, points);
-        let meets = |b: &Aabb| b.min.cmple(bounds.max).all() && bounds.min.cmple(b.max).all();
+        let meets = |b: &Aabb| b.overlaps(&bounds);
         let mut faces: Vec<u32> = self
             .cubes(&bounds)
             .filter_map(|c| self.cells.get(&c))

@@ -543,19 +543,19 @@ impl PointData {
     /// The data of distinct points given to every copy: `of_point[i]` is
     /// the distinct point of input point `i`.
     fn spread(self, of_point: &[u32]) -> PointData {
-        let each = |v: &[f64]| match v.is_empty() {
-            true => Vec::new(),
-            false => of_point.iter().map(|&d| v[d as usize]).collect(),
-        };
-        let normals = match self.normals.is_empty() {
-            true => Vec::new(),
-            false => of_point.iter().map(|&d| self.normals[d as usize]).collect(),
-        };
         PointData {
-            normals,
-            spacing: each(&self.spacing),
+            normals: per_copy(&self.normals, of_point),
+            spacing: per_copy(&self.spacing, of_point),
             ..self
         }
+    }
+}
+
+/// `values` of the distinct points for every input point (none stay none).
+fn per_copy<T: Copy>(values: &[T], of_point: &[u32]) -> Vec<T> {
+    match values.is_empty() {
+        true => Vec::new(),
+        false => of_point.iter().map(|&d| values[d as usize]).collect(),
     }
 }
 

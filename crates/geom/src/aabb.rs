@@ -62,6 +62,11 @@ impl Aabb {
     pub fn contains(&self, p: DVec3) -> bool {
         p.cmpge(self.min).all() && p.cmple(self.max).all()
     }
+
+    /// Whether the closed boxes share a point (touching counts).
+    pub fn overlaps(&self, o: &Aabb) -> bool {
+        self.min.cmple(o.max).all() && o.min.cmple(self.max).all()
+    }
 }
 
 /// Where to put the origin for data whose first `D` coordinates span the

@@ -50,7 +50,7 @@ pub fn self_intersections(mesh: &TriMesh) -> Vec<[u32; 2]> {
                     let (bf, bg) = (&boxes[f as usize], &boxes[g as usize]);
                     // Each overlapping pair once: in the cell holding the
                     // low corner of the boxes' overlap.
-                    if overlap(bf, bg)
+                    if bf.overlaps(bg)
                         && grid.key(bf.min.max(bg.min)) == key
                         && faces.meet(f as usize, g as usize)
                     {
@@ -251,11 +251,6 @@ fn orient3d(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> f64 {
         z: v.z,
     };
     robust::orient3d(coord(a), coord(b), coord(c), coord(d))
-}
-
-/// Closed boxes overlap (touching counts: faces may touch there).
-fn overlap(a: &Aabb, b: &Aabb) -> bool {
-    a.min.cmple(b.max).all() && b.min.cmple(a.max).all()
 }
 
 /// A uniform grid of cubes over the boxes' extent.
