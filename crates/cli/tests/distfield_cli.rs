@@ -372,3 +372,176 @@ fn bad_fields_tools_and_meshes_get_one_clear_error() {
     }
     assert!(!out.exists() && !odf.exists(), "no output after a failure");
 }
+
+/// Write `mesh` to `dir/name`.
+fn write_mesh(dir: &Path, name: &str, mesh: TriMesh) -> PathBuf {
+    let path = dir.join(name);
+    io::write(&path, &Geometry::from_mesh(mesh)).unwrap();
+    path
+}
+
+/// Tools from files and the third operation: an offset field intersected
+/// with a closed mesh (a slab), then united with another field's surface
+/// (a small cube's unified field), stays an offset field and lies where
+/// the exact boolean does.
+#[test]
+fn offset_fields_take_mesh_and_field_tools_and_intersect() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_box(dir.path());
+    let odf = dir.path().join("box.odf");
+    let v = json_of(&surfrecon(&[
+        "distance",
+        path_str(&input),
+        "-o",
+        path_str(&odf),
+        "--kind",
+        "odf",
+        "--resolution",
+        "20",
+        "--json",
+    ]));
+    let h = v["spacing"].as_f64().unwrap();
+    let slab = cuboid(DVec3::new(-2.0, -2.0, -2.0), DVec3::new(0.2, 2.0, 2.0));
+    let slab = write_mesh(dir.path(), "slab.ply", slab);
+    let cube = cuboid(DVec3::new(0.4, -0.12, -0.12), DVec3::new(0.65, 0.12, 0.12));
+    let cube = write_mesh(dir.path(), "cube.ply", cube);
+    let cube_field = dir.path().join("cube.udf");
+    surfrecon(&[
+        "distance",
+        path_str(&cube),
+        "-o",
+        path_str(&cube_field),
+        "--kind",
+        "udf",
+        "--resolution",
+        "12",
+        "--quiet",
+    ]);
+    let out = dir.path().join("cut.odf");
+    let v = json_of(&surfrecon(&[
+        "sculpt",
+        path_str(&odf),
+        "-o",
+        path_str(&out),
+        "--intersect",
+        path_str(&slab),
+        "--union",
+        path_str(&cube_field),
+        "--json",
+    ]));
+    assert_eq!(v["steps"][0]["operation"], "intersect");
+    assert_eq!(v["steps"][1]["operation"], "union");
+    let mesh_path = dir.path().join("cut.ply");
+    json_of(&surfrecon(&[
+        "extract",
+        path_str(&out),
+        "-o",
+        path_str(&mesh_path),
+        "--json",
+    ]));
+    assert_eq!(&std::fs::read(&out).unwrap()[..5], b"SRODF");
+    let mesh = read_mesh(&mesh_path);
+    let t = topology(&mesh);
+    assert!(
+        t.watertight && t.vertex_manifold && t.components == 2 && t.euler == 4,
+        "the cut box and the cube: {t:?}"
+    );
+    let xs: Vec<f64> = mesh.vertices.iter().map(|v| v.x).collect();
+    let max_x = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    assert!((max_x - 0.65).abs() < 0.3 * h, "reaches x = {max_x}");
+    let in_gap = xs.iter().filter(|&&x| x > 0.2 + 0.3 * h && x < 0.4 - 0.3 * h);
+    assert_eq!(in_gap.count(), 0, "nothing between the cut and the cube");
+}
+
+/// Grids the machine cannot hold are refused before any work, and a
+/// self-intersecting mesh is refused by the offset field, each with one
+/// clear error; a cut .odf is refused as a .udf is.
+#[test]
+fn oversized_grids_self_intersections_and_cut_odfs_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_box(dir.path());
+    let run = |args: &[&str]| surfrecon(args);
+    for kind in ["udf", "odf"] {
+        let out = dir.path().join(format!("big.{kind}"));
+        // 1500 cells: about 2e9 samples, some 90 GB (fails only on a
+        // machine with more than 110 GB available).
+        let started = std::time::Instant::now();
+        assert_fails_with(
+            &run(&[
+                "distance",
+                path_str(&input),
+                "-o",
+                path_str(&out),
+                "--kind",
+                kind,
+                "--resolution",
+                "1500",
+            ]),
+            "MB available; try --resolution",
+        );
+        assert!(started.elapsed().as_secs_f64() < 5.0, "refused up front");
+    }
+    let a = cuboid(DVec3::splat(-0.5), DVec3::splat(0.5));
+    let b = cuboid(DVec3::new(-0.1, -0.2, -0.3), DVec3::new(0.9, 0.8, 0.7));
+    let n = a.vertices.len() as u32;
+    let both = TriMesh {
+        vertices: [a.vertices.clone(), b.vertices.clone()].concat(),
+        triangles: (a.triangles.iter().copied())
+            .chain(b.triangles.iter().map(|t| t.map(|v| v + n)))
+            .collect(),
+        normals: None,
+    };
+    let crossing = write_mesh(dir.path(), "crossing.ply", both);
+    let odf = dir.path().join("x.odf");
+    assert_fails_with(
+        &run(&[
+            "distance",
+            path_str(&crossing),
+            "-o",
+            path_str(&odf),
+            "--kind",
+            "odf",
+            "--resolution",
+            "12",
+        ]),
+        "intersects itself",
+    );
+    // The unified field takes it (signed by winding number).
+    let udf = dir.path().join("x.udf");
+    let out = run(&[
+        "distance",
+        path_str(&crossing),
+        "-o",
+        path_str(&udf),
+        "--kind",
+        "udf",
+        "--resolution",
+        "12",
+        "--quiet",
+    ]);
+    assert!(out.status.success() && udf.exists());
+    // A cut .odf.
+    run(&[
+        "distance",
+        path_str(&input),
+        "-o",
+        path_str(&odf),
+        "--kind",
+        "odf",
+        "--resolution",
+        "12",
+        "--quiet",
+    ]);
+    let bytes = std::fs::read(&odf).unwrap();
+    let cut = dir.path().join("cut.odf");
+    std::fs::write(&cut, &bytes[..bytes.len() - 5]).unwrap();
+    assert_fails_with(
+        &run(&[
+            "extract",
+            path_str(&cut),
+            "-o",
+            path_str(&dir.path().join("m.ply")),
+        ]),
+        "moved samples announced but",
+    );
+}

@@ -155,6 +155,25 @@ pub struct OdfReport {
     pub seconds: f64,
 }
 
+/// Refuse a mesh whose faces cross each other. The search pulls samples
+/// onto the nearest triangles, internal ones too: two overlapping cubes
+/// came out with dents 4.5-6.9 cells deep along the faces inside the
+/// other cube (the unified field, which only stores exact distances and
+/// points on the mesh's own edges, stays within about a cell; see
+/// BENCHMARKS.md, issue #16 checklist).
+fn refuse_self_intersections(mesh: &TriMesh) -> Result<(), DistFieldError> {
+    let pairs = surfrecon_geom::intersections::self_intersections(mesh);
+    match pairs.first() {
+        None => Ok(()),
+        Some([f, g]) => Err(DistFieldError::InvalidMesh(format!(
+            "the mesh intersects itself ({} pairs of crossing triangles, e.g. {f} and {g}); \
+             the offset field would pull its samples onto the internal faces: \
+             repair the mesh, or use --kind udf or regular (signed by winding number)",
+            pairs.len()
+        ))),
+    }
+}
+
 /// Build the offset field of a closed, outward-oriented mesh.
 pub fn build_odf(
     mesh: &TriMesh,
@@ -162,6 +181,7 @@ pub fn build_odf(
 ) -> Result<(OffsetField, OdfReport), DistFieldError> {
     let start = Instant::now();
     check_mesh(mesh)?;
+    refuse_self_intersections(mesh)?;
     let w = options.weights;
     w.validate()?;
     if options.iterations > MAX_ITERATIONS {

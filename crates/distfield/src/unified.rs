@@ -277,12 +277,13 @@ pub fn build_udf(
         crate::refine::TARGET,
     );
     report.repaired = repaired.changed;
-    // The repair may move samples too.
-    report.positions = field
-        .extras
-        .values()
-        .filter(|e| matches!(e, Extra::Position(_)))
-        .count();
+    // The repair replaces stored data (a directed sample given a feature
+    // point, a point removed, a sample moved): count what the file holds.
+    let stored = |f: fn(&Extra) -> bool| field.extras.values().filter(|e| f(e)).count();
+    report.directed = stored(|e| matches!(e, Extra::Directed(_)));
+    report.feature_points = stored(|e| matches!(e, Extra::FeaturePoint(_)))
+        + field.cell_points.values().map(Vec::len).sum::<usize>();
+    report.positions = stored(|e| matches!(e, Extra::Position(_)));
     report.boundary_cells = field.boundary_cells();
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
