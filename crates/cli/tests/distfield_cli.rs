@@ -449,7 +449,9 @@ fn offset_fields_take_mesh_and_field_tools_and_intersect() {
     let xs: Vec<f64> = mesh.vertices.iter().map(|v| v.x).collect();
     let max_x = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     assert!((max_x - 0.65).abs() < 0.3 * h, "reaches x = {max_x}");
-    let in_gap = xs.iter().filter(|&&x| x > 0.2 + 0.3 * h && x < 0.4 - 0.3 * h);
+    let in_gap = xs
+        .iter()
+        .filter(|&&x| x > 0.2 + 0.3 * h && x < 0.4 - 0.3 * h);
     assert_eq!(in_gap.count(), 0, "nothing between the cut and the cube");
 }
 

@@ -48,12 +48,13 @@ fn main() {
     let there = deviation(&out, &to_ref, 16);
     let back = deviation(&reference, &to_out, 16);
     println!(
-        "{}: sculpt {seconds:.2} s, repaired {}, thin {}, settled {}, further {}, out->ref max {:.3} h mean {:.4} h at {:.3}; ref->out max {:.3} h mean {:.4} h at {:.3}",
+        "{}: sculpt {seconds:.2} s, repaired {}, thin {}, settled {}, further {}, corner sets {}, out->ref max {:.3} h mean {:.4} h at {:.3}; ref->out max {:.3} h mean {:.4} h at {:.3}",
         args[1],
         report.repaired,
         report.thin,
         report.settled,
         report.further,
+        report.corner_sets,
         there.max / h,
         there.mean / h,
         there.worst,

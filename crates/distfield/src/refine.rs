@@ -539,7 +539,7 @@ fn owned(field: &UnifiedField, cell: usize) -> Vec<DVec3> {
 /// Whether sample `node` may count as on the other side (see
 /// [`Action::Turn`]): near the surface, not moved, and the turn keeps
 /// the topology of its cells' surface.
-fn may_turn(field: &UnifiedField, node: usize) -> bool {
+pub(crate) fn may_turn(field: &UnifiedField, node: usize) -> bool {
     let spec = &field.spec;
     let idx = spec.unlinear(node);
     let inner = (0..3).all(|a| idx[a] > 0 && idx[a] + 1 < spec.dims[a]);
@@ -734,7 +734,7 @@ pub(crate) fn hand_over(field: &mut UnifiedField, node: usize) -> bool {
 }
 
 /// The value of a sample at `v` turned to the other side, on the surface.
-fn turned(v: f64, h: f64) -> f64 {
+pub(crate) fn turned(v: f64, h: f64) -> f64 {
     if v < 0.0 {
         0.0
     } else {

@@ -183,6 +183,10 @@ pub struct SculptReport {
     /// where the tool's own edges cross the object, and old edges' points
     /// a cell's point on the new edge displaced.
     pub further: usize,
+    /// Blocks around a cell holding several of the result's corners
+    /// whose cells took all the corners in their boxes at once, with the
+    /// repair's turns revised (UDF; `further::add_corner_sets`).
+    pub corner_sets: usize,
 }
 
 /// Combine a regular field with the tool.
@@ -576,6 +580,10 @@ pub fn sculpt_udf(
         &old_features,
         &all_corners,
     );
+    // Where a cell holds several of the result's corners, they and the
+    // samples' sides are changed together (no single change helps).
+    report.corner_sets =
+        further::add_corner_sets(field, &combined, &surface, &old_features, &all_corners);
     Ok(report)
 }
 

@@ -60,6 +60,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "samples_raised_to_settle_faces": r.settled,
             "samples_set_to_straighten_floating_edges": r.straightened,
             "further_feature_points": r.further,
+            "corner_sets": r.corner_sets,
         }));
     }
     field.write(&args.output)?;

@@ -438,3 +438,276 @@ fn remove_last(field: &mut UnifiedField, cell: u32) {
         }
     }
 }
+
+/// The result's corners in each crossed cell's box: old corners the tool
+/// left, and `corners` (where old edges pierce the tool, where its own
+/// edges cross the object), each once.
+fn corners_by_cell(
+    field: &UnifiedField,
+    combined: &Combined,
+    old_features: &BTreeMap<usize, CellFeatures>,
+    corners: &[DVec3],
+) -> BTreeMap<usize, Vec<DVec3>> {
+    let spec = &field.spec;
+    let h = spec.spacing;
+    let old = (old_features.values())
+        .flat_map(|f| f.corners.iter().copied())
+        .filter(|&p| !combined.changes(p, 1e-6 * h));
+    let mut by_cell: BTreeMap<usize, Vec<DVec3>> = BTreeMap::new();
+    for p in corners.iter().copied().chain(old) {
+        let Some(c) = cell_of(spec, p).filter(|&c| crosses(spec, &field.values, c)) else {
+            continue;
+        };
+        let points = by_cell.entry(c).or_default();
+        if points.iter().all(|q| q.distance(p) > SAME_POINT * h) {
+            points.push(p);
+        }
+    }
+    by_cell
+}
+
+/// Give each cell of `group` the corners in its box: as first point the
+/// one nearest its present first point, the others as further points
+/// (besides further points it keeps elsewhere). False if a first point
+/// finds no sample to store it.
+fn give_corners(field: &mut UnifiedField, group: &[(usize, Vec<DVec3>)]) -> bool {
+    let spec = field.spec;
+    let h = spec.spacing;
+    for (cell, points) in group {
+        let present = owned_points(field, *cell);
+        let first = (points.iter().copied())
+            .min_by(|a, b| {
+                let d = |p: &DVec3| {
+                    present
+                        .iter()
+                        .map(|q| q.distance(*p))
+                        .fold(f64::INFINITY, f64::min)
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .expect("a group's cell has corners");
+        for n in corner_nodes(&spec, *cell) {
+            if let Some(&crate::unified::Extra::FeaturePoint(p)) = field.extras.get(&(n as u32)) {
+                if crate::sharp::owner_cell(&spec, n, p) == Some(*cell) {
+                    field.extras.remove(&(n as u32));
+                }
+            }
+        }
+        let Some(n) = crate::unified::storage_for(field, *cell, first) else {
+            return false;
+        };
+        field
+            .extras
+            .insert(n, crate::unified::Extra::FeaturePoint(first));
+        let key = *cell as u32;
+        let mut further: Vec<DVec3> = (field.cell_points.remove(&key).into_iter().flatten())
+            .filter(|q| points.iter().all(|p| p.distance(*q) > SAME_POINT * h))
+            .collect();
+        further.extend(points.iter().copied().filter(|&p| p != first));
+        if !further.is_empty() {
+            field.cell_points.insert(key, further);
+        }
+    }
+    true
+}
+
+/// The feature points `cell` owns (stored at its samples).
+fn owned_points(field: &UnifiedField, cell: usize) -> Vec<DVec3> {
+    let spec = &field.spec;
+    (corner_nodes(spec, cell).into_iter())
+        .filter_map(|n| match field.extras.get(&(n as u32)) {
+            Some(&crate::unified::Extra::FeaturePoint(p))
+                if crate::sharp::owner_cell(spec, n, p) == Some(cell) =>
+            {
+                Some(p)
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// Where a cell holds several of the result's corners (fandisk's corner
+/// and the two where its edges pierce a box, in a wedge thinner than a
+/// cell), no single change helps: each corner needs the cell's fan, and
+/// the sample the repair turned to make a loop there may sit on the
+/// wrong side of it. Offered together as one alternative: every crossed
+/// cell of the 3³ block around such a cell takes the corners in its box
+/// (see [`give_corners`]); with it, the block's samples the repair
+/// turned (on the surface, on the other side than the exact result)
+/// turned back or not, and one sample near the surface on the outside
+/// turned or none. The alternative whose block lies nearest the result
+/// ([`gain`]) is kept. Returns the number of blocks changed.
+pub(super) fn add_corner_sets(
+    field: &mut UnifiedField,
+    combined: &Combined,
+    surface: &TriMesh,
+    old_features: &BTreeMap<usize, CellFeatures>,
+    corners: &[DVec3],
+) -> usize {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let by_cell = corners_by_cell(field, combined, old_features, corners);
+    // A place: a cell with a new corner and another corner or its own
+    // point in its box; it also takes the new edge's ends in it.
+    let places: Vec<(usize, Vec<DVec3>)> = (by_cell.iter())
+        .filter(|(_, points)| points.iter().any(|p| corners.contains(p)))
+        .filter_map(|(&c, points)| {
+            let mut all = points.clone();
+            let lo = node_position(&spec, c);
+            let in_box = |p: &DVec3| (*p - lo).min_element() >= 0.0 && (*p - lo).max_element() < h;
+            for p in owned_points(field, c).into_iter().filter(in_box) {
+                if all.iter().all(|q| q.distance(p) > SAME_POINT * h) {
+                    all.push(p);
+                }
+            }
+            if all.len() < 2 {
+                return None;
+            }
+            for p in edge_exits(&spec, combined, c) {
+                if all.iter().all(|q| q.distance(p) > SAME_POINT * h) {
+                    all.push(p);
+                }
+            }
+            Some((c, all))
+        })
+        .collect();
+    if places.is_empty() {
+        return 0;
+    }
+    let region: BTreeSet<usize> = (places.iter())
+        .flat_map(|&(c, _)| crate::refine::block(&spec, c, 1))
+        .collect();
+    let mut reference = result_points(&spec, combined, surface, &region);
+    reference.extend(
+        (region.iter())
+            .flat_map(|&c| result_features(&spec, combined, c, old_features.get(&c), corners)),
+    );
+    reference.extend(tool_edge_points(combined, h));
+    let mut changed = 0;
+    for (place, points) in places {
+        let Some(before) = local_error(field, combined, place, &reference) else {
+            continue;
+        };
+        let mut group: Vec<(usize, Vec<DVec3>)> = vec![(place, points)];
+        group.extend(
+            crate::refine::block(&spec, place, 1)
+                .filter(|&c| c != place && crosses(&spec, &field.values, c))
+                .filter_map(|c| by_cell.get(&c).map(|points| (c, points.clone()))),
+        );
+        let nodes: BTreeSet<usize> = (group.iter())
+            .flat_map(|(c, _)| corner_nodes(&spec, *c))
+            .collect();
+        let exact = |n: usize| combined.signed_distance(node_position(&spec, n));
+        let turned_by_repair: Vec<usize> = (nodes.iter().copied())
+            .filter(|&n| field.values[n].abs() <= 1e-9 * h)
+            .filter(|&n| (exact(n) < 0.0) != (field.values[n] < 0.0))
+            .collect();
+        let outside: Vec<usize> = (nodes.iter().copied())
+            .filter(|&n| field.values[n] > 0.0 && !turned_by_repair.contains(&n))
+            .collect();
+        let mut best: Option<(f64, UnifiedField)> = None;
+        for revert in [false, true] {
+            if revert && turned_by_repair.is_empty() {
+                continue;
+            }
+            for turn in std::iter::once(None).chain(outside.iter().map(Some)) {
+                let mut trial = field.clone();
+                if revert && !revert_turns(&mut trial, &turned_by_repair, exact) {
+                    continue;
+                }
+                if let Some(&n) = turn {
+                    if !crate::refine::may_turn(&trial, n) {
+                        continue;
+                    }
+                    trial.values[n] = crate::refine::turned(trial.values[n], h);
+                }
+                if !give_corners(&mut trial, &group) {
+                    continue;
+                }
+                let after = local_error(&trial, combined, place, &reference);
+                if let Some(g) = after.and_then(|a| gain(before, a)) {
+                    if best.as_ref().is_none_or(|(b, _)| g > *b) {
+                        best = Some((g, trial));
+                    }
+                }
+            }
+        }
+        if let Some((_, trial)) = best {
+            *field = trial;
+            changed += 1;
+        }
+    }
+    changed
+}
+
+/// Give the samples in `nodes` their exact values back (the other side
+/// again), where topology allows; false where it does not.
+fn revert_turns(field: &mut UnifiedField, nodes: &[usize], exact: impl Fn(usize) -> f64) -> bool {
+    let cube = surfrecon_grid::topology::Neighbourhood::new(&field.spec.strides());
+    for &n in nodes {
+        let v = exact(n);
+        if !crate::offset::may_take(&cube, n, v, |m| field.values[m]) {
+            return false;
+        }
+        field.values[n] = v;
+    }
+    true
+}
+
+/// How far (spacings) back into the cell along the new edge
+/// [`edge_exits`] puts its points: fandisk − box's wedge kept its corner
+/// with the exit moved 0.05-0.1 h in (0.145-0.147 h), not on the face
+/// (0.329 h: the fan was refused).
+const EXIT_INSET: f64 = 0.05;
+
+/// Where the new edge leaves `cell` through a face it crosses at more
+/// than [`EXIT_MIN_SLOPE`], moved [`EXIT_INSET`] back in along the edge:
+/// the ends of the cell's stretch of the new edge.
+fn edge_exits(spec: &surfrecon_grid::GridSpec<3>, combined: &Combined, cell: usize) -> Vec<DVec3> {
+    let h = spec.spacing;
+    let lo = node_position(spec, cell);
+    let points = super::new_edge_points(spec, combined, cell);
+    let mut exits: Vec<DVec3> = Vec::new();
+    for axis in 0..3 {
+        for (side, inward) in [(lo[axis], 1.0), (lo[axis] + h, -1.0)] {
+            let gap = |p: &DVec3| (p[axis] - side).abs();
+            let Some(&p) = points.iter().min_by(|a, b| gap(a).total_cmp(&gap(b))) else {
+                continue;
+            };
+            let t = edge_tangent(combined, p, h);
+            if t[axis].abs() < EXIT_MIN_SLOPE {
+                continue;
+            }
+            let target = side + inward * EXIT_INSET * h * t[axis].abs();
+            let start = p + t * ((target - p[axis]) / t[axis]);
+            let Some(q) = combined.edge_point(start, 1e-6 * h) else {
+                continue;
+            };
+            let inside = (q - lo).min_element() >= 0.0 && (q - lo).max_element() <= h;
+            if inside && exits.iter().all(|e| e.distance(q) > SAME_POINT * h) {
+                exits.push(q);
+            }
+        }
+    }
+    exits
+}
+
+/// The new edge crossing a face more obliquely than this (the axis part
+/// of its unit tangent) has no exit there.
+const EXIT_MIN_SLOPE: f64 = 0.2;
+
+/// The unit tangent of the new edge at `p`: across both surfaces'
+/// gradients (central differences).
+fn edge_tangent(combined: &Combined, p: DVec3, h: f64) -> DVec3 {
+    let gradient = |f: &dyn Fn(DVec3) -> f64| {
+        let e = 1e-3 * h;
+        DVec3::new(
+            f(p + DVec3::X * e) - f(p - DVec3::X * e),
+            f(p + DVec3::Y * e) - f(p - DVec3::Y * e),
+            f(p + DVec3::Z * e) - f(p - DVec3::Z * e),
+        )
+    };
+    let object = gradient(&|q| combined.object.signed_distance(q));
+    let tool = gradient(&|q| combined.tool.signed_distance(q));
+    object.cross(tool).normalize_or_zero()
+}
