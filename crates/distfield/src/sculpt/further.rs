@@ -9,7 +9,9 @@
 //! point is dropped where its cell keeps a point on the new edge. Both
 //! are offered here, after the repair, as further points of the cells
 //! around them, kept where the surface of the block around the cell then
-//! lies nearer the exact result.
+//! lies nearer the exact result. Last, where a cell holds several of the
+//! result's corners, all of them and the samples' sides are offered
+//! together ([`add_corner_sets`]).
 
 use super::{result_features, result_points, Combined, Tool};
 use crate::extract::{corner_nodes, crosses};
