@@ -1,14 +1,15 @@
 //! Holes in the sampling left open instead of covered.
 //!
-//! The convection's output is closed: where a densely sampled surface has
+//! The convection closes its surface: where a densely sampled surface has
 //! a hole with no samples in it (a scanner's blind spot, such as the
-//! bottom of the Stanford bunny), the facets spanning it are kept as a
-//! flat cover. [`open_sampling_holes`] finds such covers as patches of
-//! faces far larger than the spacing of their own vertices and removes
-//! them, so the hole is reported as boundary edges. A patch is opened only
-//! when it holds several faces that are large against the spacing (a
-//! random sample's own gaps give single faces up to about three spacings
-//! long) and removing it leaves a manifold mesh.
+//! bottom of the Stanford bunny), the facets spanning it form a flat
+//! cover. [`open_sampling_holes`] (run by default, `Params::open_holes`)
+//! finds such covers as patches of faces far larger than the spacing of
+//! their own vertices and removes them, so the hole is reported as
+//! boundary edges. A patch is opened only when it holds several faces
+//! that are large against the spacing (a random sample's own gaps give
+//! single faces up to about three spacings long), no sample lies inside
+//! it, and removing it leaves a manifold mesh of as many pieces.
 
 use std::collections::HashMap;
 use surfrecon_geom::DVec3;
