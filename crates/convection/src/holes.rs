@@ -48,13 +48,15 @@ pub struct OpenedHoles {
 
 /// Remove the patches of `triangles` that cover holes in the sampling
 /// (see [`HoleRule`]). `spacing[i]` is the local sample spacing at point
-/// `i` (mean distance to its nearest neighbours). The mesh must be a
-/// manifold; it stays one: faces of a patch around a vertex that would be
-/// left with two separate fans stay in place.
+/// `i` (mean distance to its nearest neighbours); faces `kept[f]` are
+/// never part of a patch (`kept` empty: none). The mesh must
+/// be a manifold; it stays one: faces of a patch around a vertex that
+/// would be left with two separate fans stay in place.
 pub fn open_sampling_holes(
     triangles: &mut Vec<[u32; 3]>,
     points: &[DVec3],
     spacing: &[f64],
+    kept: &[bool],
     rule: &HoleRule,
 ) -> OpenedHoles {
     let size = |t: &[u32; 3]| {
@@ -64,7 +66,8 @@ pub fn open_sampling_holes(
         longest / sparsest
     };
     let ratio: Vec<f64> = triangles.iter().map(size).collect();
-    let patches = patches(triangles, |f| ratio[f] > rule.grow);
+    let kept = |f: usize| kept.get(f).copied().unwrap_or(false);
+    let patches = patches(triangles, |f| ratio[f] > rule.grow && !kept(f));
     let mut faces_at = vec![0u32; points.len()];
     for &v in triangles.iter().flatten() {
         faces_at[v as usize] += 1;
@@ -372,7 +375,7 @@ mod tests {
     /// The default rule on a sample whose spacing is 1 everywhere.
     fn open_with_defaults(triangles: &mut Vec<[u32; 3]>, points: &[DVec3]) -> OpenedHoles {
         let spacing = vec![1.0; points.len()];
-        open_sampling_holes(triangles, points, &spacing, &HoleRule::default())
+        open_sampling_holes(triangles, points, &spacing, &[], &HoleRule::default())
     }
 
     #[test]

@@ -662,6 +662,29 @@ fn finish(
     mesh
 }
 
+/// Which `triangles` bound a tetrahedron the thin-part stage `restored`
+/// (by slot; empty: none). `facets` are the solid's boundary facets with
+/// their tetrahedra, in the order the faces were made (see
+/// [`flip_across_tets`]).
+fn faces_of_restored(
+    triangles: &[[u32; 3]],
+    facets: &[([u32; 3], TetId)],
+    restored: &[bool],
+) -> Vec<bool> {
+    if restored.is_empty() {
+        return Vec::new();
+    }
+    let mut made = facets.iter();
+    triangles
+        .iter()
+        .map(|face| {
+            made.by_ref()
+                .find(|(f, _)| f == face)
+                .is_some_and(|&(_, t)| restored[t.index()])
+        })
+        .collect()
+}
+
 /// [`flip_to_lower_bending`] on output faces by site, across the
 /// triangulation's finite tetrahedra; `facets` are the solid's boundary
 /// facets (by site) with their tetrahedra, in the order the faces were
@@ -875,6 +898,7 @@ fn extract_mesh(
     report.thin_parts = count_sheets(surface, &sheet);
     let mut best = closed_boundary(surface, tri, &[], site, params);
     report.thin_tets_restored = 0;
+    let mut kept_restored = Vec::new();
     // With one piece (or none) restoring cannot leave fewer: the thin-part
     // stage, the costliest of the output at scale, is skipped.
     let restored = match best.pieces > 1 {
@@ -907,6 +931,7 @@ fn extract_mesh(
         {
             report.thin_tets_restored = restored.iter().filter(|&&r| r).count();
             best = thick;
+            kept_restored = restored;
         }
     }
     let mut triangles = best.triangles;
@@ -914,8 +939,11 @@ fn extract_mesh(
     if let Some(rule) = &params.open_holes {
         // Before the flips: a flipped mesh has long faces along the
         // direction the surface bends least (a torus's rings), which the
-        // rule would take for covers of unsampled gaps.
-        let opened = open_sampling_holes(&mut triangles, points, spacing, rule);
+        // rule would take for covers of unsampled gaps. The thin parts'
+        // restored solid stays: it closes tunnels through plates and
+        // joins pieces on purpose, and pays off as a whole.
+        let thin = faces_of_restored(&triangles, &best.facets, &kept_restored);
+        let opened = open_sampling_holes(&mut triangles, points, spacing, &thin, rule);
         report.sampling_holes_opened = opened.holes;
         report.sampling_hole_faces_removed = opened.faces;
         if opened.holes > 0 {
