@@ -662,25 +662,22 @@ fn finish(
     mesh
 }
 
-/// Which `triangles` bound a tetrahedron the thin-part stage `restored`
-/// (by slot; empty: none). `facets` are the solid's boundary facets with
-/// their tetrahedra, in the order the faces were made (see
-/// [`flip_across_tets`]).
-fn faces_of_restored(
+/// Which `triangles` the clean-up made rather than the convection: faces
+/// of a tetrahedron the thin-part stage `restored` (by slot; empty: none)
+/// and the faces closing short holes (no facet). `facets` are the solid's
+/// boundary facets with their tetrahedra, in the order the faces were
+/// made (see [`flip_across_tets`]).
+fn faces_of_the_clean_up(
     triangles: &[[u32; 3]],
     facets: &[([u32; 3], TetId)],
     restored: &[bool],
 ) -> Vec<bool> {
-    if restored.is_empty() {
-        return Vec::new();
-    }
     let mut made = facets.iter();
     triangles
         .iter()
-        .map(|face| {
-            made.by_ref()
-                .find(|(f, _)| f == face)
-                .is_some_and(|&(_, t)| restored[t.index()])
+        .map(|face| match made.by_ref().find(|(f, _)| f == face) {
+            Some(&(_, t)) => restored.get(t.index()).copied().unwrap_or(false),
+            None => true,
         })
         .collect()
 }
@@ -940,10 +937,10 @@ fn extract_mesh(
         // Before the flips: a flipped mesh has long faces along the
         // direction the surface bends least (a torus's rings), which the
         // rule would take for covers of unsampled gaps. The thin parts'
-        // restored solid stays: it closes tunnels through plates and
-        // joins pieces on purpose, and pays off as a whole.
-        let thin = faces_of_restored(&triangles, &best.facets, &kept_restored);
-        let opened = open_sampling_holes(&mut triangles, points, spacing, &thin, rule);
+        // restored solid and the filled holes stay: they close tunnels
+        // through plates, join pieces and mend pinches on purpose.
+        let made = faces_of_the_clean_up(&triangles, &best.facets, &kept_restored);
+        let opened = open_sampling_holes(&mut triangles, points, spacing, &made, rule);
         report.sampling_holes_opened = opened.holes;
         report.sampling_hole_faces_removed = opened.faces;
         if opened.holes > 0 {
@@ -1417,6 +1414,21 @@ mod tests {
         let scratch = reconstruct(&sites, None, &params).unwrap();
         assert!(scratch.mesh.triangles.len() > 5000);
         assert_eq!(face_set(&dynamic.mesh), face_set(&scratch.mesh));
+        // This sparse random sample (4,428 points) has a gap 3.3 spacings
+        // across that the hole rule opens (BENCHMARKS, session 33): the
+        // same hole either way; covered, the torus is closed.
+        let opened = |r: &Reconstruction| {
+            (r.report.sampling_holes_opened, r.report.boundary_edges)
+        };
+        assert_eq!(opened(&dynamic), opened(&scratch));
+        assert!(dynamic.report.sampling_holes_opened <= 1);
+        let covered = Params {
+            open_holes: None,
+            ..Params::default()
+        };
+        let dynamic = surface.reconstruction(&covered).unwrap();
         assert_eq!(dynamic.report.boundary_edges, 0);
+        let scratch = reconstruct(&sites, None, &covered).unwrap();
+        assert_eq!(face_set(&dynamic.mesh), face_set(&scratch.mesh));
     }
 }
