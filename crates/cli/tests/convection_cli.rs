@@ -202,5 +202,9 @@ fn convection_leaves_an_unsampled_cap_open_unless_asked_to_cover_it() {
 
     let (_, quiet, again) = run("again.ply", &["--open-holes", "--quiet"]);
     assert_eq!(again.triangles, open.triangles);
-    assert!(quiet.stderr.is_empty(), "{}", String::from_utf8_lossy(&quiet.stderr));
+    assert!(
+        quiet.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&quiet.stderr)
+    );
 }

@@ -1417,9 +1417,7 @@ mod tests {
         // This sparse random sample (4,428 points) has a gap 3.3 spacings
         // across that the hole rule opens (BENCHMARKS, session 33): the
         // same hole either way; covered, the torus is closed.
-        let opened = |r: &Reconstruction| {
-            (r.report.sampling_holes_opened, r.report.boundary_edges)
-        };
+        let opened = |r: &Reconstruction| (r.report.sampling_holes_opened, r.report.boundary_edges);
         assert_eq!(opened(&dynamic), opened(&scratch));
         assert!(dynamic.report.sampling_holes_opened <= 1);
         let covered = Params {

@@ -197,7 +197,9 @@ fn bunny_scan_leaves_its_unsampled_bottom_open() {
     let bottom = points.iter().map(|p| p.y).fold(f64::MAX, f64::min) + 0.03;
     for cycle in &loops {
         assert!(cycle.len() >= 10, "a hole's rim, not a sliver: {cycle:?}");
-        assert!(cycle.iter().all(|&v| r.mesh.vertices[v as usize].y < bottom));
+        assert!(cycle
+            .iter()
+            .all(|&v| r.mesh.vertices[v as usize].y < bottom));
     }
     let crossing = self_intersections(&r.mesh);
     assert!(crossing.is_empty(), "crossing faces {crossing:?}");
