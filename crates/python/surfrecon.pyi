@@ -62,7 +62,7 @@ def reconstruct(
     no_pockets: bool = False,
     no_thin_parts: bool = False,
     convection_normal_k: Optional[int] = None,
-    open_holes: bool = False,
+    cover_holes: bool = False,
     no_edge_flips: bool = False,
     on_the_fly: bool = False,
     no_curved_splits: bool = False,

@@ -140,3 +140,71 @@ fn convection_brush_keeps_more_points_where_it_refines() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("X,Y,Z,R,RHO_C"), "{err}");
 }
+
+/// A sphere's sample with no point above z = 0.9: by default the cap's
+/// cover is removed (one hole, reported on stderr and in `--json`);
+/// `--cover-holes` keeps the sphere closed; `--open-holes` is accepted
+/// and changes nothing.
+#[test]
+fn convection_leaves_an_unsampled_cap_open_unless_asked_to_cover_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("capless.xyz");
+    let sphere = surfrecon_geom::shapes::icosphere(glam::DVec3::ZERO, 1.0, 5);
+    let points: Vec<_> = sample_surface(&sphere, 6000, 3)
+        .positions
+        .into_iter()
+        .filter(|p| p.z < 0.9)
+        .collect();
+    io::write(&input, &Geometry::from_points(PointCloud::new(points))).unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "--json",
+            "reconstruct",
+            s(&input),
+            "-o",
+            s(&out),
+            "--method",
+            "convection",
+        ];
+        args.extend_from_slice(extra);
+        let run = surfrecon(&args);
+        (json_of(&run), run, io::read(&out).unwrap().to_mesh())
+    };
+
+    let (json, plain, open) = run("open.ply", &[]);
+    let report = &json["convection"];
+    assert_eq!(report["sampling_holes_opened"], 1, "{json}");
+    let t = topology(&open);
+    assert!(t.edge_manifold && t.vertex_manifold, "{t:?}");
+    assert_eq!((t.components, t.euler), (1, 1), "a disk: {t:?}");
+    assert_eq!(report["boundary_edges"], t.boundary_edges);
+    // The rim is the sample's edge below z = 0.9.
+    let mut rim = std::collections::HashSet::new();
+    for &[a, b, c] in &open.triangles {
+        rim.extend([(a, b), (b, c), (c, a)]);
+    }
+    let rim_z: Vec<f64> = rim
+        .iter()
+        .filter(|&&(a, b)| !rim.contains(&(b, a)))
+        .map(|&(a, _)| open.vertices[a as usize].z)
+        .collect();
+    assert!(rim_z.iter().all(|&z| (0.8..0.9).contains(&z)), "{rim_z:?}");
+    let err = String::from_utf8_lossy(&plain.stderr);
+    assert!(err.contains("left 1 hole(s) in the sampling open"), "{err}");
+
+    let (json, _, mesh) = run("covered.ply", &["--cover-holes"]);
+    assert_eq!(json["convection"]["sampling_holes_opened"], 0);
+    assert_eq!(json["convection"]["boundary_edges"], 0);
+    let t = topology(&mesh);
+    assert!(t.watertight && t.vertex_manifold, "{t:?}");
+    assert_eq!((t.components, t.euler), (1, 2));
+
+    let (_, quiet, again) = run("again.ply", &["--open-holes", "--quiet"]);
+    assert_eq!(again.triangles, open.triangles);
+    assert!(
+        quiet.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&quiet.stderr)
+    );
+}

@@ -1,14 +1,15 @@
 //! Holes in the sampling left open instead of covered.
 //!
-//! The convection's output is closed: where a densely sampled surface has
+//! The convection closes its surface: where a densely sampled surface has
 //! a hole with no samples in it (a scanner's blind spot, such as the
-//! bottom of the Stanford bunny), the facets spanning it are kept as a
-//! flat cover. [`open_sampling_holes`] finds such covers as patches of
-//! faces far larger than the spacing of their own vertices and removes
-//! them, so the hole is reported as boundary edges. A patch is opened only
-//! when it holds several faces that are large against the spacing (a
-//! random sample's own gaps give single faces up to about three spacings
-//! long) and removing it leaves a manifold mesh.
+//! bottom of the Stanford bunny), the facets spanning it form a flat
+//! cover. [`open_sampling_holes`] (run by default, `Params::open_holes`)
+//! finds such covers as patches of faces far larger than the spacing of
+//! their own vertices and removes them, so the hole is reported as
+//! boundary edges. A patch is opened only when it holds several faces
+//! that are large against the spacing (a random sample's own gaps give
+//! single faces up to about three spacings long), no sample lies inside
+//! it, and removing it leaves a manifold mesh of as many pieces.
 
 use std::collections::HashMap;
 use surfrecon_geom::DVec3;
@@ -47,13 +48,15 @@ pub struct OpenedHoles {
 
 /// Remove the patches of `triangles` that cover holes in the sampling
 /// (see [`HoleRule`]). `spacing[i]` is the local sample spacing at point
-/// `i` (mean distance to its nearest neighbours). The mesh must be a
-/// manifold; it stays one: faces of a patch around a vertex that would be
-/// left with two separate fans stay in place.
+/// `i` (mean distance to its nearest neighbours); faces `kept[f]` are
+/// never part of a patch (`kept` empty: none). The mesh must
+/// be a manifold; it stays one: faces of a patch around a vertex that
+/// would be left with two separate fans stay in place.
 pub fn open_sampling_holes(
     triangles: &mut Vec<[u32; 3]>,
     points: &[DVec3],
     spacing: &[f64],
+    kept: &[bool],
     rule: &HoleRule,
 ) -> OpenedHoles {
     let size = |t: &[u32; 3]| {
@@ -63,7 +66,8 @@ pub fn open_sampling_holes(
         longest / sparsest
     };
     let ratio: Vec<f64> = triangles.iter().map(size).collect();
-    let patches = patches(triangles, |f| ratio[f] > rule.grow);
+    let kept = |f: usize| kept.get(f).copied().unwrap_or(false);
+    let patches = patches(triangles, |f| ratio[f] > rule.grow && !kept(f));
     let mut faces_at = vec![0u32; points.len()];
     for &v in triangles.iter().flatten() {
         faces_at[v as usize] += 1;
@@ -371,7 +375,7 @@ mod tests {
     /// The default rule on a sample whose spacing is 1 everywhere.
     fn open_with_defaults(triangles: &mut Vec<[u32; 3]>, points: &[DVec3]) -> OpenedHoles {
         let spacing = vec![1.0; points.len()];
-        open_sampling_holes(triangles, points, &spacing, &HoleRule::default())
+        open_sampling_holes(triangles, points, &spacing, &[], &HoleRule::default())
     }
 
     #[test]

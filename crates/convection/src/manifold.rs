@@ -258,7 +258,9 @@ pub fn boundary_edges(triangles: &[[u32; 3]]) -> usize {
 /// cone's sparse tip) is opened wider: its fill and the faces it crossed
 /// are removed, the mesh made manifold again, and the larger loop filled
 /// in the next round. After the last round such a loop keeps the ear
-/// clipping's crossing faces. Returns the number of loops closed.
+/// clipping's crossing faces. Returns the number of holes closed: the
+/// patches of new faces in the final mesh (a loop closed in one round
+/// whose fill a later round opened again into a larger loop counts once).
 pub fn fill_small_holes(
     triangles: &mut Vec<[u32; 3]>,
     points: &[DVec3],
@@ -267,13 +269,17 @@ pub fn fill_small_holes(
     if max_edges < 3 {
         return 0;
     }
+    let given = triangles.len();
     let mut filled = 0;
+    // The mesh's own faces, kept once a round has to open fills again.
+    let mut own: Option<HashSet<[u32; 3]>> = None;
     for round in 1..=FILL_ROUNDS {
         let pass = fill_pass(triangles, points, max_edges, round == FILL_ROUNDS);
         filled += pass.closed;
         if pass.to_remove.is_empty() {
             break;
         }
+        let own = own.get_or_insert_with(|| triangles[..given].iter().copied().collect());
         let mut doomed = vec![false; triangles.len()];
         for f in pass.to_remove {
             doomed[f as usize] = true;
@@ -284,8 +290,32 @@ pub fn fill_small_holes(
             !doomed[index - 1]
         });
         make_manifold(triangles);
+        // A face the mesh lost here and a later fill makes again is new.
+        let present: HashSet<[u32; 3]> = triangles.iter().copied().collect();
+        own.retain(|f| present.contains(f));
     }
-    filled
+    match own {
+        Some(own) => fill_patches(triangles, &own),
+        None => filled,
+    }
+}
+
+/// Patches (connected through edges) of the faces not in `own`.
+fn fill_patches(triangles: &[[u32; 3]], own: &HashSet<[u32; 3]>) -> usize {
+    let new: Vec<usize> = (0..triangles.len())
+        .filter(|&f| !own.contains(&triangles[f]))
+        .collect();
+    let mut sets = surfrecon_geom::disjoint_sets::DisjointSets::new(new.len());
+    let mut face_at: HashMap<(u32, u32), usize> = HashMap::new();
+    for (i, &f) in new.iter().enumerate() {
+        for (a, b) in directed_edges(&triangles[f]) {
+            if let Some(&j) = face_at.get(&(a.min(b), a.max(b))) {
+                sets.union(i, j);
+            }
+            face_at.insert((a.min(b), a.max(b)), i);
+        }
+    }
+    (0..new.len()).filter(|&i| sets.find(i) == i).count()
 }
 
 /// Rounds of hole filling: each may open the loops it could not close
@@ -681,6 +711,19 @@ mod tests {
         assert_eq!(boundary_edges(&t), 0);
         assert_eq!(t.len(), 6);
         assert_eq!(make_manifold(&mut t), 0);
+    }
+
+    #[test]
+    fn holes_filled_count_patches_of_new_faces_once() {
+        // The bottom cap's four faces as fills: one patch, one hole.
+        let t = octahedron();
+        let own: HashSet<[u32; 3]> = t[..4].iter().copied().collect();
+        assert_eq!(fill_patches(&t, &own), 1);
+        // Two fills meeting at a vertex only (faces 0 and 2 of the top
+        // cap, at vertex 4): two holes.
+        let own: HashSet<[u32; 3]> = [1, 3, 4, 5, 6, 7].map(|f| t[f]).into();
+        assert_eq!(fill_patches(&t, &own), 2);
+        assert_eq!(fill_patches(&t, &t.iter().copied().collect()), 0);
     }
 
     /// A non-planar quad hole with a face standing under its middle: the

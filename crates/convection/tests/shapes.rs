@@ -128,30 +128,99 @@ fn two_overlapping_tori_give_genus_two() {
     );
 }
 
-#[test]
-fn bunny_scan_vertices_give_a_closed_surface() {
+fn bunny_scan_points() -> Vec<DVec3> {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../data/bunny/bunny.ply");
-    let points = io::read(path).unwrap().points.positions;
-    let r = run(&points);
-    // The scan leaves holes under the bunny; they are spanned by facets
-    // whose Gabriel half-balls are empty, so the surface closes over them.
-    assert_closed_genus(&r, points.len(), 0);
-    assert_eq!(r.report.kept_points, points.len());
+    io::read(path).unwrap().points.positions
+}
+
+/// Mean distance between the mesh and the points, relative to the diagonal.
+fn relative_fit(mesh: &TriMesh, points: &[DVec3]) -> f64 {
     let options = EvalOptions {
         samples: 20_000,
         seed: 5,
     };
     let fit = evaluate(
-        &Surface::Mesh(r.mesh.clone()),
-        &Surface::Points(surfrecon_geom::PointCloud::new(points)),
+        &Surface::Mesh(mesh.clone()),
+        &Surface::Points(surfrecon_geom::PointCloud::new(points.to_vec())),
         &options,
     )
     .unwrap();
-    assert!(
-        fit.chamfer_l1 / fit.diagonal < 2e-3,
-        "{}",
-        fit.chamfer_l1 / fit.diagonal
-    );
+    fit.chamfer_l1 / fit.diagonal
+}
+
+/// The boundary loops of a manifold mesh, as vertex cycles.
+fn boundary_loops(mesh: &TriMesh) -> Vec<Vec<u32>> {
+    let edges: std::collections::HashSet<(u32, u32)> = mesh
+        .triangles
+        .iter()
+        .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+        .collect();
+    let mut next: std::collections::HashMap<u32, u32> = edges
+        .iter()
+        .filter(|&&(a, b)| !edges.contains(&(b, a)))
+        .map(|&(a, b)| (a, b))
+        .collect();
+    let mut loops = Vec::new();
+    while let Some(&start) = next.keys().next() {
+        let mut cycle = vec![start];
+        let mut v = next.remove(&start).unwrap();
+        while v != start {
+            cycle.push(v);
+            v = next.remove(&v).expect("a manifold rim is a cycle");
+        }
+        loops.push(cycle);
+    }
+    loops
+}
+
+#[test]
+fn bunny_scan_leaves_its_unsampled_bottom_open() {
+    // The scan saw nothing of a few patches under the bunny (bun_zipper.ply
+    // has five boundary loops there, none elsewhere). The convection spans
+    // them with faces whose Gabriel half-balls are empty; by default those
+    // covers are removed and reported.
+    let points = bunny_scan_points();
+    let r = run(&points);
+    let topo = topology(&r.mesh);
+    eprintln!("{:?}\n{topo:?}", r.report);
+    assert!(topo.edge_manifold && topo.vertex_manifold, "{topo:?}");
+    assert_eq!(topo.components, 1);
+    assert_eq!(r.report.kept_points, points.len());
+    let loops = boundary_loops(&r.mesh);
+    let holes = r.report.sampling_holes_opened;
+    assert!((3..=5).contains(&holes), "{holes} holes opened");
+    assert_eq!(loops.len(), holes, "one rim loop per opened hole");
+    assert_eq!(topo.euler, 2 - holes as i64, "a sphere with {holes} holes");
+    assert_eq!(topo.boundary_edges, r.report.boundary_edges);
+    // Every rim lies at the bottom (y from 0.033 to 0.187; the scan's
+    // holes reach y = 0.06).
+    let bottom = points.iter().map(|p| p.y).fold(f64::MAX, f64::min) + 0.03;
+    for cycle in &loops {
+        assert!(cycle.len() >= 10, "a hole's rim, not a sliver: {cycle:?}");
+        assert!(cycle
+            .iter()
+            .all(|&v| r.mesh.vertices[v as usize].y < bottom));
+    }
+    let crossing = self_intersections(&r.mesh);
+    assert!(crossing.is_empty(), "crossing faces {crossing:?}");
+    let fit = relative_fit(&r.mesh, &points);
+    assert!(fit < 2e-3, "{fit}");
+}
+
+#[test]
+fn bunny_scan_is_closed_over_its_holes_when_asked() {
+    let points = bunny_scan_points();
+    let params = Params {
+        open_holes: None,
+        ..Params::default()
+    };
+    let r = reconstruct(&points, None, &params).unwrap();
+    // The holes' covers stay: the surface closes over them.
+    assert_closed_genus(&r, points.len(), 0);
+    assert_eq!(r.report.sampling_holes_opened, 0);
+    assert_eq!(r.report.kept_points, points.len());
+    let fit = relative_fit(&r.mesh, &points);
+    assert!(fit < 2e-3, "{fit}");
 }
 
 /// Points on a unit sphere with a plate 0.04 thick through its equator,

@@ -139,12 +139,41 @@ fn first_tetrahedron(points: &[DVec3], order: &[u32]) -> Result<[u32; 4]> {
     let d = *order
         .iter()
         .find(|&&i| orient3d(p(a), p(b), p(c), p(i)) != 0.0)
-        .ok_or(DelaunayError::AllCoplanar { count })?;
+        .ok_or(match collinear_to_rounding(points) {
+            true => DelaunayError::AllCollinear { count },
+            false => DelaunayError::AllCoplanar { count },
+        })?;
     Ok(if orient3d(p(a), p(b), p(c), p(d)) > 0.0 {
         [a, b, c, d]
     } else {
         [b, a, c, d]
     })
+}
+
+/// Points off a line by at most this share of their extent are collinear
+/// but for the rounding of their coordinates (`t·(0.1, 0.2, 0.3)` for a
+/// decimal `t` lie exactly on a plane, but not exactly on a line).
+const COLLINEAR_TO_ROUNDING: f64 = 1e-9;
+
+/// Whether every point lies within [`COLLINEAR_TO_ROUNDING`] of their
+/// extent from the line through the first point and the point farthest
+/// from it.
+fn collinear_to_rounding(points: &[DVec3]) -> bool {
+    let a = points[0];
+    let b = points
+        .iter()
+        .copied()
+        .max_by(|p, q| p.distance_squared(a).total_cmp(&q.distance_squared(a)))
+        .unwrap_or(a);
+    let length = a.distance(b);
+    if length == 0.0 {
+        return true;
+    }
+    let direction = (b - a) / length;
+    let off_line = |p: DVec3| (p - a).cross(direction).length();
+    points
+        .iter()
+        .all(|&p| off_line(p) <= COLLINEAR_TO_ROUNDING * length)
 }
 
 /// Exact collinearity: the cross product (b − a) × (c − a) vanishes iff its

@@ -158,6 +158,15 @@ fn degenerate_inputs_are_errors() {
         Triangulation::bulk_load(&line).unwrap_err(),
         DelaunayError::AllCollinear { count: 50 }
     );
+    // On a line but for rounding: exactly coplanar (y = 2x exactly), not
+    // exactly collinear; said to be collinear.
+    let rounded: Vec<DVec3> = (0..500)
+        .map(|i| DVec3::new(0.1, 0.2, 0.3) * (i as f64 / 499.0))
+        .collect();
+    assert_eq!(
+        Triangulation::bulk_load(&rounded).unwrap_err(),
+        DelaunayError::AllCollinear { count: 500 }
+    );
     let plane: Vec<DVec3> = lattice(5)
         .into_iter()
         .map(|p| DVec3::new(p.x, p.y, p.x + 2.0 * p.y))

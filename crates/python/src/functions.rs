@@ -203,8 +203,9 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
 ///   points (the paper's scheme; closer fit, slower) instead of input order
 ///   (noisy points: input order still);
 ///   fill_holes=24 largest hole (edges) closed; no_pockets=False;
-///   no_thin_parts=False; convection_normal_k=12; open_holes=False leave
-///   holes in the sampling open (boundary edges) instead of covering them;
+///   no_thin_parts=False; convection_normal_k=12; cover_holes=False cover
+///   the holes in the sampling (no sample inside) instead of leaving them
+///   open as boundary edges;
 ///   no_edge_flips=False keep the convection's triangles (no flips that
 ///   lower the bending); no_curved_splits=False keep the input points as
 ///   the only vertices (no new vertices on edges where the smooth surface
@@ -222,7 +223,7 @@ fn loss(name: &str) -> PyResult<surfrecon::Loss> {
     svm_c=None, svm_epsilon=None, svm_accuracy=None, loss="epsilon", drop_levels=0,
     model_out=None, model_in=None, svm_normal_k=None,
     rho=None, rho_geom=None, rho_topo=None, fill_holes=None, no_pockets=false,
-    no_thin_parts=false, convection_normal_k=None, open_holes=false,
+    no_thin_parts=false, convection_normal_k=None, cover_holes=false,
     no_edge_flips=false, on_the_fly=false, no_curved_splits=false
 ))]
 #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python API
@@ -265,7 +266,7 @@ pub fn reconstruct<'py>(
     no_pockets: bool,
     no_thin_parts: bool,
     convection_normal_k: Option<usize>,
-    open_holes: bool,
+    cover_holes: bool,
     no_edge_flips: bool,
     on_the_fly: bool,
     no_curved_splits: bool,
@@ -309,7 +310,7 @@ pub fn reconstruct<'py>(
             pockets: !no_pockets,
             thin_parts: !no_thin_parts,
             normal_k: convection_normal_k.unwrap_or(cv.normal_k),
-            open_holes,
+            open_holes: !cover_holes,
             edge_flips: !no_edge_flips,
             split_curved_edges: !no_curved_splits,
             // The brush and the quality refinement are CLI and library

@@ -9,6 +9,7 @@ use surfrecon_convection::{reconstruct, Params};
 use surfrecon_geom::progress::Hook;
 use surfrecon_geom::Geometry;
 use surfrecon_levelset::cleaning::is_noisy;
+use surfrecon_levelset::slices::detect_slices;
 
 pub(crate) fn params(o: &ConvectionOptions) -> Params {
     Params {
@@ -51,10 +52,15 @@ pub(crate) fn run(
     // turn with the noise, which the new vertices would amplify.
     let asks_clean = o.edge_flips || o.decimate_on_the_fly || o.split_curved_edges;
     let noisy_input = asks_clean && is_noisy(&points.positions);
+    // A stack of contour slices samples the surface on its planes only:
+    // every gap between two slices would pass for an unsampled hole (a
+    // two-torus's slices fell apart into bands), so none is opened.
+    let sliced_input = o.open_holes && is_a_slice_stack(&points.positions);
     let params = Params {
         edge_flips: o.edge_flips && !noisy_input,
         decimate_on_the_fly: o.decimate_on_the_fly && !noisy_input,
         split_curved_edges: o.split_curved_edges && !noisy_input,
+        open_holes: params(o).open_holes.filter(|_| !sliced_input),
         ..params(o)
     };
     let r = reconstruct(&points.positions, points.normals.as_deref(), &params)
@@ -67,6 +73,7 @@ pub(crate) fn run(
         method: "convection",
         convection: r.report,
         noisy_input,
+        sliced_input,
         output_counts,
         data_fit: data_fit.then(|| data_fit_report(&r.mesh, input)),
     };
@@ -76,4 +83,13 @@ pub(crate) fn run(
         field: None,
         report: Report::Convection(Box::new(report)),
     })
+}
+
+/// Whether the points lie on a few parallel planes (contour slices).
+fn is_a_slice_stack(points: &[surfrecon_geom::DVec3]) -> bool {
+    let input = surfrecon_levelset::Input {
+        points: points.to_vec(),
+        ..Default::default()
+    };
+    detect_slices(&input).is_some()
 }

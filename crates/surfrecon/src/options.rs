@@ -221,8 +221,9 @@ pub struct ConvectionOptions {
     pub refine_alpha: f64,
     /// ... and smallest ratio of the vertex radii in a triangle (0: off).
     pub refine_gamma: f64,
-    /// Leave holes in the sampling open (reported as boundary edges)
-    /// instead of covering them with faces far larger than the spacing.
+    /// Leave holes in the sampling open (reported as boundary edges; the
+    /// default) instead of covering them with faces far larger than the
+    /// spacing (false: the output closed wherever the convection closes it).
     pub open_holes: bool,
     /// Flip edges where that lowers the surface's bending (across Delaunay
     /// tetrahedra, vertices unchanged).

@@ -302,6 +302,10 @@ pub struct ConvectionReport {
     /// the decimation ran in input order, not on the fly (tested only when
     /// flips, splits or the decimation on the fly are on).
     pub noisy_input: bool,
+    /// The input is a stack of parallel contour slices, so no hole in the
+    /// sampling was opened (the gaps between slices are no scanner's
+    /// blind spots; tested only when holes are opened).
+    pub sliced_input: bool,
     pub output_counts: OutputCounts,
     pub data_fit: Option<DataFitReport>,
 }

@@ -246,16 +246,7 @@ fn summarize(args: &Args, report: &Report, ctx: &Context) {
             r.output_counts.vertices,
             r.output_counts.triangles.unwrap_or(0)
         )),
-        Report::Convection(r) => ctx.say(format!(
-            "reconstructed a surface through {} of {} points, {} triangles (convection{}) -> {output}",
-            r.output_counts.vertices,
-            r.convection.points,
-            r.output_counts.triangles.unwrap_or(0),
-            match r.convection.boundary_edges {
-                0 => String::new(),
-                b => format!(", {b} boundary edges"),
-            },
-        )),
+        Report::Convection(r) => say_convection(r, ctx, &output.to_string()),
         Report::CurveNetwork(r) => ctx.say(format!(
             "reconstructed a closed surface spanning {} curves ({} crossings) with {} vertices in {:.2} s{} -> {output}",
             r.curve_network.curves,
@@ -275,6 +266,30 @@ fn summarize(args: &Args, report: &Report, ctx: &Context) {
         map.insert("output".into(), json!(args.output));
     }
     ctx.emit_json(&value);
+}
+
+fn say_convection(r: &surfrecon::ConvectionReport, ctx: &Context, output: &str) {
+    let c = &r.convection;
+    ctx.say(format!(
+        "reconstructed a surface through {} of {} points{}, {} triangles (convection{}) -> {output}",
+        c.kept_points,
+        c.points,
+        match c.curved_edges_split {
+            0 => String::new(),
+            n => format!(" and {n} vertices on curved edges"),
+        },
+        r.output_counts.triangles.unwrap_or(0),
+        match c.boundary_edges {
+            0 => String::new(),
+            b => format!(", {b} boundary edges"),
+        },
+    ));
+    if c.sampling_holes_opened > 0 {
+        ctx.say(format!(
+            "left {} hole(s) in the sampling open (no sample inside; --cover-holes covers them)",
+            c.sampling_holes_opened
+        ));
+    }
 }
 
 fn say_levelset(r: &surfrecon::LevelSetReport, args: &Args, ctx: &Context) {

@@ -48,11 +48,17 @@ pub struct ConvectionArgs {
     /// the convection stay cut off).
     #[arg(long)]
     pub no_thin_parts: bool,
-    /// Leave holes in the sampling open instead of covering them: patches
-    /// of faces far longer than their vertices' sample spacing (several
-    /// longer than 3.5 spacings) are removed and reported as boundary
-    /// edges. For scans with unseen parts; the output is then not closed.
+    /// Cover the holes in the sampling instead of leaving them open. By
+    /// default patches of faces far longer than their vertices' sample
+    /// spacing (several longer than 3.5 spacings, no sample inside) are
+    /// removed and reported as boundary edges, as where a scanner saw
+    /// nothing; with this flag the output stays closed wherever the
+    /// convection closes it.
     #[arg(long)]
+    pub cover_holes: bool,
+    /// Accepted for old scripts: leaving sampling holes open is now the
+    /// default.
+    #[arg(long, hide = true, conflicts_with = "cover_holes")]
     pub open_holes: bool,
     /// Decimate (--rho) on the fly, in the order a convection front from
     /// the convex hull reaches the points (the paper's scheme: the points
@@ -92,7 +98,7 @@ impl ConvectionArgs {
             brush: self.brush.as_deref().copied(),
             refine_alpha: self.refine_alpha,
             refine_gamma: self.refine_gamma,
-            open_holes: self.open_holes,
+            open_holes: !self.cover_holes,
             edge_flips: !self.no_edge_flips,
             split_curved_edges: !self.no_curved_splits,
         }
