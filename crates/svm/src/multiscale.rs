@@ -267,8 +267,6 @@ pub fn fit_with(
     let isolated = samples.points.len() - active.len();
     samples.exclude_from_consistency(&active);
     samples.set_noise(noise);
-    // Normals to be reoriented were estimated from the points.
-    samples.trust_normals_for_discs(!opts.reorient_normals);
     let mut normals_flipped = 0;
     for done in 0..opts.max_levels {
         let at = Progress {

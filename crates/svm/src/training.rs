@@ -49,9 +49,6 @@ pub struct SurfaceSamples {
     consistency_tree: Option<(KdTree, Vec<usize>)>,
     /// Noise σ the consistency check allows for (see [`Self::set_noise`]).
     noise: f64,
-    /// Whether outside points are also checked against the samples'
-    /// discs (see [`Self::trust_normals_for_discs`]).
-    trust_discs: bool,
     /// Per sample: its normal agrees with the mean normal of its
     /// [`LOCAL_NEIGHBOURS`] nearest other samples (cosine ≥
     /// [`MIN_NORMAL_AGREEMENT`]). A stray point with an arbitrary normal
@@ -59,27 +56,6 @@ pub struct SurfaceSamples {
     /// would claim the wrong side, are not used.
     pub normal_agrees: Vec<bool>,
 }
-
-/// Samples whose discs the check of an outside point looks at (see
-/// [`SurfaceSamples::blocking_disc`]).
-pub const DISC_NEIGHBOURS: usize = 6;
-/// Radius of a sample's disc, relative to its reach (the distance to its
-/// [`LOCAL_NEIGHBOURS`]-th nearest other sample): about the radius of the
-/// patch of surface nearer to it than to any other sample.
-pub const DISC_RADIUS: f64 = 0.5;
-/// Least rise of a sample above the tangent plane of the sample whose
-/// outside point it may block, relative to the point's offset: a surface
-/// rising in front of the sample (a concave junction), not the same
-/// surface curving away, nor a neighbour on it that estimated normals
-/// tilt a little (spikes' +x cone, 0.012 thick near its tip: with any
-/// rise the tip was cut off; with a quarter of the offset the fin's root
-/// kept its slot on spikes without normals, whose blended normals tilt
-/// the sample's plane towards the fin).
-pub const DISC_RISE: f64 = 0.1;
-/// Largest cosine between the normals of a blocking sample and of the
-/// sample whose outside point it blocks (about 45°): another surface
-/// meeting the sample's at a junction, not a noisy neighbour on its own.
-pub const DISC_TURN: f64 = 0.7;
 
 /// Scatter of noisy samples about the surface, in noise σ.
 const NOISE_SCATTER: f64 = 2.0;
@@ -161,7 +137,6 @@ impl SurfaceSamples {
             normal_agrees,
             consistency_tree: None,
             noise: 0.0,
-            trust_discs: true,
         })
     }
 
@@ -209,12 +184,7 @@ impl SurfaceSamples {
                     return None;
                 }
                 let position = self.points[i] + self.normals[i] * (sign * d);
-                let blocking = self.blocking_sample(position, d).or_else(|| {
-                    (sign > 0.0 && self.trust_discs)
-                        .then(|| self.blocking_disc(position, d, i))
-                        .flatten()
-                });
-                match blocking {
+                match self.blocking_sample(position, d) {
                     None => {
                         return Some(TrainingPoint {
                             position,
@@ -354,87 +324,16 @@ impl SurfaceSamples {
         self.noise = sigma.max(0.0);
     }
 
-    /// Whether the normals are good enough to check outside points
-    /// against the samples' discs ([`Self::blocking_disc`]; on by
-    /// default). Estimated normals are not, at the very places the check
-    /// is for: at a junction they blend the two surfaces, and at a thin
-    /// part's rim they scatter (harness spikes without normals: the
-    /// fin's root kept its slot and its lower rim, 0.05 from the sphere,
-    /// was joined to it by a new handle).
-    pub fn trust_normals_for_discs(&mut self, trust: bool) {
-        self.trust_discs = trust;
-    }
-
     /// The noise σ declared with [`Self::set_noise`].
     pub fn noise(&self) -> f64 {
         self.noise
-    }
-
-    /// For the outside point `position` at offset `y` from sample `own`:
-    /// one of its [`DISC_NEIGHBOURS`] nearest samples that rises in front
-    /// of `own` (by [`DISC_RISE`]·y above its tangent plane) and whose
-    /// disc (see [`Self::disc_distance`]) lies closer to the point than
-    /// [`Self::blocking_sample`] allows. Where a thin part meets a body at
-    /// a sharp concave angle, the body's outside points beside the
-    /// junction land inside the part or against its face, a sample
-    /// spacing or less from the nearest of its samples but off every one
-    /// of them by more than the check's 0.9·y; claiming +y there cuts a
-    /// slot through the part's root (harness spikes, the fin's 0.033-thick
-    /// end: a handle on the non-uniform input, and on the input without
-    /// normals, whose estimated normals there blend body and fin). The
-    /// samples' discs cover their surface, so the point's distance to the
-    /// nearest disc is its distance to that surface. Only for outside
-    /// points, and only in front: on a convex surface and around a thin
-    /// part, where discs wider than the part stick out of it, the
-    /// neighbours fall away below the sample's plane.
-    fn blocking_disc(&self, position: DVec3, y: f64, own: usize) -> Option<usize> {
-        let least = self.least_clearance(y);
-        // Noisy samples scatter either way: two of them differ by twice
-        // the scatter without any surface rising.
-        let rise = DISC_RISE * y + 2.0 * NOISE_SCATTER * self.noise;
-        let near: Vec<usize> = match &self.consistency_tree {
-            Some((tree, kept)) => tree
-                .knn(position, DISC_NEIGHBOURS)
-                .into_iter()
-                .map(|n| kept[n.index])
-                .collect(),
-            None => self
-                .tree
-                .knn(position, DISC_NEIGHBOURS)
-                .into_iter()
-                .map(|n| n.index)
-                .collect(),
-        };
-        near.into_iter()
-            .filter(|&q| q != own && self.is_typical(q))
-            .filter(|&q| self.normals[q].dot(self.normals[own]) < DISC_TURN)
-            .filter(|&q| (self.points[q] - self.points[own]).dot(self.normals[own]) > rise)
-            .find(|&q| self.disc_distance(q, position) < least)
-    }
-
-    /// Distance from `position` to sample `q`'s disc: its tangent plane
-    /// within [`DISC_RADIUS`] times its reach (the reach at most twice the
-    /// typical one, so that a sparse sample's disc does not reach across
-    /// a gap).
-    fn disc_distance(&self, q: usize, position: DVec3) -> f64 {
-        let radius = DISC_RADIUS * self.reach[q].min(2.0 * self.typical_reach);
-        let v = position - self.points[q];
-        let height = v.dot(self.normals[q]);
-        let beside = (v - height * self.normals[q]).length();
-        height.hypot((beside - radius).max(0.0))
-    }
-
-    /// How near the surface an off-surface point at offset `y` may come:
-    /// 0.9·y less the noise scatter, but never under half of y.
-    fn least_clearance(&self, y: f64) -> f64 {
-        (0.9 * y - NOISE_SCATTER * self.noise).max(0.5 * y)
     }
 
     /// The sample (index into `points`) nearest to `position` when it is
     /// closer than 0.9·y (less the noise scatter, but never under half of
     /// y): an off-surface point there would claim that sample's side.
     fn blocking_sample(&self, position: DVec3, y: f64) -> Option<usize> {
-        let least = self.least_clearance(y);
+        let least = (0.9 * y - NOISE_SCATTER * self.noise).max(0.5 * y);
         let nearest = match &self.consistency_tree {
             Some((tree, kept)) => tree.nearest(position).map(|n| (kept[n.index], n.distance)),
             None => self.tree.nearest(position).map(|n| (n.index, n.distance)),
@@ -612,62 +511,6 @@ mod tests {
         assert!(outside
             .into_iter()
             .all(|p| p.target == 0.3 || p.position.z > 0.1));
-    }
-
-    #[test]
-    fn outside_points_beside_a_leaning_plate_stay_out_of_it() {
-        // The plane z = 0 (spacing 0.02, facing +z) with a plate 0.02
-        // thick leaning over it at 30° from the line x = 0, each face
-        // sampled every 0.03 (the far face half a spacing along y): the
-        // plane's outside points at 0.03 beside the root land inside the
-        // plate or against its lower face, over 0.9·y from its samples
-        // (15 of 45 with the nearest-sample check alone). The plate's
-        // discs keep them out.
-        let (sin, cos) = 30f64.to_radians().sin_cos();
-        let (along, lower) = (DVec3::new(cos, 0.0, sin), DVec3::new(sin, 0.0, -cos));
-        let thick = 0.02;
-        let steps = |step: f64, from: f64, to: f64| {
-            (0..)
-                .map(move |k| from + k as f64 * step)
-                .take_while(move |v| *v <= to + 1e-9)
-        };
-        let (mut points, mut normals) = (Vec::new(), Vec::new());
-        for x in steps(0.02, -0.3, 0.3).filter(|x| !(0.0..=thick / sin).contains(x)) {
-            for y in steps(0.02, -0.2, 0.2) {
-                points.push(DVec3::new(x, y, 0.0));
-                normals.push(DVec3::Z);
-            }
-        }
-        let body = points.len();
-        for u in steps(0.03, 0.03, 0.29) {
-            for y in steps(0.03, -0.2, 0.2) {
-                points.push(u * along + DVec3::new(0.0, y, 0.0));
-                normals.push(lower);
-                points.push(u * along + DVec3::new(0.0, y + 0.015, 0.0) - thick * lower);
-                normals.push(-lower);
-            }
-        }
-        let s = SurfaceSamples::new(&points, &normals).unwrap();
-        let root: Vec<usize> = (0..body)
-            .filter(|&i| points[i].x > 0.0 && points[i].x < 0.1 && points[i].y.abs() < 0.15)
-            .collect();
-        let y = 0.03;
-        let outside: Vec<TrainingPoint> = s
-            .off_surface(&root, y)
-            .into_iter()
-            .filter(|p| p.target > 0.0)
-            .collect();
-        assert!(outside.len() >= 30, "{} of {}", outside.len(), root.len());
-        for p in &outside {
-            // Signed distance to the lower face's plane, below it > 0.
-            let below = p.position.dot(lower);
-            assert!(below >= 0.5 * p.target, "{p:?} {below}");
-        }
-        // Away from the plate the plane keeps its full offsets.
-        let open: Vec<usize> = (0..body).filter(|&i| points[i].x < -0.05).collect();
-        let kept = s.off_surface(&open, y);
-        assert!(kept.iter().all(|p| p.target.abs() == y));
-        assert_eq!(kept.len(), 2 * open.len());
     }
 
     #[test]
