@@ -1081,7 +1081,7 @@ fn refined_surface_follows_sharp_edges_of_exact_points() {
     let h = r.report.spacing;
     let near_edge_error = |options: RefineOptions| {
         let mut mesh = r.mesh.clone();
-        let stats = refine_surface(&mut mesh, &points, h, options);
+        let stats = refine_surface(&mut mesh, &points, &[], h, options);
         let (watertight, euler, _) = topology(&mesh);
         assert!(
             watertight && euler == 2,
