@@ -224,31 +224,30 @@ mod tests {
     }
 
     #[test]
-    fn a_crease_between_two_planes_is_not_fitted() {
-        // Two half-planes meeting at a right angle along the x axis; the
-        // vertex above the crease sees both: no quadric fits them within the
-        // bounds, so it stays.
+    fn both_faces_of_a_thin_plate_are_not_one_quadric() {
+        // A vertex between the two faces of a plate thinner than the kernel
+        // sees data on both with normals of either sign: no quadric has
+        // both faces as its zero set with its gradient along them, so the
+        // vertex is not pulled onto either.
         let mut points = Vec::new();
-        let mut normals = Vec::new();
-        for i in 0..40 {
-            for j in 1..40 {
-                let (x, t) = (i as f64 * 0.05 - 1.0, j as f64 * 0.05);
-                points.push(DVec3::new(x, t, 0.0));
-                normals.push(DVec3::Z);
-                points.push(DVec3::new(x, 0.0, t));
-                normals.push(DVec3::Y);
+        for i in 0..30 {
+            for j in 0..30 {
+                let (x, y) = (i as f64 * 0.02 - 0.3, j as f64 * 0.02 - 0.3);
+                points.extend([DVec3::new(x, y, 0.0), DVec3::new(x, y, 0.1)]);
             }
         }
+        let normals: Vec<DVec3> = (0..points.len())
+            .map(|i| if i % 2 == 0 { -DVec3::Z } else { DVec3::Z })
+            .collect();
         let tree = KdTree::new(&points);
         let data = RimData {
             points: &points,
             normals: &normals,
             tree: &tree,
         };
-        let start = DVec3::new(0.0, 0.3, 0.3);
+        let start = DVec3::new(0.01, 0.01, 0.03);
         let mut v = [start];
-        let facing = DVec3::new(0.0, 1.0, 1.0).normalize();
-        fit_to_rim(&mut v, &[facing], &[true], &data, 0.05);
+        fit_to_rim(&mut v, &[DVec3::Z], &[true], &data, 0.1);
         assert_eq!(v[0], start);
     }
 }
