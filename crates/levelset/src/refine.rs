@@ -170,6 +170,16 @@ fn bend_onto_rim(
     let min_width = SUPPORT_CELLS * spacing;
     fit_to_rim(&mut mesh.vertices, &vertex_normals, free, &data, min_width);
     let kept = undo_degenerating_moves(mesh, &faired, folded);
+    // Vertices whose fit was refused would stand as dents among the bent
+    // ones: faired again between them.
+    let unbent: Vec<bool> = (0..free.len())
+        .map(|v| free[v] && mesh.vertices[v] == faired[v])
+        .collect();
+    if kept > 0 && unbent.contains(&true) {
+        let before = mesh.vertices.clone();
+        fair(mesh, &unbent, &FairingOptions::default());
+        undo_degenerating_moves(mesh, &before, folded);
+    }
     if let Some(n) = &mut mesh.normals {
         let bent = area_weighted_normals(&mesh.vertices, &mesh.triangles);
         for (v, normal) in n.iter_mut().enumerate() {

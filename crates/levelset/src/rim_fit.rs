@@ -76,7 +76,11 @@ impl Quadric {
             let q = (data.points[n.index] - centre) / width;
             let w = (-q.length_squared()).exp();
             let normal = data.normals[n.index];
-            let normal = if normal.dot(facing) < 0.0 { -normal } else { normal };
+            let normal = if normal.dot(facing) < 0.0 {
+                -normal
+            } else {
+                normal
+            };
             let (value, gradient) = monomials(q);
             accumulate(&mut ata, &mut atb, &value, 0.0, w);
             for (axis, row) in gradient.iter().enumerate() {
@@ -125,7 +129,13 @@ impl Quadric {
 }
 
 /// Add `w`·(row, target) to the normal equations.
-fn accumulate(ata: &mut [[f64; 10]; 10], atb: &mut [f64; 10], row: &[f64; 10], target: f64, w: f64) {
+fn accumulate(
+    ata: &mut [[f64; 10]; 10],
+    atb: &mut [f64; 10],
+    row: &[f64; 10],
+    target: f64,
+    w: f64,
+) {
     for i in 0..10 {
         if row[i] == 0.0 {
             continue;
@@ -219,7 +229,10 @@ mod tests {
         let (up, all) = (vec![DVec3::Z; patch.len()], vec![true; patch.len()]);
         let moved = fit_to_rim(&mut patch, &up, &all, &data, 0.02);
         assert_eq!(moved, patch.len());
-        let worst = patch.iter().map(|p| (p.length() - 1.0).abs()).fold(0.0, f64::max);
+        let worst = patch
+            .iter()
+            .map(|p| (p.length() - 1.0).abs())
+            .fold(0.0, f64::max);
         assert!(worst < 0.01, "fill off the sphere by {worst}");
     }
 

@@ -249,7 +249,10 @@ fn a_spheres_missing_cap_is_filled_on_the_sphere() {
         .map(|v| (v.length() - 1.0).abs())
         .collect();
     let worst = cap.iter().fold(0.0, |a: f64, &b| a.max(b));
-    assert!(cap.len() > 50 && worst < 0.005, "cap off the sphere by {worst}");
+    assert!(
+        cap.len() > 50 && worst < 0.005,
+        "cap off the sphere by {worst}"
+    );
 }
 
 fn sphere_curves() -> surfrecon_geom::Polylines {
