@@ -29,6 +29,7 @@ pub mod reach;
 pub mod reconstruct;
 pub mod refine;
 pub mod reinit;
+pub mod rim_fit;
 pub mod slices;
 pub mod tagging;
 

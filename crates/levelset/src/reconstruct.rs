@@ -349,7 +349,8 @@ fn reconstruct_3d_centred(
         };
         check(hook, "refine")?;
         report.refine = report.time("refine", || {
-            refine_surface(&mut mesh, &input.points, phi.spec().spacing, options)
+            let spacing = phi.spec().spacing;
+            refine_surface(&mut mesh, &input.points, &input.normals, spacing, options)
         });
         if options.exact_points {
             let dropped = dropped_points(&raw.points, &input.points);

@@ -130,6 +130,7 @@ fn report(
             snapped_to_planes: r.refine.snapped_to_planes,
             faired: r.refine.faired,
             max_fairing_shift: r.refine.max_fairing_shift,
+            fitted_to_rim: r.refine.fitted_to_rim,
             reached_far_points: r.refine.reached_far_points,
         },
         slices: r.slices.map(|(axis, count)| SlicesReport { axis, count }),

@@ -165,6 +165,8 @@ pub struct RefineReport {
     pub snapped_to_planes: usize,
     pub faired: usize,
     pub max_fairing_shift: f64,
+    /// Faired vertices moved onto the quadric the rim's data continue.
+    pub fitted_to_rim: usize,
     /// Exact data beyond half a cell the surface was pulled onto (cone
     /// tips, wedge apexes).
     pub reached_far_points: usize,

@@ -224,7 +224,7 @@ fn surface(points: &PointCloud, s: &SurfaceSettings, hook: Hook) -> Result<Surfa
             fair_gaps: false,
             exact_points: true,
         };
-        refine_surface(&mut mesh, &points.positions, meshing.spacing, options)
+        refine_surface(&mut mesh, &points.positions, &[], meshing.spacing, options)
     });
     Ok(Surface {
         centres: meshed.centre_count(),
