@@ -15,7 +15,7 @@ use crate::multires::{
     upsample_band,
 };
 use crate::reach::{reach_far_points, sampling_gap, MAX_PULL_CELLS};
-use crate::refine::{refine_surface, RefineOptions, RefineStats};
+use crate::refine::{refine_surface, undo_crossing_moves, RefineOptions, RefineStats};
 use crate::reinit::{reinitialize, signed_distance_everywhere};
 use crate::slices::{detect_slices, interpolate_slices, join_lost_parts, SliceStack};
 use crate::tagging::{remove_unsupported, tag, BoundingBox, Tagging};
@@ -348,6 +348,7 @@ fn reconstruct_3d_centred(
             exact_points: report.cleaning.projected == 0,
         };
         check(hook, "refine")?;
+        let on_grid = mesh.vertices.clone();
         report.refine = report.time("refine", || {
             let spacing = phi.spec().spacing;
             refine_surface(&mut mesh, &input.points, &input.normals, spacing, options)
@@ -360,6 +361,8 @@ fn reconstruct_3d_centred(
             });
             report.refine.reached_far_points = reached;
         }
+        report.refine.uncrossed =
+            report.time("uncross", || undo_crossing_moves(&mut mesh, &on_grid));
     }
     Ok(Reconstruction3 {
         mesh,

@@ -18,6 +18,7 @@ use crate::cleaning::{project_onto_points, SurfaceFit};
 use crate::rim_fit::{fit_to_rim, RimData};
 use rayon::prelude::*;
 use surfrecon_geom::fairing::{area_weighted_normals, fair, FairingOptions};
+use surfrecon_geom::intersections::self_intersections;
 use surfrecon_geom::normals::{estimate_normals, normal_beside_edges};
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, TriMesh};
@@ -62,6 +63,9 @@ pub struct RefineStats {
     pub fitted_to_rim: usize,
     /// Far data the surface was pulled onto ([`crate::reach`]).
     pub reached_far_points: usize,
+    /// Moved vertices put back where their faces crossed others
+    /// ([`undo_crossing_moves`]).
+    pub uncrossed: usize,
 }
 
 /// What [`refine_surface`] may do besides snapping onto the data's fit.
@@ -259,6 +263,42 @@ pub(crate) fn undo_degenerating_moves(
             mesh.vertices[i as usize] = before[i as usize];
         }
     }
+}
+
+/// Rounds of [`undo_crossing_moves`] before every moved vertex goes back.
+const UNCROSSING_ROUNDS: usize = 8;
+
+/// Put back (to `before`, a mesh without self-intersections, such as the
+/// marching-cubes surface) the moved vertices of every pair of faces that
+/// cross, until none do: snapping neighbours onto different sheets or
+/// planes can fold a sliver through the next face. After
+/// [`UNCROSSING_ROUNDS`] rounds every moved vertex goes back. Returns the
+/// number of vertices put back.
+pub fn undo_crossing_moves(mesh: &mut TriMesh, before: &[DVec3]) -> usize {
+    let mut put_back = 0;
+    for round in 0.. {
+        let crossing = self_intersections(mesh);
+        if crossing.is_empty() {
+            break;
+        }
+        let mut vertices: Vec<u32> = if round < UNCROSSING_ROUNDS {
+            let faces = crossing.iter().flatten();
+            faces.flat_map(|&f| mesh.triangles[f as usize]).collect()
+        } else {
+            (0..before.len() as u32).collect()
+        };
+        vertices.retain(|&v| mesh.vertices[v as usize] != before[v as usize]);
+        if vertices.is_empty() {
+            break; // crossing before the moves too: nothing of ours
+        }
+        vertices.sort_unstable();
+        vertices.dedup();
+        for &v in &vertices {
+            mesh.vertices[v as usize] = before[v as usize];
+        }
+        put_back += vertices.len();
+    }
+    put_back
 }
 
 /// A moved triangle keeps at least this share of its area, measured along

@@ -132,6 +132,7 @@ fn report(
             max_fairing_shift: r.refine.max_fairing_shift,
             fitted_to_rim: r.refine.fitted_to_rim,
             reached_far_points: r.refine.reached_far_points,
+            uncrossed: r.refine.uncrossed,
         },
         slices: r.slices.map(|(axis, count)| SlicesReport { axis, count }),
         timings: r

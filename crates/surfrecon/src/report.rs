@@ -170,6 +170,8 @@ pub struct RefineReport {
     /// Exact data beyond half a cell the surface was pulled onto (cone
     /// tips, wedge apexes).
     pub reached_far_points: usize,
+    /// Moved vertices put back where their faces crossed others.
+    pub uncrossed: usize,
 }
 
 /// A stack of parallel contour slices, across `axis` (0 = x).
@@ -291,6 +293,8 @@ pub struct SvmMeshReport {
     /// Points farther than half a cell from the surface pulled onto: thin
     /// parts' tips the fit ends short of, and surface it misses.
     pub reached_far_points: usize,
+    /// Snapped vertices put back where their faces crossed others.
+    pub uncrossed: usize,
     pub vertices: usize,
     pub triangles: usize,
 }

@@ -15,7 +15,7 @@ use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, Geometry, PointCloud, TriMesh};
 use surfrecon_levelset::cleaning::{clean_points_with_normals, dropped_points};
 use surfrecon_levelset::reach::reach_far_points;
-use surfrecon_levelset::refine::{refine_surface, RefineOptions, RefineStats};
+use surfrecon_levelset::refine::{refine_surface, undo_crossing_moves, RefineOptions, RefineStats};
 use surfrecon_svm::mesh::{mesh_model, MeshOptions, MeshReport};
 use surfrecon_svm::noise::estimate_noise_unoriented;
 use surfrecon_svm::selection::{select_parameters, SelectionOptions};
@@ -140,6 +140,7 @@ pub(crate) fn run(
             snapped: refined.map_or(0, |r| r.snapped),
             snapped_to_planes: refined.map_or(0, |r| r.snapped_to_planes),
             reached_far_points: reached,
+            uncrossed: refined.map_or(0, |r| r.uncrossed),
             vertices: mesh.vertices.len(),
             triangles: mesh.triangles.len(),
         },
@@ -224,7 +225,10 @@ fn surface(points: &PointCloud, s: &SurfaceSettings, hook: Hook) -> Result<Surfa
             fair_gaps: false,
             exact_points: true,
         };
-        refine_surface(&mut mesh, &points.positions, &[], meshing.spacing, options)
+        let on_grid = mesh.vertices.clone();
+        let mut stats = refine_surface(&mut mesh, &points.positions, &[], meshing.spacing, options);
+        stats.uncrossed = undo_crossing_moves(&mut mesh, &on_grid);
+        stats
     });
     Ok(Surface {
         centres: meshed.centre_count(),
