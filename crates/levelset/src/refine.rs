@@ -265,27 +265,38 @@ pub(crate) fn undo_degenerating_moves(
     }
 }
 
-/// Rounds of [`undo_crossing_moves`] before every moved vertex goes back.
-const UNCROSSING_ROUNDS: usize = 8;
+/// Rounds of [`undo_crossing_moves`] that put back one vertex per crossing
+/// pair, then all six, before every moved vertex goes back.
+const FARTHEST_ONLY_ROUNDS: usize = 8;
+const UNCROSSING_ROUNDS: usize = 16;
 
 /// Put back (to `before`, a mesh without self-intersections, such as the
-/// marching-cubes surface) the moved vertices of every pair of faces that
-/// cross, until none do: snapping neighbours onto different sheets or
-/// planes can fold a sliver through the next face. After
-/// [`UNCROSSING_ROUNDS`] rounds every moved vertex goes back. Returns the
-/// number of vertices put back.
+/// marching-cubes surface) moved vertices of the pairs of faces that cross,
+/// until none do: snapping neighbours onto different sheets or planes can
+/// fold a sliver through the next face. First only the vertex of each pair
+/// that moved farthest, then all of the pair's, after
+/// [`UNCROSSING_ROUNDS`] rounds every moved vertex. Returns the number of
+/// vertices put back.
 pub fn undo_crossing_moves(mesh: &mut TriMesh, before: &[DVec3]) -> usize {
+    let moved_by = |m: &TriMesh, v: u32| m.vertices[v as usize].distance(before[v as usize]);
     let mut put_back = 0;
     for round in 0.. {
         let crossing = self_intersections(mesh);
         if crossing.is_empty() {
             break;
         }
-        let mut vertices: Vec<u32> = if round < UNCROSSING_ROUNDS {
-            let faces = crossing.iter().flatten();
-            faces.flat_map(|&f| mesh.triangles[f as usize]).collect()
-        } else {
-            (0..before.len() as u32).collect()
+        let pair_vertices = |pair: &[u32; 2]| pair.map(|f| mesh.triangles[f as usize]).concat();
+        let mut vertices: Vec<u32> = match round {
+            r if r < FARTHEST_ONLY_ROUNDS => (crossing.iter())
+                .filter_map(|pair| {
+                    let farthest = pair_vertices(pair)
+                        .into_iter()
+                        .max_by(|&a, &b| moved_by(mesh, a).total_cmp(&moved_by(mesh, b)));
+                    farthest.filter(|&v| moved_by(mesh, v) > 0.0)
+                })
+                .collect(),
+            r if r < UNCROSSING_ROUNDS => crossing.iter().flat_map(pair_vertices).collect(),
+            _ => (0..before.len() as u32).collect(),
         };
         vertices.retain(|&v| mesh.vertices[v as usize] != before[v as usize]);
         if vertices.is_empty() {
