@@ -15,11 +15,11 @@
 //! cell's reach are pulled onto by [`crate::reach`].
 
 use crate::cleaning::{project_onto_points, SurfaceFit};
-use crate::rim_fit::{fit_to_rim, RimData};
+use crate::rim_fit::{fit_to_rim, normals_near, RimData};
 use rayon::prelude::*;
 use surfrecon_geom::fairing::{area_weighted_normals, fair, FairingOptions};
 use surfrecon_geom::intersections::self_intersections;
-use surfrecon_geom::normals::{estimate_normals, normal_beside_edges};
+use surfrecon_geom::normals::normal_beside_edges;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, TriMesh};
 
@@ -157,11 +157,13 @@ fn bend_onto_rim(
     tree: &KdTree,
     spacing: f64,
 ) -> usize {
+    let min_width = SUPPORT_CELLS * spacing;
     let estimated;
     let normals = if normals.len() == points.len() {
         normals
     } else {
-        estimated = estimate_normals(points, SNAP_NEIGHBOURS);
+        let v = &mesh.vertices;
+        estimated = normals_near(v, free, points, tree, min_width, SNAP_NEIGHBOURS);
         &estimated
     };
     let data = RimData {
@@ -171,7 +173,6 @@ fn bend_onto_rim(
     };
     let faired = mesh.vertices.clone();
     let vertex_normals = area_weighted_normals(&mesh.vertices, &mesh.triangles);
-    let min_width = SUPPORT_CELLS * spacing;
     fit_to_rim(&mut mesh.vertices, &vertex_normals, free, &data, min_width);
     let kept = undo_degenerating_moves(mesh, &faired, folded);
     // Vertices whose fit was refused would stand as dents among the bent

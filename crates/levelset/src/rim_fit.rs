@@ -12,6 +12,7 @@
 
 use rayon::prelude::*;
 use surfrecon_geom::linalg::solve;
+use surfrecon_geom::normals::plane_normal;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::DVec3;
 
@@ -145,6 +146,42 @@ fn accumulate(
         }
         atb[i] += w * row[i] * target;
     }
+}
+
+/// Unit normals (either sign) of the `points` a fit around the vertices
+/// `which` marks can reach, by plane fits to their `k` nearest points;
+/// zero elsewhere. Estimating every point's would cost more than the fits
+/// when a dense scan has one small hole.
+pub fn normals_near(
+    vertices: &[DVec3],
+    which: &[bool],
+    points: &[DVec3],
+    tree: &KdTree,
+    min_width: f64,
+    k: usize,
+) -> Vec<DVec3> {
+    let mut needed = vec![false; points.len()];
+    for (v, _) in vertices.iter().zip(which).filter(|(_, &w)| w) {
+        let width = tree.nearest(*v).map_or(0.0, |n| n.distance).max(min_width);
+        // A fit reaches its kernel's reach from a centre moved up to a width.
+        for n in tree.within(*v, (KERNEL_REACH + 1.0) * width) {
+            needed[n.index] = true;
+        }
+    }
+    (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            if !needed[i] {
+                return DVec3::ZERO;
+            }
+            let near: Vec<DVec3> = tree
+                .knn(points[i], k)
+                .iter()
+                .map(|n| points[n.index])
+                .collect();
+            plane_normal(&near)
+        })
+        .collect()
 }
 
 /// The data a gap patch is continued from: points with unit normals (either
