@@ -353,6 +353,10 @@ fn reconstruct_3d_centred(
             let spacing = phi.spec().spacing;
             refine_surface(&mut mesh, &input.points, &input.normals, spacing, options)
         });
+        // Before the reach: its pulls to thin tips are what the data ask
+        // for, and putting them back would cut the tips again.
+        report.refine.uncrossed =
+            report.time("uncross", || undo_crossing_moves(&mut mesh, &on_grid));
         if options.exact_points {
             let dropped = dropped_points(&raw.points, &input.points);
             let reached = report.time("reach", || {
@@ -361,8 +365,6 @@ fn reconstruct_3d_centred(
             });
             report.refine.reached_far_points = reached;
         }
-        report.refine.uncrossed =
-            report.time("uncross", || undo_crossing_moves(&mut mesh, &on_grid));
     }
     Ok(Reconstruction3 {
         mesh,
