@@ -1093,18 +1093,24 @@ fn box_distance(p: DVec3, half: DVec3) -> f64 {
     q.max(DVec3::ZERO).length() + q.max_element().min(0.0)
 }
 
-#[test]
-fn refined_surface_follows_sharp_edges_of_exact_points() {
-    use surfrecon_levelset::refine::{refine_surface, RefineOptions};
-    let half = DVec3::new(0.5, 0.4, 0.3);
-    // Turned off the grid's axes, so no edge lies along grid lines.
+/// `n` samples of the box of half sizes `half`, turned off the grid's axes
+/// (so no edge lies along grid lines), and the turn.
+fn turned_box_points(half: DVec3, n: usize, seed: u64) -> (Vec<DVec3>, glam::DQuat) {
     let turn = glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.3, 0.5, 0.2);
     let cube = surfrecon_geom::shapes::cuboid(-half, half);
-    let points: Vec<DVec3> = sample_surface(&cube, 8000, 3)
+    let points = sample_surface(&cube, n, seed)
         .positions
         .iter()
         .map(|&p| turn * p)
         .collect();
+    (points, turn)
+}
+
+#[test]
+fn refined_surface_follows_sharp_edges_of_exact_points() {
+    use surfrecon_levelset::refine::{refine_surface, RefineOptions};
+    let half = DVec3::new(0.5, 0.4, 0.3);
+    let (points, turn) = turned_box_points(half, 8000, 3);
     let unrefined = ReconstructParams {
         refine: false,
         ..params(40)
@@ -1182,14 +1188,7 @@ fn points_denser_than_the_grid_are_not_densified() {
 /// the marching-cubes surface does not.
 #[test]
 fn the_refined_surface_does_not_cross_itself() {
-    let turn = glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.3, 0.5, 0.2);
-    let half = DVec3::splat(0.5);
-    let cube = surfrecon_geom::shapes::cuboid(-half, half);
-    let points: Vec<DVec3> = sample_surface(&cube, 20_000, 9)
-        .positions
-        .iter()
-        .map(|&p| turn * p)
-        .collect();
+    let (points, _) = turned_box_points(DVec3::splat(0.5), 20_000, 9);
     let r = reconstruct_3d(&Input::from_points(points), &params(96)).unwrap();
     let crossing = surfrecon_geom::intersections::self_intersections(&r.mesh);
     assert!(crossing.is_empty(), "{} crossing pairs", crossing.len());
