@@ -40,7 +40,7 @@ use crate::{check_mesh, grid_for, DistFieldError};
 use rayon::prelude::*;
 
 mod repair;
-pub(crate) use repair::THINNED;
+pub(crate) use repair::{repair as repair_samples, MeshPoints, THINNED};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::time::Instant;
 use surfrecon_geom::metrics::closest_point_on_triangle;
@@ -249,7 +249,11 @@ pub fn build_odf(
 /// must be fitted around them as well. (Fandisk: 0.40 h without them,
 /// where a ridge sample's neighbour 0.04 h off a face, a corner of no
 /// feature cell, was never moved and cut the ridge across its cell.)
-fn add_cells_beside(cells: &mut BTreeMap<usize, CellFeatures>, spec: &GridSpec<3>, values: &[f64]) {
+pub(crate) fn add_cells_beside(
+    cells: &mut BTreeMap<usize, CellFeatures>,
+    spec: &GridSpec<3>,
+    values: &[f64],
+) {
     let near_surface = |c: usize| {
         let v = corner_nodes(spec, c).map(|n| values[n]);
         let crossed = v.iter().any(|&x| x < 0.0) && v.iter().any(|&x| x >= 0.0);
@@ -304,10 +308,34 @@ const MIN_CORNER_VOLUME: f64 = 0.1;
 /// sample, which draws a sample onto it until the surface crosses the cell.
 const UNREACHED: f64 = 1.0;
 
+/// The surface samples are fitted to: the mesh in construction, the
+/// exact result of object and tool after a sculpting step.
+pub(crate) trait Truth: Sync {
+    /// Signed distance at `p`, negative inside.
+    fn signed_distance(&self, p: DVec3) -> f64;
+    /// The surface point nearest `p`.
+    fn closest_point(&self, p: DVec3) -> DVec3;
+    /// Distance from `p` along `+axis` to the first surface point, if
+    /// one lies within `max`.
+    fn hit_along(&self, p: DVec3, axis: usize, max: f64) -> Option<f64>;
+}
+
+impl Truth for MeshQuery {
+    fn signed_distance(&self, p: DVec3) -> f64 {
+        MeshQuery::signed_distance(self, p)
+    }
+    fn closest_point(&self, p: DVec3) -> DVec3 {
+        MeshQuery::closest_point(self, p)
+    }
+    fn hit_along(&self, p: DVec3, axis: usize, max: f64) -> Option<f64> {
+        MeshQuery::hit_along(self, p, axis, max)
+    }
+}
+
 /// The energy minimization over a field's samples.
 pub(crate) struct Search<'a> {
     spec: &'a GridSpec<3>,
-    query: &'a MeshQuery,
+    query: &'a dyn Truth,
     cells: &'a BTreeMap<usize, CellFeatures>,
     /// Per feature cell, what its patch should match.
     targets: BTreeMap<usize, Target>,
@@ -315,10 +343,11 @@ pub(crate) struct Search<'a> {
 }
 
 /// What a feature cell's patch should match: points it should pass
-/// through and the source triangles near the cell.
+/// through and the source triangles near the cell (None: the truth's
+/// own distances stand for them).
 struct Target {
     probes: Vec<DVec3>,
-    surface: Boxed,
+    surface: Option<Boxed>,
 }
 
 /// Squared distance from `p` to the nearest of `triangles`.
@@ -346,12 +375,7 @@ impl Boxed {
     }
 
     /// Squared distance from `p` to the nearest triangle, or `cap` if
-    /// none is nearer.
-    fn distance2(&self, p: DVec3, cap: f64) -> f64 {
-        self.distance2_from(p, cap, &mut 0)
-    }
-
-    /// [`Self::distance2`] starting from triangle `*hint` (the nearest
+    /// none is nearer, starting from triangle `*hint` (the nearest
     /// to a point close by), which then becomes the nearest to `p`: a
     /// near first guess lets the box test skip most triangles.
     fn distance2_from(&self, p: DVec3, cap: f64, hint: &mut usize) -> f64 {
@@ -372,35 +396,30 @@ impl Boxed {
         }
         best
     }
+}
 
-    /// Sum over the corners and centres of `patch` (of feature cell
-    /// `cell`) of the squared distances to the nearest triangle, each
-    /// capped at `cap`. A corner shared by several triangles counts once
-    /// per triangle; every point is measured once per `memo`.
-    fn patch_distance2(
-        &self,
-        cell: usize,
-        patch: &[[DVec3; 3]],
-        cap: f64,
-        memo: &mut Measured,
-    ) -> f64 {
-        let mut hint = 0;
-        let mut sum = 0.0;
-        let mut measure = |x: DVec3| {
-            let key = (cell, x.to_array().map(f64::to_bits));
-            *memo
-                .0
-                .entry(key)
-                .or_insert_with(|| self.distance2_from(x, cap, &mut hint))
-        };
-        for t in patch {
-            for x in [t[0], t[1], t[2]] {
-                sum += measure(x);
-            }
-            sum += measure((t[0] + t[1] + t[2]) / 3.0);
+/// Sum over the corners and centres of `patch` (of feature cell `cell`)
+/// of `measure` (a squared distance to the true surface). A corner shared
+/// by several triangles counts once per triangle; every point is measured
+/// once per `memo`.
+fn patch_distance2(
+    cell: usize,
+    patch: &[[DVec3; 3]],
+    memo: &mut Measured,
+    mut measure: impl FnMut(DVec3) -> f64,
+) -> f64 {
+    let mut measured = |x: DVec3| {
+        let key = (cell, x.to_array().map(f64::to_bits));
+        *memo.0.entry(key).or_insert_with(|| measure(x))
+    };
+    let mut sum = 0.0;
+    for t in patch {
+        for x in [t[0], t[1], t[2]] {
+            sum += measured(x);
         }
-        sum
+        sum += measured((t[0] + t[1] + t[2]) / 3.0);
     }
+    sum
 }
 
 /// Squared distances from patch points to their cell's true surface,
@@ -478,7 +497,7 @@ fn cell_triangles(corners: &[(DVec3, f64); 8]) -> Vec<[DVec3; 3]> {
 /// Points a feature cell's patch should pass through: its corners and
 /// bends, the ends and middles of its feature edge pieces, and where the
 /// true surface crosses the cell's edges and twelve lines through it.
-fn cell_probes(spec: &GridSpec<3>, query: &MeshQuery, cell: usize, f: &CellFeatures) -> Vec<DVec3> {
+fn cell_probes(spec: &GridSpec<3>, query: &dyn Truth, cell: usize, f: &CellFeatures) -> Vec<DVec3> {
     let mut probes: Vec<DVec3> = f.corners.iter().chain(&f.bends).copied().collect();
     probes.extend(f.pieces.iter().flat_map(|&[a, b]| [a, (a + b) * 0.5, b]));
     let h = spec.spacing;
@@ -522,46 +541,67 @@ fn feature_targets(
     features: &Features,
     spec: &GridSpec<3>,
 ) -> BTreeMap<usize, AlignTarget> {
+    let v = |i: u32| mesh.vertices[i as usize];
+    line_targets(
+        spec,
+        features.edges.iter().map(|&[a, b]| [v(a), v(b)]),
+        features.corners.iter().map(|&c| v(c)),
+    )
+}
+
+/// [`feature_targets`] for feature lines given as `segments` and
+/// `corners` (the new edge of a sculpting step, too).
+pub(crate) fn line_targets(
+    spec: &GridSpec<3>,
+    segments: impl IntoIterator<Item = [DVec3; 2]>,
+    corners: impl IntoIterator<Item = DVec3>,
+) -> BTreeMap<usize, AlignTarget> {
     // Node boxes are the cells of the grid shifted by half a spacing.
     let half = 0.5 * spec.spacing;
     let boxes = GridSpec::<3> {
         origin: spec.origin.map(|o| o - half),
         ..*spec
     };
-    let mut targets: BTreeMap<usize, (f64, DVec3)> = BTreeMap::new();
-    for &[a, b] in &features.edges {
-        let (a, b) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
+    let mut targets: BTreeMap<usize, (f64, AlignTarget)> = BTreeMap::new();
+    for [a, b] in segments {
         for (node, [p, q]) in clip_to_cells(&boxes, a, b) {
             let home = node_position(spec, node);
             let point = (p + q) * 0.5;
             let d = point.distance(home);
-            let slot = targets.entry(node).or_insert((f64::INFINITY, point));
+            let target = AlignTarget {
+                point,
+                corner: false,
+                piece: [p, q],
+            };
+            let slot = targets.entry(node).or_insert((f64::INFINITY, target));
             if d < slot.0 {
-                *slot = (d, point);
+                *slot = (d, target);
             }
         }
     }
-    for &c in &features.corners {
-        let p = mesh.vertices[c as usize];
+    for p in corners {
         if let Some(node) = crate::features::cell_of(&boxes, p) {
             // A corner outranks any edge point.
-            targets.insert(node, (-1.0, p));
+            let target = AlignTarget {
+                point: p,
+                corner: true,
+                piece: [p, p],
+            };
+            targets.insert(node, (-1.0, target));
         }
     }
-    targets
-        .into_iter()
-        .map(|(n, (d, point))| {
-            let corner = d < 0.0;
-            (n, AlignTarget { point, corner })
-        })
-        .collect()
+    targets.into_iter().map(|(n, (_, t))| (n, t)).collect()
 }
 
 /// Where [`Search::align`] puts a sample.
+#[derive(Debug, Clone, Copy)]
 pub(crate) struct AlignTarget {
-    point: DVec3,
+    pub point: DVec3,
     /// On a corner (placed before the samples on edges).
-    corner: bool,
+    pub corner: bool,
+    /// The piece of feature line in the sample's box that `point` is the
+    /// middle of (both ends `point` for a corner).
+    pub piece: [DVec3; 2],
 }
 
 /// Read and write access to samples that may move.
@@ -644,7 +684,7 @@ impl<'a> Search<'a> {
         let targets = cells
             .iter()
             .map(|(&c, f)| {
-                let surface = Boxed::new(near.remove(&c).unwrap_or_default());
+                let surface = Some(Boxed::new(near.remove(&c).unwrap_or_default()));
                 (
                     c,
                     Target {
@@ -657,6 +697,34 @@ impl<'a> Search<'a> {
         Self {
             spec,
             query,
+            cells,
+            targets,
+            weights,
+        }
+    }
+
+    /// A search fitting `cells` to `truth` alone (no source triangles):
+    /// after a sculpting step, the result of object and tool.
+    pub fn on_truth(
+        spec: &'a GridSpec<3>,
+        truth: &'a dyn Truth,
+        cells: &'a BTreeMap<usize, CellFeatures>,
+        weights: Weights,
+    ) -> Self {
+        let targets = cells
+            .iter()
+            .map(|(&c, f)| {
+                let probes = cell_probes(spec, truth, c, f);
+                let target = Target {
+                    probes,
+                    surface: None,
+                };
+                (c, target)
+            })
+            .collect();
+        Self {
+            spec,
+            query: truth,
             cells,
             targets,
             weights,
@@ -723,27 +791,10 @@ impl<'a> Search<'a> {
         count
     }
 
-    /// The fraction of a small ball around `p` inside the solid: below
-    /// one half at a convex edge or corner, above at a concave one.
     fn solid_fraction(&self, p: DVec3) -> f64 {
-        let r = 0.25 * self.spec.spacing;
-        let mut inside = 0;
-        let mut total = 0;
-        for dz in -1i32..=1 {
-            for dy in -1i32..=1 {
-                for dx in -1i32..=1 {
-                    if dx == 0 && dy == 0 && dz == 0 {
-                        continue;
-                    }
-                    let d = DVec3::new(dx as f64, dy as f64, dz as f64).normalize();
-                    total += 1;
-                    if self.query.signed_distance(p + d * r) < 0.0 {
-                        inside += 1;
-                    }
-                }
-            }
-        }
-        inside as f64 / total as f64
+        solid_fraction(p, 0.25 * self.spec.spacing, |q| {
+            self.query.signed_distance(q)
+        })
     }
 
     /// One round over the candidates, parity class by parity class.
@@ -853,15 +904,7 @@ impl<'a> Search<'a> {
     /// fandisk and a rotated box a spurious handle: the decider's
     /// connectivity is not digital topology's.)
     fn same_topology(&self, field: &impl Movable, node: usize, v: f64) -> Option<f64> {
-        let value = |n: usize| field.value(n);
-        if (v < 0.0) == (field.value(node) < 0.0) {
-            if let Some(v) = same_cases(self.spec, node, v, value) {
-                return Some(v);
-            }
-        }
-        let after = |n: usize| if n == node { v } else { field.value(n) };
-        (local_topology(self.spec, node, value) == local_topology(self.spec, node, after))
-            .then_some(v)
+        keeps_topology(self.spec, node, v, |n| field.value(n))
     }
 
     /// Corners and bends in the cells around `node`, and the points of
@@ -994,7 +1037,7 @@ impl<'a> Search<'a> {
         let points = patch
             .iter()
             .flat_map(|t| [t[0], t[1], t[2], (t[0] + t[1] + t[2]) / 3.0]);
-        let to_surface = points.map(|x| target.surface.distance2(x, UNREACHED * h2));
+        let to_surface = points.map(|x| self.distance2_back(target, x, UNREACHED * h2, &mut 0));
         to_patch
             .chain(to_surface)
             .map(|d2| (d2 / h2).min(UNREACHED))
@@ -1053,10 +1096,9 @@ impl<'a> Search<'a> {
             if over(energy) {
                 return None;
             }
-            energy += target
-                .surface
-                .patch_distance2(*c, patch, UNREACHED * h2, memo)
-                / h2;
+            let mut hint = 0;
+            let back = |x: DVec3| self.distance2_back(target, x, UNREACHED * h2, &mut hint);
+            energy += patch_distance2(*c, patch, memo, back) / h2;
             if over(energy) {
                 return None;
             }
@@ -1066,6 +1108,17 @@ impl<'a> Search<'a> {
 
     fn stays_convex(&self, field: &impl Movable, node: usize, p: DVec3) -> bool {
         stays_convex(self.spec, node, p, |n| field.position(n))
+    }
+
+    /// Squared distance from `x` (on a patch of `target`'s cell) back to
+    /// the true surface, at most `cap`: to the source triangles near the
+    /// cell ([`Boxed::distance2_from`], starting from triangle `*hint`)
+    /// or, without them, the truth's own distance.
+    fn distance2_back(&self, target: &Target, x: DVec3, cap: f64, hint: &mut usize) -> f64 {
+        match &target.surface {
+            Some(near) => near.distance2_from(x, cap, hint),
+            None => self.query.signed_distance(x).powi(2).min(cap),
+        }
     }
 
     /// Total E_dist over the fitted cells (see [`OdfReport::energy_before`]).
@@ -1121,6 +1174,46 @@ impl<'a> Search<'a> {
         }
         count
     }
+}
+
+/// The fraction of a ball of radius `r` around `p` (26 points on it)
+/// inside the solid whose signed distance is `distance`: below one half
+/// at a convex edge or corner, above at a concave one.
+pub(crate) fn solid_fraction(p: DVec3, r: f64, distance: impl Fn(DVec3) -> f64) -> f64 {
+    let mut inside = 0;
+    let mut total = 0;
+    for dz in -1i32..=1 {
+        for dy in -1i32..=1 {
+            for dx in -1i32..=1 {
+                if dx == 0 && dy == 0 && dz == 0 {
+                    continue;
+                }
+                let d = DVec3::new(dx as f64, dy as f64, dz as f64).normalize();
+                total += 1;
+                if distance(p + d * r) < 0.0 {
+                    inside += 1;
+                }
+            }
+        }
+    }
+    inside as f64 / total as f64
+}
+
+/// See [`Search::same_topology`]: the value `v` if sample `node` may take
+/// it, its samples' values given by `value`.
+pub(crate) fn keeps_topology(
+    spec: &GridSpec<3>,
+    node: usize,
+    v: f64,
+    value: impl Fn(usize) -> f64,
+) -> Option<f64> {
+    if (v < 0.0) == (value(node) < 0.0) {
+        if let Some(v) = same_cases(spec, node, v, &value) {
+            return Some(v);
+        }
+    }
+    let after = |n: usize| if n == node { v } else { value(n) };
+    (local_topology(spec, node, &value) == local_topology(spec, node, after)).then_some(v)
 }
 
 /// The (up to eight) cells that have `node` as a corner.
@@ -1313,7 +1406,7 @@ pub(crate) fn local_topology(
 /// The values a sample may take where the exact distance is `v`: `v`
 /// itself, or on the surface (within 1e-6 h) either side of it, just
 /// inside (−1e-9 h) or outside (0; marching cubes counts 0 as outside).
-fn on_surface_values(v: f64, h: f64) -> Vec<f64> {
+pub(crate) fn on_surface_values(v: f64, h: f64) -> Vec<f64> {
     if v.abs() <= 1e-6 * h {
         vec![-1e-9 * h, 0.0]
     } else {

@@ -34,6 +34,7 @@ use surfrecon_grid::marching::{cell_case, crossing_fraction};
 use surfrecon_grid::topology::Neighbourhood;
 use surfrecon_grid::{Field3, GridSpec};
 
+mod aligned;
 mod further;
 
 /// How a tool combines with the field.
@@ -1565,49 +1566,31 @@ fn settle_ambiguous_faces(
     raised
 }
 
-/// Sculpt an offset field: combine at the samples' positions, then move a
-/// sample onto the new edge in each cell it crosses (when legal).
+/// Sculpt an offset field: combine at the samples' positions, put the
+/// samples whose boxes the new edge (and the new corners) pass through
+/// onto it ([`aligned::align_to_new_edge`]), then fit the samples around
+/// them to the exact result ([`aligned::fit_around_new_edge`]), as
+/// construction aligns and fits samples to a mesh's features.
 pub fn sculpt_odf(
     field: &mut OffsetField,
     operation: Operation,
     tool: &Tool,
 ) -> Result<SculptReport, DistFieldError> {
-    let combined = Combined::new(&field.extract().0, tool, operation)?;
+    let surface = field.extract().0;
+    let combined = Combined::new(&surface, tool, operation)?;
     let spec = field.spec;
     let h = spec.spacing;
-    let (_, cells, mut report) = combine(field, |f| &mut f.values, operation, tool);
-    let reach = 0.5 * h * (1.0 - 1e-9);
-    let cube = Neighbourhood::new(&spec.strides());
-    for &c in &cells {
-        let Some(p) = edge_point_in(&spec, &combined, c) else {
-            continue;
-        };
-        report.edge_points += 1;
-        let nearest = corner_nodes(&spec, c)
-            .into_iter()
-            .filter(|&n| !field.moved.contains_key(&(n as u32)))
-            .filter(|&n| (p - node_position(&spec, n)).abs().max_element() <= reach)
-            .min_by(|&a, &b| {
-                p.distance(node_position(&spec, a))
-                    .total_cmp(&p.distance(node_position(&spec, b)))
-            });
-        let Some(n) = nearest else { continue };
-        if !stays_convex(&spec, n, p, |m| field.position_of(m)) {
-            continue;
-        }
-        // On the edge the distance is 0; keep the sample's side so the
-        // crossings to its neighbours collapse onto the edge.
-        let value = if field.values[n] < 0.0 {
-            -1e-9 * h
-        } else {
-            0.0
-        };
-        if on_outer_layer(&spec, n) || !may_take(&cube, n, value, |m| field.values[m]) {
-            continue;
-        }
-        field.values[n] = value;
-        field.moved.insert(n as u32, p);
-        report.kept += 1;
-    }
+    let features = Features::detect(&surface, DEFAULT_FEATURE_ANGLE_DEG);
+    let old_features = cells_with_features(&surface, &features, &spec, |_| true);
+    let mut corners = new_corners(&surface, &features, tool);
+    corners.extend(further::tool_corners(tool, &combined.object, h));
+    let segments = aligned::new_edge_segments(&surface, tool);
+    let (_, _, mut report) = combine(field, |f| &mut f.values, operation, tool);
+    let aligned = aligned::align_to_new_edge(field, &combined, &segments, &corners);
+    report.edge_points = aligned.offered;
+    report.kept = aligned.moved.len();
+    let cells = aligned::result_cells(field, &combined, &segments, &corners, &old_features);
+    let pinned = aligned::pinned_samples(field, &combined, &cells, &aligned.moved);
+    report.repaired = aligned::fit_around_new_edge(field, &combined, &surface, &cells, &pinned);
     Ok(report)
 }

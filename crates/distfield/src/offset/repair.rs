@@ -62,6 +62,14 @@ impl MeshPoints {
     pub(crate) fn new(mesh: &TriMesh, spec: &GridSpec<3>) -> Self {
         let inner = (0..mesh.triangles.len()).flat_map(|t| lattice_points(mesh.corners(t), 4));
         let points = mesh.vertices.iter().copied().chain(inner);
+        Self::from_points(spec, points)
+    }
+
+    /// [`Self::new`] for points already on the true surface.
+    pub(crate) fn from_points(
+        spec: &GridSpec<3>,
+        points: impl Iterator<Item = DVec3> + Clone,
+    ) -> Self {
         Self {
             by_cell: thinned_by_cell(spec, points, THINNED, 0),
         }

@@ -1,0 +1,322 @@
+//! Sculpting an offset field: the samples whose boxes the new sharp edge
+//! passes through are re-placed onto it, as construction aligns samples
+//! with a mesh's feature edges ([`crate::offset`]), so that marching
+//! cubes on the offset grid runs the surface through the edge instead of
+//! cutting it off by up to a cell.
+
+use super::{last_kept, result_points, Combined, Tool};
+use crate::extract::corner_nodes;
+use crate::features::{cell_of, clip_to_cells, CellFeatures};
+use crate::offset::{
+    add_cells_beside, cells_around, keeps_topology, line_targets, node_position, on_outer_layer,
+    repair_samples, solid_fraction, stays_convex, AlignTarget, MeshPoints, OffsetField, Search,
+    Truth, Weights, DEFAULT_ITERATIONS,
+};
+use crate::refine::block;
+use rayon::prelude::*;
+use std::collections::{BTreeMap, BTreeSet};
+use surfrecon_geom::{DVec3, TriMesh};
+
+/// The new edge as segments: where the tool's surface crosses each
+/// triangle of `surface` (the object as its field represents it), from
+/// one crossed triangle edge to the other. Both ends lie exactly on the
+/// object's triangle and on the tool (bisection); the edge is where
+/// object and tool meet, so for every operation it lies on the result.
+pub(super) fn new_edge_segments(surface: &TriMesh, tool: &Tool) -> Vec<[DVec3; 2]> {
+    let inside: Vec<bool> = (surface.vertices.par_iter())
+        .map(|&v| tool.signed_distance(v) < 0.0)
+        .collect();
+    surface
+        .triangles
+        .par_iter()
+        .filter_map(|t| {
+            let ends: Vec<DVec3> = (0..3)
+                .filter_map(|k| {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    // Lower index first: both triangles of an edge find
+                    // the same point, so the segments join exactly.
+                    let (a, b) = (a.min(b) as usize, a.max(b) as usize);
+                    (inside[a] != inside[b]).then(|| {
+                        tool_root(tool, surface.vertices[a], surface.vertices[b], inside[a])
+                    })
+                })
+                .collect();
+            (ends.len() == 2).then(|| [ends[0], ends[1]])
+        })
+        .collect()
+}
+
+/// Where the tool's surface crosses segment `a`-`b` (bisection; `a`
+/// inside the tool when `a_inside`).
+fn tool_root(tool: &Tool, a: DVec3, b: DVec3, a_inside: bool) -> DVec3 {
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..52 {
+        let mid = 0.5 * (lo + hi);
+        if (tool.signed_distance(a.lerp(b, mid)) < 0.0) == a_inside {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    a.lerp(b, 0.5 * (lo + hi))
+}
+
+/// What [`align_to_new_edge`] did: samples offered a place on the new
+/// edge or a new corner, and those moved there.
+pub(super) struct Aligned {
+    pub offered: usize,
+    pub moved: Vec<usize>,
+}
+
+/// Put the samples whose boxes the new edge (`segments`) or a new corner
+/// passes through onto it, corners first, as construction does with a
+/// mesh's features ([`line_targets`]): each goes onto the surface on the
+/// outside of a convex edge or the inside of a concave one (the other
+/// side where that is not legal), when it stays in its box, its cells
+/// stay convex and the surface keeps its topology. A sample holding an
+/// old feature the tool leaves in place stays there, except for a new
+/// corner (which lies on that old feature too).
+pub(super) fn align_to_new_edge(
+    field: &mut OffsetField,
+    combined: &Combined,
+    segments: &[[DVec3; 2]],
+    corners: &[DVec3],
+) -> Aligned {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let targets = line_targets(&spec, segments.iter().copied(), corners.iter().copied());
+    let reach = 0.5 * h * (1.0 - 1e-9);
+    let (first, rest): (Vec<_>, Vec<_>) = targets.iter().partition(|(_, t)| t.corner);
+    let mut moved = Vec::new();
+    for (&node, target) in first.into_iter().chain(rest) {
+        if on_outer_layer(&spec, node)
+            || (!target.corner && holds_old_feature(field, combined, node))
+        {
+            continue;
+        }
+        let home = node_position(&spec, node);
+        let legal_place = places_along(target)
+            .map(|p| on_both(combined, p, target.corner, home, reach))
+            .filter(|p| (*p - home).abs().max_element() <= reach)
+            .find(|&p| stays_convex(&spec, node, p, |m| field.position_of(m)));
+        let Some(p) = legal_place else { continue };
+        let outside_first = solid_fraction(p, 0.25 * h, |q| combined.signed_distance(q)) < 0.5;
+        let sides = if outside_first {
+            [0.0, -1e-9 * h]
+        } else {
+            [-1e-9 * h, 0.0]
+        };
+        let legal = sides
+            .into_iter()
+            .find_map(|v| keeps_topology(&spec, node, v, |m| field.values[m]));
+        if let Some(v) = legal {
+            field.values[node] = v;
+            field.moved.insert(node as u32, p);
+            moved.push(node);
+        }
+    }
+    Aligned {
+        offered: targets.len(),
+        moved,
+    }
+}
+
+/// Where on its piece of the new edge a sample may go, best first: the
+/// piece's middle (which spreads the samples along the line, as in
+/// construction), then points towards either end. A sample whose
+/// neighbour already sits near the shared box face cannot go to the
+/// middle when that flattens a cell between them; further along it can.
+fn places_along(target: &AlignTarget) -> impl Iterator<Item = DVec3> + '_ {
+    let [a, b] = target.piece;
+    PLACES.iter().map(move |&t| a.lerp(b, t))
+}
+
+/// Fractions along a piece of the new edge tried by [`places_along`].
+const PLACES: [f64; 7] = [0.5, 0.35, 0.65, 0.2, 0.8, 0.05, 0.95];
+
+/// `p` (on a piece of the new edge) moved onto both surfaces (a chord's
+/// middle lies off a curved tool), if that stays in the sample's box;
+/// else `p`. Corners are exact already.
+fn on_both(combined: &Combined, p: DVec3, corner: bool, home: DVec3, reach: f64) -> DVec3 {
+    if corner {
+        return p;
+    }
+    let h = 2.0 * reach;
+    combined
+        .edge_point(p, 1e-6 * h)
+        .filter(|q| (*q - home).abs().max_element() <= reach && q.distance(p) < 0.1 * h)
+        .unwrap_or(p)
+}
+
+/// Whether sample `node` sits off its node on the surface where the tool
+/// left it (on an old feature edge or corner the result keeps).
+fn holds_old_feature(field: &OffsetField, combined: &Combined, node: usize) -> bool {
+    let h = field.spec.spacing;
+    field
+        .moved
+        .get(&(node as u32))
+        .is_some_and(|&p| field.values[node].abs() <= 1e-6 * h && !combined.changes(p, 1e-6 * h))
+}
+
+/// The exact result of a sculpting step (object and tool combined), as
+/// the truth the samples around the new edge are fitted to.
+struct ResultTruth<'c, 'a> {
+    combined: &'c Combined<'a>,
+    h: f64,
+}
+
+/// A point counts as on the result within this many spacings.
+const ON_RESULT: f64 = 1e-6;
+/// Steps per search length in [`ResultTruth::hit_along`] (a sign change
+/// is then located by bisection; the result's sheets lie farther apart
+/// than a quarter cell wherever the field can tell them apart).
+const HIT_STEPS: usize = 8;
+
+impl Truth for ResultTruth<'_, '_> {
+    fn signed_distance(&self, p: DVec3) -> f64 {
+        self.combined.signed_distance(p)
+    }
+
+    /// The nearer of the object's and the tool's closest points that lie
+    /// on the result, else a point on the new edge near `p`.
+    fn closest_point(&self, p: DVec3) -> DVec3 {
+        let c = self.combined;
+        let on_result = |q: &DVec3| c.signed_distance(*q).abs() <= ON_RESULT * self.h;
+        [c.object.closest_point(p), c.tool.closest_point(p)]
+            .into_iter()
+            .filter(on_result)
+            .min_by(|a, b| a.distance(p).total_cmp(&b.distance(p)))
+            .or_else(|| c.edge_point(p, ON_RESULT * self.h))
+            .unwrap_or_else(|| c.object.closest_point(p))
+    }
+
+    fn hit_along(&self, p: DVec3, axis: usize, max: f64) -> Option<f64> {
+        let at = |t: f64| {
+            let mut q = p;
+            q[axis] += t;
+            self.combined.signed_distance(q) < 0.0
+        };
+        let step = max / HIT_STEPS as f64;
+        let inside = at(0.0);
+        let k = (1..=HIT_STEPS).find(|&k| at(k as f64 * step) != inside)?;
+        let (mut lo, mut hi) = ((k - 1) as f64 * step, k as f64 * step);
+        for _ in 0..48 {
+            let mid = 0.5 * (lo + hi);
+            if at(mid) == inside {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        Some(0.5 * (lo + hi))
+    }
+}
+
+/// The result's features by cell around the new edge, for the fit: the
+/// new edge's pieces and corners in the cells they cross, those cells'
+/// neighbours near the surface, and in all of them the object's old
+/// features where the tool leaves them (so that the fit keeps them).
+pub(super) fn result_cells(
+    field: &OffsetField,
+    combined: &Combined,
+    segments: &[[DVec3; 2]],
+    corners: &[DVec3],
+    old: &BTreeMap<usize, CellFeatures>,
+) -> BTreeMap<usize, CellFeatures> {
+    let spec = &field.spec;
+    let mut cells: BTreeMap<usize, CellFeatures> = BTreeMap::new();
+    for &[a, b] in segments {
+        for (cell, piece) in clip_to_cells(spec, a, b) {
+            cells.entry(cell).or_default().pieces.push(piece);
+        }
+    }
+    for &p in corners {
+        if let Some(cell) = cell_of(spec, p) {
+            cells.entry(cell).or_default().corners.push(p);
+        }
+    }
+    add_cells_beside(&mut cells, spec, &field.values);
+    for (cell, features) in cells.iter_mut() {
+        if let Some(f) = old.get(cell) {
+            add_kept_features(features, f, combined, spec.spacing);
+        }
+    }
+    cells
+}
+
+/// Add to `features` the parts of `old` (an object cell's features) that
+/// lie on the result.
+fn add_kept_features(features: &mut CellFeatures, old: &CellFeatures, combined: &Combined, h: f64) {
+    let kept = |p: DVec3| combined.signed_distance(p).abs() < 1e-6 * h;
+    features
+        .corners
+        .extend(old.corners.iter().copied().filter(|&p| kept(p)));
+    features
+        .bends
+        .extend(old.bends.iter().copied().filter(|&p| kept(p)));
+    let pieces = old
+        .pieces
+        .iter()
+        .filter_map(|&[a, b]| match (kept(a), kept(b)) {
+            (true, true) => Some([a, b]),
+            (true, false) => Some([a, last_kept(a, b, kept)]),
+            (false, true) => Some([last_kept(b, a, kept), b]),
+            (false, false) => None,
+        });
+    features
+        .pieces
+        .extend(pieces.filter(|[a, b]| a.distance(*b) > 1e-6 * h));
+}
+
+/// Fit the samples around the new edge to the result as construction
+/// fits them to a mesh: the energy search from a quarter cell in halving
+/// steps over the corners of the cells of [`result_cells`], the samples
+/// in `pinned` (on the new edge, or holding old features) staying where
+/// they are, then the error-driven repair against points of the result.
+/// Returns how many samples the search and the repair moved.
+pub(super) fn fit_around_new_edge(
+    field: &mut OffsetField,
+    combined: &Combined,
+    surface: &TriMesh,
+    cells: &BTreeMap<usize, CellFeatures>,
+    pinned: &BTreeSet<usize>,
+) -> usize {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let truth = ResultTruth { combined, h };
+    let search = Search::on_truth(&spec, &truth, cells, Weights::default());
+    let mut active = search.candidates();
+    let mut step = 0.25 * h;
+    let mut moved = BTreeSet::new();
+    for _ in 0..DEFAULT_ITERATIONS {
+        let round = search.round(field, &active, pinned, step);
+        step *= 0.5;
+        let near: BTreeSet<usize> = round
+            .iter()
+            .flat_map(|&n| cells_around(&spec, n).flat_map(|c| corner_nodes(&spec, c)))
+            .collect();
+        active.retain(|n| near.contains(n));
+        moved.extend(round);
+    }
+    let region: BTreeSet<usize> = cells.keys().flat_map(|&c| block(&spec, c, 2)).collect();
+    let points = result_points(&spec, combined, surface, &region);
+    let points = MeshPoints::from_points(&spec, points.iter().copied());
+    let (_, repaired) = repair_samples(&search, field, &points, &BTreeMap::new());
+    moved.len() + repaired
+}
+
+/// The samples the fit leaves in place: those just put on the new edge
+/// (`aligned`), and those of the cells' corners holding an old feature
+/// the tool left.
+pub(super) fn pinned_samples(
+    field: &OffsetField,
+    combined: &Combined,
+    cells: &BTreeMap<usize, CellFeatures>,
+    aligned: &[usize],
+) -> BTreeSet<usize> {
+    let corners = cells.keys().flat_map(|&c| corner_nodes(&field.spec, c));
+    let old: Vec<usize> = corners
+        .filter(|&n| holds_old_feature(field, combined, n))
+        .collect();
+    aligned.iter().copied().chain(old).collect()
+}
