@@ -9,8 +9,8 @@ use crate::extract::corner_nodes;
 use crate::features::{cell_of, clip_to_cells, CellFeatures};
 use crate::offset::{
     add_cells_beside, cells_around, keeps_topology, line_targets, node_position, on_outer_layer,
-    repair_samples, solid_fraction, stays_convex, AlignTarget, MeshPoints, OffsetField, Search,
-    Truth, Weights, DEFAULT_ITERATIONS,
+    on_surface_values, repair_samples, solid_fraction, stays_convex, AlignTarget, MeshPoints,
+    OffsetField, Search, Truth, Weights, DEFAULT_ITERATIONS,
 };
 use crate::refine::block;
 use rayon::prelude::*;
@@ -95,11 +95,21 @@ pub(super) fn align_to_new_edge(
             continue;
         }
         let home = node_position(&spec, node);
-        let legal_place = places_along(target)
+        let convex = |p: &DVec3, field: &OffsetField| {
+            stays_convex(&spec, node, *p, |m| field.position_of(m))
+        };
+        let mut places = places_along(target)
             .map(|p| on_both(combined, p, target.corner, home, reach))
-            .filter(|p| (*p - home).abs().max_element() <= reach)
-            .find(|&p| stays_convex(&spec, node, p, |m| field.position_of(m)));
-        let Some(p) = legal_place else { continue };
+            .filter(|p| (*p - home).abs().max_element() <= reach);
+        let p = match places.find(|p| convex(p, field)) {
+            Some(p) => p,
+            // A corner is worth a neighbour sent home (the fit moves it
+            // again); an edge sample is not.
+            None if target.corner && make_room(field, combined, node, target.point, &moved) => {
+                target.point
+            }
+            None => continue,
+        };
         let outside_first = solid_fraction(p, 0.25 * h, |q| combined.signed_distance(q)) < 0.5;
         let sides = if outside_first {
             [0.0, -1e-9 * h]
@@ -119,6 +129,53 @@ pub(super) fn align_to_new_edge(
         offered: targets.len(),
         moved,
     }
+}
+
+/// A moved neighbour of `node` put back on its own node (legally, with
+/// the result's distance there) so that `node` may go to `p` keeping
+/// every cell convex, if one does: neighbours holding an old feature
+/// last, those just put on the new edge (`placed`) never. Returns
+/// whether one was.
+fn make_room(
+    field: &mut OffsetField,
+    combined: &Combined,
+    node: usize,
+    p: DVec3,
+    placed: &[usize],
+) -> bool {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let mut neighbours: Vec<usize> = cells_around(&spec, node)
+        .flat_map(|c| corner_nodes(&spec, c))
+        .filter(|&m| m != node && !on_outer_layer(&spec, m) && !placed.contains(&m))
+        .filter(|m| field.moved.contains_key(&(*m as u32)))
+        .collect::<BTreeSet<usize>>()
+        .into_iter()
+        .collect();
+    neighbours.sort_by_key(|&m| holds_old_feature(field, combined, m));
+    for m in neighbours {
+        let home = node_position(&spec, m);
+        if !stays_convex(&spec, m, home, |k| field.position_of(k)) {
+            continue;
+        }
+        let value = on_surface_values(combined.signed_distance(home), h)
+            .into_iter()
+            .find_map(|v| keeps_topology(&spec, m, v, |k| field.values[k]));
+        let Some(value) = value else { continue };
+        let position = |k: usize| {
+            if k == m {
+                home
+            } else {
+                field.position_of(k)
+            }
+        };
+        if stays_convex(&spec, node, p, position) {
+            field.values[m] = value;
+            field.moved.remove(&(m as u32));
+            return true;
+        }
+    }
+    false
 }
 
 /// Where on its piece of the new edge a sample may go, best first: the
