@@ -184,6 +184,9 @@ pub struct SculptReport {
     /// where the tool's own edges cross the object, and old edges' points
     /// a cell's point on the new edge displaced.
     pub further: usize,
+    /// Samples the fit around the new edge moved (ODF: the energy search
+    /// and the repair against the exact result, as in construction).
+    pub fitted: usize,
     /// Blocks around a cell holding several of the result's corners
     /// whose cells took all the corners in their boxes at once, with the
     /// repair's turns revised (UDF; `further::add_corner_sets`).
@@ -1584,13 +1587,14 @@ pub fn sculpt_odf(
     let old_features = cells_with_features(&surface, &features, &spec, |_| true);
     let mut corners = new_corners(&surface, &features, tool);
     corners.extend(further::tool_corners(tool, &combined.object, h));
-    let segments = aligned::new_edge_segments(&surface, tool);
+    let mut segments = aligned::new_edge_segments(&surface, tool);
+    segments.extend(further::tool_edge_segments(&combined, h));
     let (_, _, mut report) = combine(field, |f| &mut f.values, operation, tool);
     let aligned = aligned::align_to_new_edge(field, &combined, &segments, &corners);
     report.edge_points = aligned.offered;
     report.kept = aligned.moved.len();
     let cells = aligned::result_cells(field, &combined, &segments, &corners, &old_features);
     let pinned = aligned::pinned_samples(field, &combined, &cells, &aligned.moved);
-    report.repaired = aligned::fit_around_new_edge(field, &combined, &surface, &cells, &pinned);
+    report.fitted = aligned::fit_around_new_edge(field, &combined, &surface, &cells, &pinned);
     Ok(report)
 }

@@ -61,6 +61,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches, ctx: &Context) -> anyhow::Res
             "samples_set_to_straighten_floating_edges": r.straightened,
             "further_feature_points": r.further,
             "corner_sets": r.corner_sets,
+            "samples_fitted": r.fitted,
         }));
     }
     field.write(&args.output)?;

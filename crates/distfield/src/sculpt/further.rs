@@ -164,6 +164,24 @@ fn tool_edge_points(combined: &Combined, h: f64) -> Vec<DVec3> {
         .collect()
 }
 
+/// The stretches of the tool's sharp edges that lie on the result, as
+/// segments at most [`EDGE_STEP`] spacings long (both ends on it): sharp
+/// edges of the result as much as the new edge where tool and object
+/// meet (a box's edges inside the object, a cylinder's rim).
+pub(super) fn tool_edge_segments(combined: &Combined, h: f64) -> Vec<[DVec3; 2]> {
+    let on_result = |p: DVec3| combined.signed_distance(p).abs() < 1e-6 * h;
+    let mut segments = Vec::new();
+    for edge in tool_edges(combined.tool) {
+        let points: Vec<DVec3> = edge.parameters(EDGE_STEP * h).map(|t| edge.at(t)).collect();
+        for pair in points.windows(2) {
+            if on_result(pair[0]) && on_result(pair[1]) {
+                segments.push([pair[0], pair[1]]);
+            }
+        }
+    }
+    segments
+}
+
 /// How far (spacings) outside a cell's box a point may lie to be offered
 /// to it: the corner where fandisk − cylinder's rim passes under the side
 /// face lies 0.015 h below the cell whose sheet it bounds.
