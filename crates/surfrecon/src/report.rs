@@ -217,7 +217,8 @@ pub struct SvmSummary {
 }
 
 /// What became of the surface fitted with a contour stack's added samples
-/// (mid-gap and end-cap samples, guesses beside the contours).
+/// (mid-gap, end-cap and interpolated samples, guesses beside the
+/// contours).
 #[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum ContourStack {
@@ -226,6 +227,9 @@ pub enum ContourStack {
     /// Kept without the end caps: with them the surface had more pieces
     /// or handles, without them not.
     UsedWithoutCaps,
+    /// Kept without the end caps and the level set's interpolated
+    /// samples: with those the surface had more pieces or handles.
+    UsedWithoutInterpolation,
     /// The surface fitted to the contours alone kept: the samples added pieces.
     DroppedMorePieces,
     /// The surface fitted to the contours alone kept: the samples added handles.

@@ -5,10 +5,15 @@
 //! the contours' own normals describe: between two slices the middle of
 //! a Hermite curve from each contour point to the point its tilt leads
 //! to on the next slice, and past each end slice a dome that leaves the contour at
-//! its tilt and closes over its section.
+//! its tilt and closes over its section. Where a part changes shape
+//! between two slices (an ear leaning across them) no contour point has a
+//! partner: there the fit is also given samples of the level set's
+//! shape-based interpolation between the slices' own 2D shapes.
 
+use surfrecon_geom::fairing::area_weighted_normals;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, PointCloud};
+use surfrecon_levelset::reconstruct::{reconstruct_3d, ReconstructParams};
 use surfrecon_levelset::slices::{detect_slices, SliceStack};
 use surfrecon_levelset::Input;
 
@@ -34,6 +39,17 @@ const THINNING: f64 = 0.7;
 const MAX_MARCH: usize = 2000;
 /// Most samples on one cap profile.
 const MAX_STEPS: usize = 12;
+/// Interpolated samples nearer a slice than this share of the gap are
+/// left out: there the contours speak.
+const OFF_SLICE: f64 = 0.15;
+/// Interpolated samples are thinned to this share of the gap apart.
+const INTERPOLATED_SPACING: f64 = 0.3;
+/// An interpolated sample is added only where no Hermite sample lies
+/// within this share of the gap: the Hermite curves follow round sections
+/// more closely (harness tori: CD 1.525 / 1.475‰ with them, 1.58 / 1.62‰
+/// with the interpolation alone) and the interpolation follows parts that
+/// change shape (bunny: 3.95 → 3.09‰ with both).
+const HERMITE_COVER: f64 = 0.5;
 
 /// Whether the domes past the end slices are among the samples.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -42,34 +58,92 @@ pub(crate) enum EndCaps {
     Left,
 }
 
-/// `points` (oriented) with samples between (and, with `caps`, past) its
-/// slices added, if they form a stack of oriented contour slices; `None`
-/// otherwise (every other input is fitted exactly as before).
-pub(crate) fn with_stack_samples(points: &PointCloud, caps: EndCaps) -> Option<PointCloud> {
-    let normals = points.normals.as_ref()?;
-    let input = Input {
-        points: points.positions.clone(),
-        normals: normals.clone(),
-        ..Default::default()
+/// Whether the samples of the level set's interpolation are among them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Interpolated {
+    Added,
+    Left,
+}
+
+/// The samples a stack of oriented contour slices adds to its contours.
+pub(crate) struct StackSamples {
+    stack: SliceStack,
+    /// Of the level set's interpolation between the slices, in the
+    /// input's coordinates.
+    interpolated: Vec<Sample>,
+}
+
+impl StackSamples {
+    /// The stack `points` form if they are oriented contour slices; `None`
+    /// otherwise (every other input is fitted exactly as before).
+    pub(crate) fn of(points: &PointCloud) -> Option<Self> {
+        let input = Input {
+            points: points.positions.clone(),
+            normals: points.normals.clone()?,
+            ..Default::default()
+        };
+        let stack = detect_slices(&input)?;
+        if stack.slices.iter().any(|s| !s.is_oriented()) {
+            return None;
+        }
+        let interpolated = interpolated_samples(&input, &stack);
+        Some(StackSamples {
+            stack,
+            interpolated,
+        })
+    }
+
+    /// `points` with the Hermite samples between (and, with `caps`, past)
+    /// the slices and, as `interpolated` says, the interpolation's where
+    /// those leave gaps.
+    pub(crate) fn joined(
+        &self,
+        points: &PointCloud,
+        caps: EndCaps,
+        interpolated: Interpolated,
+    ) -> PointCloud {
+        let stack = &self.stack;
+        let hermite: Vec<Sample> = (stack_samples(stack, caps).into_iter())
+            .map(|(p, n)| (unflat(stack, p), unflat(stack, n).normalize_or_zero()))
+            .filter(|(p, n)| *n != DVec3::ZERO && p.is_finite())
+            .collect();
+        let tree = KdTree::new(&hermite.iter().map(|s| s.0).collect::<Vec<_>>());
+        let cover = HERMITE_COVER * stack.gap();
+        let uncovered = |p: DVec3| tree.nearest(p).is_none_or(|n| n.distance > cover);
+        let gaps_filled = (self.interpolated.iter())
+            .filter(|_| interpolated == Interpolated::Added)
+            .filter(|(p, _)| uncovered(*p));
+        let mut joined = points.clone();
+        for &(p, n) in hermite.iter().chain(gaps_filled) {
+            joined.positions.push(p);
+            if let Some(normals) = &mut joined.normals {
+                normals.push(n);
+            }
+        }
+        // Per-point values of the contours have no counterpart on the samples.
+        joined.scalars = None;
+        joined
+    }
+}
+
+/// Samples of the surface the level set interpolates between the slices'
+/// 2D reconstructions ([`surfrecon_levelset::slices`]), away from the
+/// slices, thinned; none if it fails.
+fn interpolated_samples(input: &Input, stack: &SliceStack) -> Vec<Sample> {
+    let Ok(interpolation) = reconstruct_3d(input, &ReconstructParams::default()) else {
+        return Vec::new();
     };
-    let stack = detect_slices(&input)?;
-    if stack.slices.iter().any(|s| !s.is_oriented()) {
-        return None;
-    }
-    let mut joined = points.clone();
-    for (p, n) in stack_samples(&stack, caps) {
-        let n = unflat(&stack, n).normalize_or_zero();
-        if n == DVec3::ZERO || !p.is_finite() {
-            continue;
-        }
-        joined.positions.push(unflat(&stack, p));
-        if let Some(normals) = &mut joined.normals {
-            normals.push(n);
-        }
-    }
-    // Per-point values of the contours have no counterpart on the samples.
-    joined.scalars = None;
-    Some(joined)
+    let mesh = interpolation.mesh;
+    let normals = area_weighted_normals(&mesh.vertices, &mesh.triangles);
+    let gap = stack.gap();
+    let off_slices = |p: &DVec3| {
+        let along = p[stack.axis];
+        (stack.levels.iter()).all(|&level| (along - level).abs() > OFF_SLICE * gap)
+    };
+    let samples = (mesh.vertices.into_iter().zip(normals))
+        .filter(|(p, n)| off_slices(p) && *n != DVec3::ZERO)
+        .collect();
+    thinned(samples, INTERPOLATED_SPACING * gap)
 }
 
 /// Mid-gap samples between each two neighbouring slices and (with `caps`)

@@ -127,6 +127,9 @@ pub fn say_fit(args: &SvmArgs, report: &surfrecon::SvmReport, ctx: &Context) {
         Some(surfrecon::ContourStack::UsedWithoutCaps) => ctx.say(
             "svm: contour stack: fitted with samples between the slices; caps past the end slices dropped (they added pieces or handles)",
         ),
+        Some(surfrecon::ContourStack::UsedWithoutInterpolation) => ctx.say(
+            "svm: contour stack: fitted with Hermite samples between the slices; caps and interpolated samples dropped (they added pieces or handles)",
+        ),
         Some(surfrecon::ContourStack::DroppedMorePieces) => ctx.say(
             "svm: contour stack: samples between and past the slices dropped (they added pieces)",
         ),
