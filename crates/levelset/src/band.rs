@@ -61,6 +61,9 @@ pub(crate) struct Stencil<'a, const D: usize> {
     pub d: &'a [f64],
     /// Window index of the node.
     pub at: usize,
+    /// Position of the node in the band list (for per-node data kept
+    /// beside it).
+    pub index: usize,
     pub strides: &'a [usize; D],
     /// Global node index.
     pub node: [usize; D],
@@ -399,12 +402,14 @@ impl<const D: usize> NarrowBand<D> {
                     d.gather_window_part(blk.coord, 1, dw);
                 }
                 let mask = Self::LEN - 1;
-                for (o, &k) in part.iter_mut().zip(&self.active[range.clone()]) {
+                let keys = &self.active[range.clone()];
+                for (index, (o, &k)) in (range.start..).zip(part.iter_mut().zip(keys)) {
                     let local = k as usize & mask;
                     *o = f(&Stencil {
                         phi,
                         d: dw,
                         at: BlockGrid::<D>::window_index(local),
+                        index,
                         strides: &strides,
                         node: blk.node(local),
                         corner: blk.coord.map(|c| c * BLOCK),
@@ -413,6 +418,49 @@ impl<const D: usize> NarrowBand<D> {
             },
         );
         out
+    }
+
+    /// Adds `updates` (one per band node, in band order) to φ, in parallel
+    /// over blocks, except at the nodes where `defer(old, new)` holds:
+    /// those come back as (key, new value), in band order, for a caller
+    /// that must decide them one by one.
+    pub(crate) fn add_active(
+        &mut self,
+        updates: &[f64],
+        defer: impl Fn(f64, f64) -> bool + Sync,
+    ) -> Vec<(u32, f64)> {
+        assert_eq!(updates.len(), self.active.len(), "one update per band node");
+        // The runs name distinct blocks in ascending order: one pass over
+        // the blocks hands out each run's block once.
+        let mut blocks = self.phi.blocks_mut().iter_mut().enumerate();
+        let run_blocks: Vec<&mut Block<D>> = self
+            .runs
+            .iter()
+            .map(|(slot, _)| {
+                let (_, blk) = blocks
+                    .find(|(i, _)| *i == *slot as usize)
+                    .expect("runs follow the block order");
+                blk
+            })
+            .collect();
+        let (active, mask) = (&self.active, Self::LEN - 1);
+        run_blocks
+            .into_par_iter()
+            .zip(&self.runs)
+            .flat_map_iter(|(blk, (_, range))| {
+                let mut deferred = Vec::new();
+                for (&k, &u) in active[range.clone()].iter().zip(&updates[range.clone()]) {
+                    let v = &mut blk.values[k as usize & mask];
+                    let new = *v + u;
+                    if defer(*v, new) {
+                        deferred.push((k, new));
+                    } else {
+                        *v = new;
+                    }
+                }
+                deferred
+            })
+            .collect()
     }
 }
 

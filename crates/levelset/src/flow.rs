@@ -22,10 +22,12 @@ use crate::anchors::{DataCells, TangentSides};
 use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
 use crate::convection::{advection_term, upwind_advection};
 use crate::reinit::reinitialize;
+use rayon::prelude::*;
 use surfrecon_geom::progress::{Hook, Progress};
 use surfrecon_geom::DVec3;
 use surfrecon_grid::sparse::WINDOW;
 use surfrecon_grid::topology::Neighbourhood;
+use surfrecon_grid::GridSpec;
 
 /// Which law moves the surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -280,16 +282,23 @@ impl<const D: usize> Guard<'_, D> {
         self.topology.is_some() || self.anchors.cells.is_some() || self.anchors.sides.is_some()
     }
 
-    /// Whether `node` may change side now.
-    fn allows(&self, band: &NarrowBand<D>, node: [usize; D], to_inside: bool) -> bool {
+    /// Whether the tangent planes let `node` move to side `to_inside`.
+    /// The test reads only the node's position, nothing the evolution
+    /// changes, so a step's crossings are all tested at once, in parallel.
+    fn sides_allow(&self, spec: &GridSpec<D>, node: [usize; D], to_inside: bool) -> bool {
+        let Some(sides) = self.anchors.sides else {
+            return true;
+        };
+        let p = spec.position(node);
+        let p = DVec3::from_array(std::array::from_fn(|a| if a < D { p[a] } else { 0.0 }));
+        sides.allows(p, to_inside)
+    }
+
+    /// Whether the data cells and the topology let `node` change side now
+    /// (they read the sides of its neighbours, which earlier crossings of
+    /// the same step may have changed).
+    fn grid_allows(&self, band: &NarrowBand<D>, node: [usize; D], to_inside: bool) -> bool {
         let side = |idx: [usize; D]| inside(band.phi.get(idx));
-        if let Some(sides) = self.anchors.sides {
-            let p = band.spec().position(node);
-            let p = DVec3::from_array(std::array::from_fn(|a| if a < D { p[a] } else { 0.0 }));
-            if !sides.allows(p, to_inside) {
-                return false;
-            }
-        }
         if let Some(cells) = self.anchors.cells {
             if !cells.allows(node, to_inside, side) {
                 return false;
@@ -313,19 +322,17 @@ impl<const D: usize> Guard<'_, D> {
 /// does so only if `guard` allows it at that moment; such nodes are
 /// visited in band order so the result is deterministic.
 fn apply<const D: usize>(band: &mut NarrowBand<D>, updates: Vec<f64>, guard: &Guard<D>) {
-    let mut flips = Vec::new();
-    for (i, u) in updates.into_iter().enumerate() {
-        let k = band.active[i];
-        let old = band.value(k);
-        let new = old + u;
-        if guard.is_active() && inside(new) != inside(old) {
-            flips.push((k, new));
-        } else {
-            band.set(k, new);
-        }
-    }
-    for (k, new) in flips {
-        if guard.allows(band, band.node(k), inside(new)) {
+    let guarded = guard.is_active();
+    let crossings = band.add_active(&updates, |old, new| {
+        guarded && inside(new) != inside(old)
+    });
+    let b = &*band;
+    let sides: Vec<bool> = crossings
+        .par_iter()
+        .map(|&(k, new)| guard.sides_allow(b.spec(), b.node(k), inside(new)))
+        .collect();
+    for (&(k, new), sides_allow) in crossings.iter().zip(sides) {
+        if sides_allow && guard.grid_allows(band, band.node(k), inside(new)) {
             band.set(k, new);
         }
     }
