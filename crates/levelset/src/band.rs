@@ -379,10 +379,22 @@ impl<const D: usize> NarrowBand<D> {
         d: Option<&BlockGrid<D>>,
         f: impl Fn(&Stencil<D>) -> T + Sync,
     ) -> Vec<T> {
+        self.map_active_from(T::default(), phi_edges, d, f)
+    }
+
+    /// [`Self::map_active`] for results without a `Default` (arrays of
+    /// length `D`): the output starts filled with `placeholder`.
+    pub(crate) fn map_active_from<T: Send + Clone>(
+        &self,
+        placeholder: T,
+        phi_edges: bool,
+        d: Option<&BlockGrid<D>>,
+        f: impl Fn(&Stencil<D>) -> T + Sync,
+    ) -> Vec<T> {
         let strides = BlockGrid::<D>::window_strides();
         let len = BlockGrid::<D>::WINDOW_LEN;
         // Each block's results go straight to their place in the output.
-        let mut out = vec![T::default(); self.active.len()];
+        let mut out = vec![placeholder; self.active.len()];
         let mut parts = Vec::with_capacity(self.runs.len());
         let mut rest = &mut out[..];
         for (_, range) in &self.runs {

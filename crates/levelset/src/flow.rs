@@ -20,7 +20,9 @@
 
 use crate::anchors::{DataCells, TangentSides};
 use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
-use crate::convection::{advection_term, upwind_advection};
+use crate::convection::upwind_advection;
+#[cfg(doc)]
+use crate::convection::advection_term;
 use crate::reinit::reinitialize;
 use rayon::prelude::*;
 use surfrecon_geom::progress::{Hook, Progress};
@@ -156,8 +158,10 @@ pub fn evolve<const D: usize>(
             Motion::Convection => {
                 let (stable, speed_scale) = stable_step(band, d, &coef);
                 let dt = stable * params.cfl;
+                // Fixed until the reinitialization below changes the band.
+                let grads = distance_gradients(band, d);
                 for _ in 0..n {
-                    step(band, d, &coef, dt, &guard);
+                    convection_step(band, &grads, dt, &guard);
                 }
                 reinitialize(band);
                 d.cover(band);
@@ -233,24 +237,28 @@ fn global_factor(energy: f64, p: f64) -> f64 {
     }
 }
 
-/// One explicit Euler step of the motion on the band nodes.
-fn step<const D: usize>(
+/// One explicit Euler step of convection on the band nodes, with ∇d per
+/// band node from [`distance_gradients`]: d is fixed, so each step reads
+/// only φ.
+fn convection_step<const D: usize>(
     band: &mut NarrowBand<D>,
-    d: &BandDistance<D>,
-    coef: &Coefficients,
+    grads: &[[f64; D]],
     dt: f64,
     guard: &Guard<D>,
 ) {
     let h = band.spec().spacing;
-    let rates = band.map_active(coef.motion != Motion::Convection, Some(d.grid()), |s| {
-        let (a, c) = coef.at(s.d[s.at]);
-        let mut r = a * advection_term(s.phi, s.d, s.at, s.strides, h);
-        if c != 0.0 {
-            r += c * curvature_term(s.phi, s.at, s.strides, h);
-        }
-        dt * r
+    let rates = band.map_active(false, None, |s| {
+        dt * upwind_advection(s.phi, s.at, s.strides, &grads[s.index], h)
     });
     apply(band, rates, guard);
+}
+
+/// ∇d (per cell, central differences, as [`advection_term`] takes it) at
+/// every band node, in band order.
+fn distance_gradients<const D: usize>(band: &NarrowBand<D>, d: &BandDistance<D>) -> Vec<[f64; D]> {
+    band.map_active_from([0.0; D], false, Some(d.grid()), |s| {
+        s.strides.map(|st| (s.d[s.at + st] - s.d[s.at - st]) * 0.5)
+    })
 }
 
 /// What keeps the evolving surface on the data ([`crate::anchors`]); the
