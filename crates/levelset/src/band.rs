@@ -302,6 +302,12 @@ impl<const D: usize> NarrowBand<D> {
     /// Set the band list (sorted here) and its per-block runs.
     pub(crate) fn set_active(&mut self, mut keys: Vec<u32>) {
         keys.par_sort_unstable();
+        self.set_sorted_active(keys);
+    }
+
+    /// Set the band list from keys in ascending order, and its runs.
+    fn set_sorted_active(&mut self, keys: Vec<u32>) {
+        debug_assert!(keys.windows(2).all(|w| w[0] < w[1]), "ascending keys");
         self.runs.clear();
         let mut start = 0;
         while start < keys.len() {
@@ -313,16 +319,19 @@ impl<const D: usize> NarrowBand<D> {
         self.active = keys;
     }
 
-    /// Make `keys` (any order) the band. Blocks without band nodes whose
-    /// nodes all lie on one side are released (they become tiles, so
-    /// allocation follows the band as it moves), and the blocks are ordered
-    /// in space (see [`BlockGrid::sort_blocks`]): reinitialization appends
-    /// blocks in the order its layers reach them.
-    pub(crate) fn set_band(&mut self, keys: Vec<u32>) {
-        let mut busy = vec![false; self.phi.blocks().len()];
-        for &k in &keys {
-            busy[split::<D>(k).0] = true;
-        }
+    /// Make the nodes whose mark is `stamp` the band. Blocks without band
+    /// nodes whose nodes all lie on one side are released (they become
+    /// tiles, so allocation follows the band as it moves), and the blocks
+    /// are ordered in space (see [`BlockGrid::sort_blocks`]):
+    /// reinitialization appends blocks in the order its layers reach them.
+    /// The band list is then read off the marks block by block, so it
+    /// comes out sorted.
+    pub(crate) fn set_band(&mut self, stamp: u32) {
+        let busy: Vec<bool> = self
+            .marks
+            .par_chunks(Self::LEN)
+            .map(|m| m.contains(&stamp))
+            .collect();
         let spec = *self.phi.spec();
         let tiles: Vec<Option<bool>> = self
             .phi
@@ -342,30 +351,30 @@ impl<const D: usize> NarrowBand<D> {
             .iter()
             .map(|&m| if m == u32::MAX { m } else { sorted[m as usize] })
             .collect();
-        if map.iter().enumerate().all(|(i, &m)| m == i as u32) {
-            self.set_active(keys);
-            return;
-        }
-        let mut old_of = vec![0usize; self.phi.blocks().len()];
-        for (old, &new) in map.iter().enumerate() {
-            if new != u32::MAX {
-                old_of[new as usize] = old;
+        if map.iter().enumerate().any(|(i, &m)| m != i as u32) {
+            let mut old_of = vec![0usize; self.phi.blocks().len()];
+            for (old, &new) in map.iter().enumerate() {
+                if new != u32::MAX {
+                    old_of[new as usize] = old;
+                }
             }
+            let mut marks = vec![0; self.phi.blocks().len() * Self::LEN];
+            marks.par_chunks_mut(Self::LEN).zip(&old_of).for_each(|(m, &o)| {
+                m.copy_from_slice(&self.marks[o * Self::LEN..(o + 1) * Self::LEN])
+            });
+            self.marks = marks;
         }
-        let mut marks = vec![0; self.phi.blocks().len() * Self::LEN];
-        marks
-            .par_chunks_mut(Self::LEN)
-            .zip(&old_of)
-            .for_each(|(m, &o)| m.copy_from_slice(&self.marks[o * Self::LEN..(o + 1) * Self::LEN]));
-        self.marks = marks;
-        let keys = keys
-            .par_iter()
-            .map(|&k| {
-                let (slot, local) = split::<D>(k);
-                join::<D>(map[slot] as usize, local)
+        let keys = self
+            .marks
+            .par_chunks(Self::LEN)
+            .enumerate()
+            .flat_map_iter(|(slot, m)| {
+                (0..Self::LEN)
+                    .filter(move |&local| m[local] == stamp)
+                    .map(move |local| join::<D>(slot, local))
             })
             .collect();
-        self.set_active(keys);
+        self.set_sorted_active(keys);
     }
 
     /// `f` at every band node, in band order, from dense windows of φ (and

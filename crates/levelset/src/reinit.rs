@@ -88,7 +88,11 @@ pub fn reinitialize<const D: usize>(band: &mut NarrowBand<D>) {
             band.set(k, if inside(v) { -w } else { w });
         }
     }
-    band.set_band(accepted);
+    // The last stamp reserved names the new band.
+    for &k in &accepted {
+        band.marks[k as usize] = top;
+    }
+    band.set_band(top);
 }
 
 /// φ as a signed distance on the whole (dense) grid: the band values are
@@ -232,19 +236,14 @@ fn next_layer<const D: usize>(
         .par_iter()
         .flat_map_iter(|&k| {
             let values = b.block_values(k);
-            let mut out = Vec::with_capacity(2 * D);
-            for a in 0..D {
-                for forward in [false, true] {
-                    match b.neighbour(k, values, a, forward).0 {
-                        Some(n) if !visited(n) && inner_step(b, k, a, forward) => {
-                            out.push(Found::Node(n))
-                        }
-                        Some(_) => {}
-                        None => out.push(Found::Tile(k, a, forward)),
-                    }
-                }
-            }
-            out
+            // Lazily, in axis then direction order: no list per node.
+            (0..D)
+                .flat_map(|a| [(a, false), (a, true)])
+                .filter_map(move |(a, forward)| match b.neighbour(k, values, a, forward).0 {
+                    Some(n) if !visited(n) && inner_step(b, k, a, forward) => Some(Found::Node(n)),
+                    Some(_) => None,
+                    None => Some(Found::Tile(k, a, forward)),
+                })
         })
         .collect();
     let mut out = Vec::with_capacity(found.len());
