@@ -359,9 +359,12 @@ impl<const D: usize> NarrowBand<D> {
                 }
             }
             let mut marks = vec![0; self.phi.blocks().len() * Self::LEN];
-            marks.par_chunks_mut(Self::LEN).zip(&old_of).for_each(|(m, &o)| {
-                m.copy_from_slice(&self.marks[o * Self::LEN..(o + 1) * Self::LEN])
-            });
+            marks
+                .par_chunks_mut(Self::LEN)
+                .zip(&old_of)
+                .for_each(|(m, &o)| {
+                    m.copy_from_slice(&self.marks[o * Self::LEN..(o + 1) * Self::LEN])
+                });
             self.marks = marks;
         }
         let keys = self

@@ -20,9 +20,9 @@
 
 use crate::anchors::{DataCells, TangentSides};
 use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
-use crate::convection::upwind_advection;
 #[cfg(doc)]
 use crate::convection::advection_term;
+use crate::convection::upwind_advection;
 use crate::reinit::reinitialize;
 use rayon::prelude::*;
 use surfrecon_geom::progress::{Hook, Progress};
@@ -331,9 +331,7 @@ impl<const D: usize> Guard<'_, D> {
 /// visited in band order so the result is deterministic.
 fn apply<const D: usize>(band: &mut NarrowBand<D>, updates: Vec<f64>, guard: &Guard<D>) {
     let guarded = guard.is_active();
-    let crossings = band.add_active(&updates, |old, new| {
-        guarded && inside(new) != inside(old)
-    });
+    let crossings = band.add_active(&updates, |old, new| guarded && inside(new) != inside(old));
     let b = &*band;
     let sides: Vec<bool> = crossings
         .par_iter()
@@ -565,11 +563,12 @@ fn stable_step<const D: usize>(
                 .sum();
             Some((a * grad_l1, c, a))
         })
-        .into_iter()
+        .into_par_iter()
         .flatten()
         .collect();
-    let max_adv = per_node.iter().map(|x| x.0).fold(0.0, f64::max);
-    let max_diff = per_node.iter().map(|x| x.1).fold(0.0, f64::max);
+    // Maxima do not depend on the order of reduction.
+    let max_adv = per_node.par_iter().map(|x| x.0).reduce(|| 0.0, f64::max);
+    let max_diff = per_node.par_iter().map(|x| x.1).reduce(|| 0.0, f64::max);
     let mean_adv = det_sum(&per_node, |x| x.2) / per_node.len().max(1) as f64;
     let mut dt = h;
     if max_adv > 0.0 {
@@ -621,7 +620,7 @@ fn zero_set_snapshot<const D: usize>(band: &NarrowBand<D>, d: &BandDistance<D>) 
     let supported = |n: [usize; D]| d.get(n).is_some_and(|v| v <= SUPPORTED_CELLS * h);
     let next_to_zero = || {
         band.active
-            .iter()
+            .par_iter()
             .map(|&k| (band.node(k), band.value(k)))
             .filter(|&(_, v)| v.abs() <= h)
     };

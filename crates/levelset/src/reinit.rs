@@ -235,7 +235,10 @@ fn next_layer<const D: usize>(
     // Per frontier node, one slot per axis and direction: a fixed-size
     // table filled in parallel, no list grown per node or per thread.
     // (Keys hold 3 bits per axis below the block index.)
-    debug_assert!(band.block_count() + 1 < 1 << (32 - 3 * D), "keys below the markers");
+    debug_assert!(
+        band.block_count() + 1 < 1 << (32 - 3 * D),
+        "keys below the markers"
+    );
     let mut found = vec![NOTHING; 2 * D * frontier.len()];
     found
         .par_chunks_mut(2 * D)
