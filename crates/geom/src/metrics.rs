@@ -397,6 +397,91 @@ enum BvhKind {
 
 const LEAF_SIZE: usize = 4;
 
+/// Levels at the top of the tree whose two halves are built in parallel
+/// (8 subtrees: the serial build was most of the reach step's wait).
+const PARALLEL_LEVELS: usize = 3;
+
+/// What every subtree's build reads.
+struct BuildInput<'a> {
+    corners: &'a [[DVec3; 3]],
+    centroids: &'a [DVec3],
+}
+
+/// Build the subtree over `order` (which starts at `first` in the whole
+/// order) into `nodes`, root first, then the left subtree, then the right
+/// (children numbered by their place in `nodes`); returns the root's index.
+fn build(
+    nodes: &mut Vec<BvhNode>,
+    order: &mut [u32],
+    first: usize,
+    input: &BuildInput,
+    level: usize,
+) -> u32 {
+    let bounds = order
+        .iter()
+        .flat_map(|&t| input.corners[t as usize])
+        .fold(Aabb::EMPTY, Aabb::grow);
+    let id = nodes.len() as u32;
+    if order.len() <= LEAF_SIZE {
+        let kind = BvhKind::Leaf {
+            start: first as u32,
+            count: order.len() as u32,
+        };
+        nodes.push(BvhNode { bounds, kind });
+        return id;
+    }
+    // Median split along the widest spread of the centroids.
+    let spread = order
+        .iter()
+        .fold(Aabb::EMPTY, |b, &t| b.grow(input.centroids[t as usize]))
+        .size();
+    let axis = if spread.x >= spread.y && spread.x >= spread.z {
+        0
+    } else if spread.y >= spread.z {
+        1
+    } else {
+        2
+    };
+    let mid = order.len() / 2;
+    order.select_nth_unstable_by(mid, |&a, &b| {
+        input.centroids[a as usize][axis].total_cmp(&input.centroids[b as usize][axis])
+    });
+    // Placeholder, patched once the children exist.
+    nodes.push(BvhNode {
+        bounds,
+        kind: BvhKind::Leaf { start: 0, count: 0 },
+    });
+    let (low, high) = order.split_at_mut(mid);
+    let (left, right) = if level < PARALLEL_LEVELS {
+        let subtree = |order: &mut [u32], first: usize| {
+            let mut sub = Vec::new();
+            build(&mut sub, order, first, input, level + 1);
+            sub
+        };
+        let (l, r) = rayon::join(|| subtree(low, first), || subtree(high, first + mid));
+        (append_subtree(nodes, l), append_subtree(nodes, r))
+    } else {
+        let left = build(nodes, low, first, input, level + 1);
+        (left, build(nodes, high, first + mid, input, level + 1))
+    };
+    nodes[id as usize].kind = BvhKind::Inner { left, right };
+    id
+}
+
+/// Append the nodes of a subtree built on its own (children numbered
+/// from its root at 0), renumbered to their places; returns its root's.
+fn append_subtree(nodes: &mut Vec<BvhNode>, sub: Vec<BvhNode>) -> u32 {
+    let offset = nodes.len() as u32;
+    nodes.extend(sub.into_iter().map(|mut node| {
+        if let BvhKind::Inner { left, right } = &mut node.kind {
+            *left += offset;
+            *right += offset;
+        }
+        node
+    }));
+    offset
+}
+
 impl TriangleBvh {
     /// Index the triangles of `mesh` (out-of-range indices are skipped).
     pub fn new(mesh: &TriMesh) -> Self {
@@ -404,7 +489,7 @@ impl TriangleBvh {
         let mut order: Vec<u32> = Vec::with_capacity(mesh.triangles.len());
         let corners: Vec<[DVec3; 3]> = mesh
             .triangles
-            .iter()
+            .par_iter()
             .map(|t| {
                 if t.iter().all(|&i| (i as usize) < nv) {
                     t.map(|i| mesh.vertices[i as usize])
@@ -419,60 +504,22 @@ impl TriangleBvh {
             }
         }
         let centroids: Vec<DVec3> = corners
-            .iter()
+            .par_iter()
             .map(|[a, b, c]| (*a + *b + *c) / 3.0)
             .collect();
-        let mut bvh = TriangleBvh {
-            nodes: Vec::new(),
+        let mut nodes = Vec::new();
+        if !order.is_empty() {
+            let input = BuildInput {
+                corners: &corners,
+                centroids: &centroids,
+            };
+            build(&mut nodes, &mut order, 0, &input, 0);
+        }
+        TriangleBvh {
+            nodes,
             order,
             corners,
-        };
-        if !bvh.order.is_empty() {
-            bvh.build(0, bvh.order.len(), &centroids);
         }
-        bvh
-    }
-
-    /// Build the subtree over `order[start..end]`; returns its node index.
-    fn build(&mut self, start: usize, end: usize, centroids: &[DVec3]) -> u32 {
-        let bounds = self.order[start..end]
-            .iter()
-            .flat_map(|&t| self.corners[t as usize])
-            .fold(Aabb::EMPTY, Aabb::grow);
-        let id = self.nodes.len() as u32;
-        if end - start <= LEAF_SIZE {
-            let kind = BvhKind::Leaf {
-                start: start as u32,
-                count: (end - start) as u32,
-            };
-            self.nodes.push(BvhNode { bounds, kind });
-            return id;
-        }
-        // Median split along the widest spread of the centroids.
-        let spread = self.order[start..end]
-            .iter()
-            .fold(Aabb::EMPTY, |b, &t| b.grow(centroids[t as usize]))
-            .size();
-        let axis = if spread.x >= spread.y && spread.x >= spread.z {
-            0
-        } else if spread.y >= spread.z {
-            1
-        } else {
-            2
-        };
-        let mid = (start + end) / 2;
-        self.order[start..end].select_nth_unstable_by(mid - start, |&a, &b| {
-            centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
-        });
-        // Placeholder, patched once the children exist.
-        self.nodes.push(BvhNode {
-            bounds,
-            kind: BvhKind::Leaf { start: 0, count: 0 },
-        });
-        let left = self.build(start, mid, centroids);
-        let right = self.build(mid, end, centroids);
-        self.nodes[id as usize].kind = BvhKind::Inner { left, right };
-        id
     }
 
     /// The closest point of the mesh to `p`, or `None` for a mesh without

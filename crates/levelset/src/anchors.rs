@@ -23,7 +23,7 @@ use crate::band::NarrowBand;
 use crate::multires::interpolate_with;
 use rayon::prelude::*;
 use surfrecon_geom::normals::estimate_normals;
-use surfrecon_geom::spatial::KdTree;
+use surfrecon_geom::spatial::{KdTree, Neighbour};
 use surfrecon_geom::DVec3;
 use surfrecon_grid::GridSpec;
 
@@ -302,10 +302,17 @@ impl<'a> TangentSides<'a> {
     fn between_faces(&self, position: DVec3, nearest: usize) -> bool {
         let plane = self.fits.planes[nearest];
         let (mut below, mut above) = (false, false);
-        for q in self.fits.tree.knn(position, SANDWICH_NEIGHBOURS) {
-            if q.distance > self.h {
-                break;
-            }
+        // The nearest SANDWICH_NEIGHBOURS within a cell: when no more lie
+        // within it, they are all the points within it (found much faster
+        // than the nearest 16, which reach far beyond the cell). The
+        // radius is padded so that the same distance test decides both.
+        let mut near: Vec<Neighbour> = self.fits.tree.within(position, self.h * (1.0 + 1e-9));
+        near.retain(|q| q.distance <= self.h);
+        if near.len() > SANDWICH_NEIGHBOURS {
+            near = self.fits.tree.knn(position, SANDWICH_NEIGHBOURS);
+            near.retain(|q| q.distance <= self.h);
+        }
+        for q in near {
             let s = (self.fits.points[q.index] - position).dot(plane);
             below |= s < -SANDWICH_MARGIN * self.h;
             above |= s > SANDWICH_MARGIN * self.h;

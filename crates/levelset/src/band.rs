@@ -61,6 +61,9 @@ pub(crate) struct Stencil<'a, const D: usize> {
     pub d: &'a [f64],
     /// Window index of the node.
     pub at: usize,
+    /// Position of the node in the band list (for per-node data kept
+    /// beside it).
+    pub index: usize,
     pub strides: &'a [usize; D],
     /// Global node index.
     pub node: [usize; D],
@@ -299,6 +302,12 @@ impl<const D: usize> NarrowBand<D> {
     /// Set the band list (sorted here) and its per-block runs.
     pub(crate) fn set_active(&mut self, mut keys: Vec<u32>) {
         keys.par_sort_unstable();
+        self.set_sorted_active(keys);
+    }
+
+    /// Set the band list from keys in ascending order, and its runs.
+    fn set_sorted_active(&mut self, keys: Vec<u32>) {
+        debug_assert!(keys.windows(2).all(|w| w[0] < w[1]), "ascending keys");
         self.runs.clear();
         let mut start = 0;
         while start < keys.len() {
@@ -310,16 +319,19 @@ impl<const D: usize> NarrowBand<D> {
         self.active = keys;
     }
 
-    /// Make `keys` (any order) the band. Blocks without band nodes whose
-    /// nodes all lie on one side are released (they become tiles, so
-    /// allocation follows the band as it moves), and the blocks are ordered
-    /// in space (see [`BlockGrid::sort_blocks`]): reinitialization appends
-    /// blocks in the order its layers reach them.
-    pub(crate) fn set_band(&mut self, keys: Vec<u32>) {
-        let mut busy = vec![false; self.phi.blocks().len()];
-        for &k in &keys {
-            busy[split::<D>(k).0] = true;
-        }
+    /// Make the nodes whose mark is `stamp` the band. Blocks without band
+    /// nodes whose nodes all lie on one side are released (they become
+    /// tiles, so allocation follows the band as it moves), and the blocks
+    /// are ordered in space (see [`BlockGrid::sort_blocks`]):
+    /// reinitialization appends blocks in the order its layers reach them.
+    /// The band list is then read off the marks block by block, so it
+    /// comes out sorted.
+    pub(crate) fn set_band(&mut self, stamp: u32) {
+        let busy: Vec<bool> = self
+            .marks
+            .par_chunks(Self::LEN)
+            .map(|m| m.contains(&stamp))
+            .collect();
         let spec = *self.phi.spec();
         let tiles: Vec<Option<bool>> = self
             .phi
@@ -339,30 +351,33 @@ impl<const D: usize> NarrowBand<D> {
             .iter()
             .map(|&m| if m == u32::MAX { m } else { sorted[m as usize] })
             .collect();
-        if map.iter().enumerate().all(|(i, &m)| m == i as u32) {
-            self.set_active(keys);
-            return;
-        }
-        let mut old_of = vec![0usize; self.phi.blocks().len()];
-        for (old, &new) in map.iter().enumerate() {
-            if new != u32::MAX {
-                old_of[new as usize] = old;
+        if map.iter().enumerate().any(|(i, &m)| m != i as u32) {
+            let mut old_of = vec![0usize; self.phi.blocks().len()];
+            for (old, &new) in map.iter().enumerate() {
+                if new != u32::MAX {
+                    old_of[new as usize] = old;
+                }
             }
+            let mut marks = vec![0; self.phi.blocks().len() * Self::LEN];
+            marks
+                .par_chunks_mut(Self::LEN)
+                .zip(&old_of)
+                .for_each(|(m, &o)| {
+                    m.copy_from_slice(&self.marks[o * Self::LEN..(o + 1) * Self::LEN])
+                });
+            self.marks = marks;
         }
-        let mut marks = vec![0; self.phi.blocks().len() * Self::LEN];
-        marks
-            .par_chunks_mut(Self::LEN)
-            .zip(&old_of)
-            .for_each(|(m, &o)| m.copy_from_slice(&self.marks[o * Self::LEN..(o + 1) * Self::LEN]));
-        self.marks = marks;
-        let keys = keys
-            .par_iter()
-            .map(|&k| {
-                let (slot, local) = split::<D>(k);
-                join::<D>(map[slot] as usize, local)
+        let keys = self
+            .marks
+            .par_chunks(Self::LEN)
+            .enumerate()
+            .flat_map_iter(|(slot, m)| {
+                (0..Self::LEN)
+                    .filter(move |&local| m[local] == stamp)
+                    .map(move |local| join::<D>(slot, local))
             })
             .collect();
-        self.set_active(keys);
+        self.set_sorted_active(keys);
     }
 
     /// `f` at every band node, in band order, from dense windows of φ (and
@@ -376,10 +391,22 @@ impl<const D: usize> NarrowBand<D> {
         d: Option<&BlockGrid<D>>,
         f: impl Fn(&Stencil<D>) -> T + Sync,
     ) -> Vec<T> {
+        self.map_active_from(T::default(), phi_edges, d, f)
+    }
+
+    /// [`Self::map_active`] for results without a `Default` (arrays of
+    /// length `D`): the output starts filled with `placeholder`.
+    pub(crate) fn map_active_from<T: Send + Clone>(
+        &self,
+        placeholder: T,
+        phi_edges: bool,
+        d: Option<&BlockGrid<D>>,
+        f: impl Fn(&Stencil<D>) -> T + Sync,
+    ) -> Vec<T> {
         let strides = BlockGrid::<D>::window_strides();
         let len = BlockGrid::<D>::WINDOW_LEN;
         // Each block's results go straight to their place in the output.
-        let mut out = vec![T::default(); self.active.len()];
+        let mut out = vec![placeholder; self.active.len()];
         let mut parts = Vec::with_capacity(self.runs.len());
         let mut rest = &mut out[..];
         for (_, range) in &self.runs {
@@ -399,12 +426,14 @@ impl<const D: usize> NarrowBand<D> {
                     d.gather_window_part(blk.coord, 1, dw);
                 }
                 let mask = Self::LEN - 1;
-                for (o, &k) in part.iter_mut().zip(&self.active[range.clone()]) {
+                let keys = &self.active[range.clone()];
+                for (index, (o, &k)) in (range.start..).zip(part.iter_mut().zip(keys)) {
                     let local = k as usize & mask;
                     *o = f(&Stencil {
                         phi,
                         d: dw,
                         at: BlockGrid::<D>::window_index(local),
+                        index,
                         strides: &strides,
                         node: blk.node(local),
                         corner: blk.coord.map(|c| c * BLOCK),
@@ -413,6 +442,49 @@ impl<const D: usize> NarrowBand<D> {
             },
         );
         out
+    }
+
+    /// Adds `updates` (one per band node, in band order) to φ, in parallel
+    /// over blocks, except at the nodes where `defer(old, new)` holds:
+    /// those come back as (key, new value), in band order, for a caller
+    /// that must decide them one by one.
+    pub(crate) fn add_active(
+        &mut self,
+        updates: &[f64],
+        defer: impl Fn(f64, f64) -> bool + Sync,
+    ) -> Vec<(u32, f64)> {
+        assert_eq!(updates.len(), self.active.len(), "one update per band node");
+        // The runs name distinct blocks in ascending order: one pass over
+        // the blocks hands out each run's block once.
+        let mut blocks = self.phi.blocks_mut().iter_mut().enumerate();
+        let run_blocks: Vec<&mut Block<D>> = self
+            .runs
+            .iter()
+            .map(|(slot, _)| {
+                let (_, blk) = blocks
+                    .find(|(i, _)| *i == *slot as usize)
+                    .expect("runs follow the block order");
+                blk
+            })
+            .collect();
+        let (active, mask) = (&self.active, Self::LEN - 1);
+        run_blocks
+            .into_par_iter()
+            .zip(&self.runs)
+            .flat_map_iter(|(blk, (_, range))| {
+                let mut deferred = Vec::new();
+                for (&k, &u) in active[range.clone()].iter().zip(&updates[range.clone()]) {
+                    let v = &mut blk.values[k as usize & mask];
+                    let new = *v + u;
+                    if defer(*v, new) {
+                        deferred.push((k, new));
+                    } else {
+                        *v = new;
+                    }
+                }
+                deferred
+            })
+            .collect()
     }
 }
 

@@ -20,12 +20,16 @@
 
 use crate::anchors::{DataCells, TangentSides};
 use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
-use crate::convection::{advection_term, upwind_advection};
+#[cfg(doc)]
+use crate::convection::advection_term;
+use crate::convection::upwind_advection;
 use crate::reinit::reinitialize;
+use rayon::prelude::*;
 use surfrecon_geom::progress::{Hook, Progress};
 use surfrecon_geom::DVec3;
 use surfrecon_grid::sparse::WINDOW;
 use surfrecon_grid::topology::Neighbourhood;
+use surfrecon_grid::GridSpec;
 
 /// Which law moves the surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -154,8 +158,10 @@ pub fn evolve<const D: usize>(
             Motion::Convection => {
                 let (stable, speed_scale) = stable_step(band, d, &coef);
                 let dt = stable * params.cfl;
+                // Fixed until the reinitialization below changes the band.
+                let grads = distance_gradients(band, d);
                 for _ in 0..n {
-                    step(band, d, &coef, dt, &guard);
+                    convection_step(band, &grads, dt, &guard);
                 }
                 reinitialize(band);
                 d.cover(band);
@@ -231,24 +237,28 @@ fn global_factor(energy: f64, p: f64) -> f64 {
     }
 }
 
-/// One explicit Euler step of the motion on the band nodes.
-fn step<const D: usize>(
+/// One explicit Euler step of convection on the band nodes, with ∇d per
+/// band node from [`distance_gradients`]: d is fixed, so each step reads
+/// only φ.
+fn convection_step<const D: usize>(
     band: &mut NarrowBand<D>,
-    d: &BandDistance<D>,
-    coef: &Coefficients,
+    grads: &[[f64; D]],
     dt: f64,
     guard: &Guard<D>,
 ) {
     let h = band.spec().spacing;
-    let rates = band.map_active(coef.motion != Motion::Convection, Some(d.grid()), |s| {
-        let (a, c) = coef.at(s.d[s.at]);
-        let mut r = a * advection_term(s.phi, s.d, s.at, s.strides, h);
-        if c != 0.0 {
-            r += c * curvature_term(s.phi, s.at, s.strides, h);
-        }
-        dt * r
+    let rates = band.map_active(false, None, |s| {
+        dt * upwind_advection(s.phi, s.at, s.strides, &grads[s.index], h)
     });
     apply(band, rates, guard);
+}
+
+/// ∇d (per cell, central differences, as [`advection_term`] takes it) at
+/// every band node, in band order.
+fn distance_gradients<const D: usize>(band: &NarrowBand<D>, d: &BandDistance<D>) -> Vec<[f64; D]> {
+    band.map_active_from([0.0; D], false, Some(d.grid()), |s| {
+        s.strides.map(|st| (s.d[s.at + st] - s.d[s.at - st]) * 0.5)
+    })
 }
 
 /// What keeps the evolving surface on the data ([`crate::anchors`]); the
@@ -280,16 +290,23 @@ impl<const D: usize> Guard<'_, D> {
         self.topology.is_some() || self.anchors.cells.is_some() || self.anchors.sides.is_some()
     }
 
-    /// Whether `node` may change side now.
-    fn allows(&self, band: &NarrowBand<D>, node: [usize; D], to_inside: bool) -> bool {
+    /// Whether the tangent planes let `node` move to side `to_inside`.
+    /// The test reads only the node's position, nothing the evolution
+    /// changes, so a step's crossings are all tested at once, in parallel.
+    fn sides_allow(&self, spec: &GridSpec<D>, node: [usize; D], to_inside: bool) -> bool {
+        let Some(sides) = self.anchors.sides else {
+            return true;
+        };
+        let p = spec.position(node);
+        let p = DVec3::from_array(std::array::from_fn(|a| if a < D { p[a] } else { 0.0 }));
+        sides.allows(p, to_inside)
+    }
+
+    /// Whether the data cells and the topology let `node` change side now
+    /// (they read the sides of its neighbours, which earlier crossings of
+    /// the same step may have changed).
+    fn grid_allows(&self, band: &NarrowBand<D>, node: [usize; D], to_inside: bool) -> bool {
         let side = |idx: [usize; D]| inside(band.phi.get(idx));
-        if let Some(sides) = self.anchors.sides {
-            let p = band.spec().position(node);
-            let p = DVec3::from_array(std::array::from_fn(|a| if a < D { p[a] } else { 0.0 }));
-            if !sides.allows(p, to_inside) {
-                return false;
-            }
-        }
         if let Some(cells) = self.anchors.cells {
             if !cells.allows(node, to_inside, side) {
                 return false;
@@ -313,19 +330,15 @@ impl<const D: usize> Guard<'_, D> {
 /// does so only if `guard` allows it at that moment; such nodes are
 /// visited in band order so the result is deterministic.
 fn apply<const D: usize>(band: &mut NarrowBand<D>, updates: Vec<f64>, guard: &Guard<D>) {
-    let mut flips = Vec::new();
-    for (i, u) in updates.into_iter().enumerate() {
-        let k = band.active[i];
-        let old = band.value(k);
-        let new = old + u;
-        if guard.is_active() && inside(new) != inside(old) {
-            flips.push((k, new));
-        } else {
-            band.set(k, new);
-        }
-    }
-    for (k, new) in flips {
-        if guard.allows(band, band.node(k), inside(new)) {
+    let guarded = guard.is_active();
+    let crossings = band.add_active(&updates, |old, new| guarded && inside(new) != inside(old));
+    let b = &*band;
+    let sides: Vec<bool> = crossings
+        .par_iter()
+        .map(|&(k, new)| guard.sides_allow(b.spec(), b.node(k), inside(new)))
+        .collect();
+    for (&(k, new), sides_allow) in crossings.iter().zip(sides) {
+        if sides_allow && guard.grid_allows(band, band.node(k), inside(new)) {
             band.set(k, new);
         }
     }

@@ -88,7 +88,11 @@ pub fn reinitialize<const D: usize>(band: &mut NarrowBand<D>) {
             band.set(k, if inside(v) { -w } else { w });
         }
     }
-    band.set_band(accepted);
+    // The last stamp reserved names the new band.
+    for &k in &accepted {
+        band.marks[k as usize] = top;
+    }
+    band.set_band(top);
 }
 
 /// φ as a signed distance on the whole (dense) grid: the band values are
@@ -228,33 +232,40 @@ fn next_layer<const D: usize>(
 ) -> Vec<u32> {
     let b = &*band;
     let visited = |n: u32| (base..=stamp).contains(&b.marks[n as usize]);
-    let found: Vec<Found> = frontier
-        .par_iter()
-        .flat_map_iter(|&k| {
+    // Per frontier node, one slot per axis and direction: a fixed-size
+    // table filled in parallel, no list grown per node or per thread.
+    // (Keys hold 3 bits per axis below the block index.)
+    debug_assert!(
+        band.block_count() + 1 < 1 << (32 - 3 * D),
+        "keys below the markers"
+    );
+    let mut found = vec![NOTHING; 2 * D * frontier.len()];
+    found
+        .par_chunks_mut(2 * D)
+        .zip(frontier)
+        .for_each(|(slots, &k)| {
             let values = b.block_values(k);
-            let mut out = Vec::with_capacity(2 * D);
-            for a in 0..D {
-                for forward in [false, true] {
-                    match b.neighbour(k, values, a, forward).0 {
-                        Some(n) if !visited(n) && inner_step(b, k, a, forward) => {
-                            out.push(Found::Node(n))
-                        }
-                        Some(_) => {}
-                        None => out.push(Found::Tile(k, a, forward)),
-                    }
+            for (j, slot) in slots.iter_mut().enumerate() {
+                let (a, forward) = (j / 2, j % 2 == 1);
+                *slot = match b.neighbour(k, values, a, forward).0 {
+                    Some(n) if !visited(n) && inner_step(b, k, a, forward) => n,
+                    Some(_) => NOTHING,
+                    None => TILE,
+                };
+            }
+        });
+    let mut out = Vec::with_capacity(frontier.len());
+    for (j, &f) in found.iter().enumerate() {
+        let n = match f {
+            NOTHING => continue,
+            TILE => {
+                let (k, a, forward) = (frontier[j / (2 * D)], j % (2 * D) / 2, j % 2 == 1);
+                match neighbour_key(band, k, a, forward) {
+                    Some(n) => n,
+                    None => continue,
                 }
             }
-            out
-        })
-        .collect();
-    let mut out = Vec::with_capacity(found.len());
-    for f in found {
-        let n = match f {
-            Found::Node(n) => n,
-            Found::Tile(k, a, forward) => match neighbour_key(band, k, a, forward) {
-                Some(n) => n,
-                None => continue,
-            },
+            n => n,
         };
         if (base..=stamp).contains(&band.marks[n as usize]) {
             continue;
@@ -265,12 +276,10 @@ fn next_layer<const D: usize>(
     out
 }
 
-/// A neighbour found by [`next_layer`]: an allocated node, or the step from
-/// a node into a tile (whose block is allocated when stamped).
-enum Found {
-    Node(u32),
-    Tile(u32, usize, bool),
-}
+/// Entries of [`next_layer`]'s table besides keys: no new neighbour, and
+/// a step into a tile (whose block is allocated when stamped).
+const NOTHING: u32 = u32::MAX;
+const TILE: u32 = u32::MAX - 1;
 
 /// Whether the neighbour of inner node `key` along `axis` is inner too
 /// (only that axis can reach the border).
