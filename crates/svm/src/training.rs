@@ -57,17 +57,6 @@ pub struct SurfaceSamples {
     pub normal_agrees: Vec<bool>,
 }
 
-/// Neighbours of each probe point along an off-surface ray whose tangent
-/// discs the ray is checked against (see [`SurfaceSamples::free_offset`]).
-const DISC_NEIGHBOURS: usize = 12;
-/// A disc stops an outside ray when the cosine between the ray and the
-/// disc's normal is below minus this (a wedge opening under about 73°):
-/// the ray runs into the disc's solid. At a right-angled or wider concave
-/// edge it runs along the other face or away from it, and a shallower
-/// crossing is within the tilt that noise and curvature give neighbours
-/// (harness spikes with outliers, at 0.1: a handle).
-const MIN_CROSSING_COSINE: f64 = 0.3;
-
 /// Scatter of noisy samples about the surface, in noise σ.
 const NOISE_SCATTER: f64 = 2.0;
 
@@ -189,18 +178,9 @@ impl SurfaceSamples {
         // the wrong side of one of them and pit the surface.
         let least = (NOISE_OFFSET_FLOOR * self.noise).min(y);
         signs.iter().filter_map(move |&sign| {
-            // Where the ray along an outside normal runs into another
-            // surface sooner than y would allow (see `free_offset`), the
-            // point starts at the offset the gap allows instead.
-            let start = if sign > 0.0 {
-                self.free_offset(i, y)
-            } else {
-                y
-            };
-            let shortest = y / f64::from(1u32 << (OFFSET_HALVINGS - 1));
             for k in 0..OFFSET_HALVINGS {
-                let d = start / f64::from(1u32 << k);
-                if d < least || d < shortest {
+                let d = y / f64::from(1u32 << k);
+                if d < least {
                     return None;
                 }
                 let position = self.points[i] + self.normals[i] * (sign * d);
@@ -218,92 +198,6 @@ impl SurfaceSamples {
             }
             None
         })
-    }
-
-    /// The largest offset up to `y` outside sample `i` at which a point
-    /// still lies outside every nearby surface approximated by its samples'
-    /// tangent discs. The nearest-sample check alone misses a surface
-    /// passing between its samples: beside a thin part meeting a body at an
-    /// acute angle, sampled no denser than the offset, an outside point
-    /// lands inside the part or against its face more than 0.9·y from each
-    /// of its samples (harness spikes: the fin root, 0.02 thick at 55° to
-    /// the sphere) and claims "outside" there. A disc counts when the ray
-    /// along the normal runs into its solid (the disc faces the ray, see
-    /// [`MIN_CROSSING_COSINE`]), meets it within the disc's radius, and its
-    /// sample lies on a surface sampled around it (an outlier's disc would
-    /// cut rays anywhere); the point then keeps from the disc's plane the
-    /// distance the check keeps from samples. Inside points keep the
-    /// nearest-sample check alone: checking their rays too moved the
-    /// inside points of the thin cones at coarse levels and broke the
-    /// sparse slices input (harness spikes, slices: CD 2.63 → 3.69 ‰, two
-    /// pieces).
-    fn free_offset(&self, i: usize, y: f64) -> f64 {
-        let (p, n) = (self.points[i], self.normals[i]);
-        let mut offset = y;
-        for q in self.discs_along(p + n * y, p + n * (0.5 * y)) {
-            let facing = n.dot(self.normals[q]);
-            if facing >= -MIN_CROSSING_COSINE {
-                continue;
-            }
-            let hit = (p - self.points[q]).dot(self.normals[q]) / -facing;
-            let foot = p + n * hit;
-            if hit > 0.0
-                && foot.distance(self.points[q]) <= self.disc_radius(q)
-                && self.spans_tangent_disc(q)
-            {
-                offset = offset.min(self.offset_before(hit, -facing));
-            }
-        }
-        offset
-    }
-
-    /// Samples whose tangent discs may cross the segment between `far`
-    /// and `mid`: the [`DISC_NEIGHBOURS`] nearest of each among those the
-    /// consistency check looks at, agreeing with their neighbours (a stray
-    /// sample's normal says nothing).
-    fn discs_along(&self, far: DVec3, mid: DVec3) -> Vec<usize> {
-        let nearest = |x: DVec3| -> Vec<usize> {
-            match &self.consistency_tree {
-                Some((tree, kept)) => tree
-                    .knn(x, DISC_NEIGHBOURS)
-                    .into_iter()
-                    .map(|m| kept[m.index])
-                    .collect(),
-                None => self
-                    .tree
-                    .knn(x, DISC_NEIGHBOURS)
-                    .into_iter()
-                    .map(|m| m.index)
-                    .collect(),
-            }
-        };
-        let mut near: Vec<usize> = [far, mid]
-            .into_iter()
-            .flat_map(nearest)
-            .filter(|&q| self.normal_agrees[q])
-            .collect();
-        near.sort_unstable();
-        near.dedup();
-        near
-    }
-
-    /// Radius of sample `q`'s tangent disc: half its reach, the reach
-    /// capped at twice the typical (an isolated sample's disc would reach
-    /// across gaps).
-    fn disc_radius(&self, q: usize) -> f64 {
-        0.5 * self.reach[q].min(2.0 * self.typical_reach)
-    }
-
-    /// Largest offset d along a ray that meets a plane at distance `hit`,
-    /// at `slope` (|cosine| between ray and plane normal), such that the
-    /// point at d keeps from the plane the distance the nearest-sample
-    /// check keeps from samples: (hit − d)·slope ≥ max(0.9·d − noise
-    /// scatter, d / 2).
-    fn offset_before(&self, hit: f64, slope: f64) -> f64 {
-        let scatter = NOISE_SCATTER * self.noise;
-        let strict = (hit * slope + scatter) / (0.9 + slope);
-        let loose = hit * slope / (0.5 + slope);
-        strict.min(loose)
     }
 
     /// Flip the normals of samples `flips` (see
@@ -617,78 +511,6 @@ mod tests {
         assert!(outside
             .into_iter()
             .all(|p| p.target == 0.3 || p.position.z > 0.1));
-    }
-
-    /// The plane z = 0 facing +z with a plate 0.02 thick leaning over it
-    /// at 30° from the line x = 0, sampled on grids of spacing 0.016 (the
-    /// plate's offset by half a spacing along the root), with the plate's
-    /// lower face and the number of plane samples beneath it.
-    fn plane_with_leaning_plate() -> (SurfaceSamples, DVec3, usize) {
-        let s = 0.016;
-        let plate = s;
-        let (sin, cos) = 30f64.to_radians().sin_cos();
-        let up_slope = DVec3::new(cos, 0.0, sin);
-        let lower_normal = DVec3::new(sin, 0.0, -cos);
-        let root_of_upper = -lower_normal * 0.02 - up_slope * (0.02 * cos / sin);
-        let (mut points, mut normals) = (Vec::new(), Vec::new());
-        let rows = || (-9..=9).map(|j| f64::from(j) * s);
-        // Beneath the plate first (x > 0, from half a spacing off the root
-        // line: a sample right on it has no gap at all), then beside its
-        // upper face.
-        for x in (0..19).chain(-19..-3).map(|i| (f64::from(i) + 0.5) * s) {
-            for y in rows() {
-                points.push(DVec3::new(x, y, 0.0));
-                normals.push(DVec3::Z);
-            }
-        }
-        let beneath = 19 * 19;
-        for (root, normal) in [(DVec3::ZERO, lower_normal), (root_of_upper, -lower_normal)] {
-            for k in 1..=19 {
-                for j in -10..=9 {
-                    let along = (f64::from(k) - 0.5) * plate;
-                    let across = (f64::from(j) + 0.5) * plate;
-                    points.push(root + up_slope * along + DVec3::Y * across);
-                    normals.push(normal);
-                }
-            }
-        }
-        let samples = SurfaceSamples::new(&points, &normals).unwrap();
-        (samples, lower_normal, beneath)
-    }
-
-    #[test]
-    fn outside_offsets_beneath_a_leaning_plate_stop_short_of_it() {
-        // Beneath the plate the ray along +z meets its lower face at
-        // x·tan 30°; the outside point keeps 0.9 of its offset from that
-        // face, as the nearest-sample check keeps from samples: offset ≤
-        // hit·cos 30° / (0.9 + cos 30°). Further out the gap allows y.
-        let (samples, _, beneath) = plane_with_leaning_plate();
-        let y = 0.012;
-        let (sin, cos) = 30f64.to_radians().sin_cos();
-        let (mut shortened, mut missed) = (0, 0);
-        for i in 0..beneath {
-            let p = samples.points[i];
-            let offset = samples.free_offset(i, y);
-            let allowed = (p.x * sin / cos) * cos / (0.9 + cos);
-            if p.y.abs() > 0.1 || p.x < 0.015 {
-                continue;
-            }
-            if allowed < y {
-                // Caught by a disc, or slipping between two discs (the
-                // nearest-sample check still halves it then).
-                let caught = (offset - allowed).abs() < 1e-9;
-                assert!(caught || offset == y, "{p} {offset} {allowed}");
-                shortened += usize::from(caught);
-                missed += usize::from(!caught);
-            } else if p.x > 0.1 {
-                assert_eq!(offset, y, "{p}");
-            }
-        }
-        // On this grid the ray's foot falls midway between plate samples
-        // for half of them, just outside discs of half the reach (13 of
-        // 26); a wider disc caught those too but gave the harness spikes'
-        // slices input a handle.
-        assert!(shortened >= 10, "{shortened} caught, {missed} missed");
     }
 
     #[test]
