@@ -1244,44 +1244,35 @@ fn edge_crossing(
 /// Where the combined distance changes sign on segment `a`-`b`
 /// (bisection), if its ends lie on different sides.
 fn segment_root(combined: &Combined, a: DVec3, b: DVec3) -> Option<DVec3> {
-    let inside = combined.signed_distance(a) < 0.0;
-    if inside == (combined.signed_distance(b) < 0.0) {
-        return None;
-    }
-    let (mut lo, mut hi) = (0.0, 1.0);
-    for _ in 0..48 {
-        let mid = 0.5 * (lo + hi);
-        if (combined.signed_distance(a.lerp(b, mid)) < 0.0) == inside {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    Some(a.lerp(b, 0.5 * (lo + hi)))
+    let inside = |t: f64| combined.signed_distance(a.lerp(b, t)) < 0.0;
+    (inside(0.0) != inside(1.0)).then(|| a.lerp(b, bisect(1.0, inside)))
 }
 
 /// Distance along `+axis` from `origin` to the combined surface within
 /// one spacing (bisection on the exact combined distance).
 fn edge_root(combined: &Combined, origin: DVec3, axis: usize, h: f64) -> Option<f64> {
-    let at = |t: f64| {
+    let inside = |t: f64| {
         let mut p = origin;
         p[axis] += t;
-        combined.signed_distance(p)
+        combined.signed_distance(p) < 0.0
     };
-    let (mut lo, mut hi) = (0.0, h);
-    let (flo, fhi) = (at(lo), at(hi));
-    if (flo >= 0.0) == (fhi >= 0.0) {
-        return None;
-    }
+    (inside(0.0) != inside(h)).then(|| bisect(h, inside))
+}
+
+/// The parameter in [0, `end`] where `inside` changes (bisection, 48
+/// halvings); `inside(0)` and `inside(end)` differ.
+fn bisect(end: f64, inside: impl Fn(f64) -> bool) -> f64 {
+    let start = inside(0.0);
+    let (mut lo, mut hi) = (0.0, end);
     for _ in 0..48 {
         let mid = 0.5 * (lo + hi);
-        if (at(mid) >= 0.0) == (flo >= 0.0) {
+        if inside(mid) == start {
             lo = mid;
         } else {
             hi = mid;
         }
     }
-    Some(0.5 * (lo + hi))
+    0.5 * (lo + hi)
 }
 
 /// Where the result has a wall (or a gap) thinner than a cell between

@@ -459,6 +459,40 @@ fn drilling_a_box_keeps_the_new_circular_edges() {
     );
 }
 
+/// How far `mesh` (a sculpted field's extraction) and the box turned by
+/// `turn_z` about z minus a cylinder of `radius` along z lie apart, in
+/// spacings `h`: the farthest of `points` (on the mesh) off the exact
+/// result, of the result's surface off the mesh, and of its rims.
+fn drilled_box_errors(
+    mesh: &TriMesh,
+    points: impl Iterator<Item = DVec3>,
+    radius: f64,
+    turn_z: f64,
+    h: f64,
+) -> (f64, f64, f64) {
+    let to_box = glam::DMat3::from_rotation_z(-turn_z);
+    // |max(box, -cylinder)| in the box's frame: exact on the result's
+    // surface up to the rims, where it can only underestimate.
+    let off = points
+        .map(|v| {
+            let p = to_box * v;
+            let b = (p.abs() - HALF).max_element();
+            b.max(radius - p.x.hypot(p.y)).abs()
+        })
+        .fold(0.0, f64::max)
+        / h;
+    let (surface, rims) = drilled_box_samples(radius, 60);
+    let q = MeshQuery::new(mesh).unwrap();
+    let farthest = |points: &[DVec3]| {
+        let from_box = to_box.transpose();
+        let d = |&p: &DVec3| q.signed_distance(from_box * p).abs();
+        points.iter().map(d).fold(0.0, f64::max) / h
+    };
+    let (all, rim) = (farthest(&surface), farthest(&rims));
+    eprintln!("surface off the result {off} h; result off the surface {all} h, rims {rim} h");
+    (off, all, rim)
+}
+
 /// BENCHMARKS.md's named case: the drilled box's block turned 30° about
 /// z (so no face lies on grid nodes), 64 cells, minus a cylinder of radius
 /// 0.2 along z: the issue's 0.15 h both ways, the rims far closer.
@@ -480,26 +514,8 @@ fn a_turned_box_minus_a_cylinder_stays_within_the_issues_bound() {
     sculpt_udf(&mut udf, Operation::Subtract, &drill, 0.1).unwrap();
     let (mesh, _) = udf.extract();
     assert_closed_manifold(&mesh, 0);
-    let to_box = glam::DMat3::from_rotation_z(-turn[2]);
-    // |max(box, -cylinder)| in the box's frame: exact on the result's
-    // surface up to the rims, where it can only underestimate.
-    let off = (mesh.vertices.iter())
-        .map(|&v| {
-            let p = to_box * v;
-            let b = (p.abs() - HALF).max_element();
-            b.max(radius - p.x.hypot(p.y)).abs()
-        })
-        .fold(0.0, f64::max)
-        / h;
-    let (surface, rims) = drilled_box_samples(radius, 60);
-    let q = MeshQuery::new(&mesh).unwrap();
-    let farthest = |points: &[DVec3]| {
-        let from_box = to_box.transpose();
-        let d = |&p: &DVec3| q.signed_distance(from_box * p).abs();
-        points.iter().map(d).fold(0.0, f64::max) / h
-    };
-    let (all, rim) = (farthest(&surface), farthest(&rims));
-    eprintln!("surface off the result {off} h; result off the surface {all} h, rims {rim} h");
+    let (off, all, rim) =
+        drilled_box_errors(&mesh, mesh.vertices.iter().copied(), radius, turn[2], h);
     // Session 33: 0.081 h, 0.056 h, rims 0.012 h (against manifold3d's
     // boolean, every vertex and 16 points per triangle: 0.081 / 0.023 h).
     assert!(off < 0.15 && all < 0.15, "{off} h / {all} h");
@@ -1017,24 +1033,7 @@ fn sculpting_an_odf_of_a_turned_box_keeps_the_rims() {
     sculpt_odf(&mut odf, Operation::Subtract, &drill).unwrap();
     let (mesh, _) = odf.extract();
     assert_closed_manifold(&mesh, 0);
-    let to_box = glam::DMat3::from_rotation_z(-turn[2]);
-    let off = dense_points(&mesh)
-        .map(|v| {
-            let p = to_box * v;
-            let b = (p.abs() - HALF).max_element();
-            b.max(radius - p.x.hypot(p.y)).abs()
-        })
-        .fold(0.0, f64::max)
-        / h;
-    let (surface, rims) = drilled_box_samples(radius, 60);
-    let q = MeshQuery::new(&mesh).unwrap();
-    let farthest = |points: &[DVec3]| {
-        let from_box = to_box.transpose();
-        let d = |&p: &DVec3| q.signed_distance(from_box * p).abs();
-        points.iter().map(d).fold(0.0, f64::max) / h
-    };
-    let (all, rim) = (farthest(&surface), farthest(&rims));
-    eprintln!("surface off the result {off} h; result off the surface {all} h, rims {rim} h");
+    let (off, all, rim) = drilled_box_errors(&mesh, dense_points(&mesh), radius, turn[2], h);
     assert!(rim < 0.05, "rims cut by {rim} h");
     assert!(off < 0.15 && all < 0.15, "{off} h / {all} h");
 }

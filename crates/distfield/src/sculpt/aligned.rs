@@ -4,7 +4,7 @@
 //! cubes on the offset grid runs the surface through the edge instead of
 //! cutting it off by up to a cell.
 
-use super::{last_kept, result_points, Combined, Tool};
+use super::{bisect, last_kept, result_points, Combined, Tool};
 use crate::extract::corner_nodes;
 use crate::features::{cell_of, clip_to_cells, CellFeatures};
 use crate::offset::{
@@ -36,9 +36,8 @@ pub(super) fn new_edge_segments(surface: &TriMesh, tool: &Tool) -> Vec<[DVec3; 2
                     // Lower index first: both triangles of an edge find
                     // the same point, so the segments join exactly.
                     let (a, b) = (a.min(b) as usize, a.max(b) as usize);
-                    (inside[a] != inside[b]).then(|| {
-                        tool_root(tool, surface.vertices[a], surface.vertices[b], inside[a])
-                    })
+                    (inside[a] != inside[b])
+                        .then(|| tool_root(tool, surface.vertices[a], surface.vertices[b]))
                 })
                 .collect();
             (ends.len() == 2).then(|| [ends[0], ends[1]])
@@ -46,19 +45,10 @@ pub(super) fn new_edge_segments(surface: &TriMesh, tool: &Tool) -> Vec<[DVec3; 2
         .collect()
 }
 
-/// Where the tool's surface crosses segment `a`-`b` (bisection; `a`
-/// inside the tool when `a_inside`).
-fn tool_root(tool: &Tool, a: DVec3, b: DVec3, a_inside: bool) -> DVec3 {
-    let (mut lo, mut hi) = (0.0, 1.0);
-    for _ in 0..52 {
-        let mid = 0.5 * (lo + hi);
-        if (tool.signed_distance(a.lerp(b, mid)) < 0.0) == a_inside {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    a.lerp(b, 0.5 * (lo + hi))
+/// Where the tool's surface crosses segment `a`-`b` (bisection; the
+/// ends lie on different sides).
+fn tool_root(tool: &Tool, a: DVec3, b: DVec3) -> DVec3 {
+    a.lerp(b, bisect(1.0, |t| tool.signed_distance(a.lerp(b, t)) < 0.0))
 }
 
 /// What [`align_to_new_edge`] did: samples offered a place on the new
