@@ -1245,7 +1245,7 @@ fn edge_crossing(
 /// (bisection), if its ends lie on different sides.
 fn segment_root(combined: &Combined, a: DVec3, b: DVec3) -> Option<DVec3> {
     let inside = |t: f64| combined.signed_distance(a.lerp(b, t)) < 0.0;
-    (inside(0.0) != inside(1.0)).then(|| a.lerp(b, bisect(1.0, inside)))
+    (inside(0.0) != inside(1.0)).then(|| a.lerp(b, bisect(0.0, 1.0, inside)))
 }
 
 /// Distance along `+axis` from `origin` to the combined surface within
@@ -1256,14 +1256,13 @@ fn edge_root(combined: &Combined, origin: DVec3, axis: usize, h: f64) -> Option<
         p[axis] += t;
         combined.signed_distance(p) < 0.0
     };
-    (inside(0.0) != inside(h)).then(|| bisect(h, inside))
+    (inside(0.0) != inside(h)).then(|| bisect(0.0, h, inside))
 }
 
-/// The parameter in [0, `end`] where `inside` changes (bisection, 48
-/// halvings); `inside(0)` and `inside(end)` differ.
-fn bisect(end: f64, inside: impl Fn(f64) -> bool) -> f64 {
-    let start = inside(0.0);
-    let (mut lo, mut hi) = (0.0, end);
+/// The parameter in [`lo`, `hi`] where `inside` changes (bisection, 48
+/// halvings); `inside(lo)` and `inside(hi)` differ.
+fn bisect(mut lo: f64, mut hi: f64, inside: impl Fn(f64) -> bool) -> f64 {
+    let start = inside(lo);
     for _ in 0..48 {
         let mid = 0.5 * (lo + hi);
         if inside(mid) == start {

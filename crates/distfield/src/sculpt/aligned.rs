@@ -48,7 +48,10 @@ pub(super) fn new_edge_segments(surface: &TriMesh, tool: &Tool) -> Vec<[DVec3; 2
 /// Where the tool's surface crosses segment `a`-`b` (bisection; the
 /// ends lie on different sides).
 fn tool_root(tool: &Tool, a: DVec3, b: DVec3) -> DVec3 {
-    a.lerp(b, bisect(1.0, |t| tool.signed_distance(a.lerp(b, t)) < 0.0))
+    a.lerp(
+        b,
+        bisect(0.0, 1.0, |t| tool.signed_distance(a.lerp(b, t)) < 0.0),
+    )
 }
 
 /// What [`align_to_new_edge`] did: samples offered a place on the new
@@ -246,16 +249,7 @@ impl Truth for ResultTruth<'_, '_> {
         let step = max / HIT_STEPS as f64;
         let inside = at(0.0);
         let k = (1..=HIT_STEPS).find(|&k| at(k as f64 * step) != inside)?;
-        let (mut lo, mut hi) = ((k - 1) as f64 * step, k as f64 * step);
-        for _ in 0..48 {
-            let mid = 0.5 * (lo + hi);
-            if at(mid) == inside {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        Some(0.5 * (lo + hi))
+        Some(bisect((k - 1) as f64 * step, k as f64 * step, at))
     }
 }
 

@@ -13,7 +13,7 @@
 //! result's corners, all of them and the samples' sides are offered
 //! together ([`add_corner_sets`]).
 
-use super::{result_features, result_points, Combined, Tool};
+use super::{bisect, result_features, result_points, Combined, Tool};
 use crate::extract::{corner_nodes, crosses};
 use crate::features::{cell_of, CellFeatures};
 use crate::offset::node_position;
@@ -135,20 +135,9 @@ pub(super) fn tool_corners(tool: &Tool, object: &MeshQuery, h: f64) -> Vec<DVec3
         let ts: Vec<f64> = edge.parameters(EDGE_STEP * h).collect();
         for pair in ts.windows(2) {
             let side = |t: f64| object.signed_distance(edge.at(t)) < 0.0;
-            let (mut lo, mut hi) = (pair[0], pair[1]);
-            let inside = side(lo);
-            if inside == side(hi) {
-                continue;
+            if side(pair[0]) != side(pair[1]) {
+                corners.push(edge.at(bisect(pair[0], pair[1], side)));
             }
-            for _ in 0..48 {
-                let mid = 0.5 * (lo + hi);
-                if side(mid) == inside {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            corners.push(edge.at(0.5 * (lo + hi)));
         }
     }
     corners
