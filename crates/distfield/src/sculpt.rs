@@ -881,19 +881,11 @@ fn result_cell_features(
     corners: &[DVec3],
 ) -> CellFeatures {
     let h = spec.spacing;
-    let kept = |p: DVec3| combined.signed_distance(p).abs() < 1e-6 * h;
-    let mut pieces: Vec<[DVec3; 2]> = old
-        .map(|f| f.pieces.as_slice())
-        .unwrap_or_default()
-        .iter()
-        .filter_map(|&[a, b]| match (kept(a), kept(b)) {
-            (true, true) => Some([a, b]),
-            (true, false) => Some([a, last_kept(a, b, kept)]),
-            (false, true) => Some([last_kept(b, a, kept), b]),
-            (false, false) => None,
-        })
-        .filter(|[a, b]| a.distance(*b) > 1e-6 * h)
-        .collect();
+    let mut pieces = kept_pieces(
+        old.map(|f| f.pieces.as_slice()).unwrap_or_default(),
+        combined,
+        h,
+    );
     let edge = new_edge_points(spec, combined, cell);
     pieces.extend(chain_points(&edge, h));
     CellFeatures {
@@ -901,6 +893,22 @@ fn result_cell_features(
         pieces,
         ..Default::default()
     }
+}
+
+/// The stretches of the object's feature segments `pieces` that lie on
+/// the result (the `combined` distance within 1e-6 `h` of 0), each cut
+/// back to its last point there; none shorter than that.
+fn kept_pieces(pieces: &[[DVec3; 2]], combined: &Combined, h: f64) -> Vec<[DVec3; 2]> {
+    let kept = |p: DVec3| combined.signed_distance(p).abs() < 1e-6 * h;
+    (pieces.iter())
+        .filter_map(|&[a, b]| match (kept(a), kept(b)) {
+            (true, true) => Some([a, b]),
+            (true, false) => Some([a, last_kept(a, b, kept)]),
+            (false, true) => Some([last_kept(b, a, kept), b]),
+            (false, false) => None,
+        })
+        .filter(|[a, b]| a.distance(*b) > 1e-6 * h)
+        .collect()
 }
 
 /// The last point of segment `a`-`b` from `a` on which `kept` holds

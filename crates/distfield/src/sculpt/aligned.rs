@@ -4,7 +4,7 @@
 //! cubes on the offset grid runs the surface through the edge instead of
 //! cutting it off by up to a cell.
 
-use super::{bisect, last_kept, result_points, Combined, Tool};
+use super::{bisect, kept_pieces, result_points, Combined, Tool};
 use crate::extract::corner_nodes;
 use crate::features::{cell_of, clip_to_cells, CellFeatures};
 use crate::offset::{
@@ -295,18 +295,9 @@ fn add_kept_features(features: &mut CellFeatures, old: &CellFeatures, combined: 
     features
         .bends
         .extend(old.bends.iter().copied().filter(|&p| kept(p)));
-    let pieces = old
-        .pieces
-        .iter()
-        .filter_map(|&[a, b]| match (kept(a), kept(b)) {
-            (true, true) => Some([a, b]),
-            (true, false) => Some([a, last_kept(a, b, kept)]),
-            (false, true) => Some([last_kept(b, a, kept), b]),
-            (false, false) => None,
-        });
     features
         .pieces
-        .extend(pieces.filter(|[a, b]| a.distance(*b) > 1e-6 * h));
+        .extend(kept_pieces(&old.pieces, combined, h));
 }
 
 /// Fit the samples around the new edge to the result as construction
