@@ -168,8 +168,9 @@ fn stack_samples(stack: &SliceStack, caps: EndCaps) -> Vec<Sample> {
     thinned(samples, THINNING * finest_spacing)
 }
 
-/// A sample: position and normal, in the plane's coordinates (the axis as
-/// z, the level added).
+/// A sample: position and normal; the Hermite ones in the plane's
+/// coordinates (the axis as z, the level added) until [`unflat`], the
+/// interpolated ones in the input's.
 type Sample = (DVec3, DVec3);
 
 /// `p` in plane coordinates (the stacking axis as z) back in the input's.
