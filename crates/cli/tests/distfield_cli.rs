@@ -483,16 +483,11 @@ fn oversized_grids_self_intersections_and_cut_odfs_are_refused() {
         );
         assert!(started.elapsed().as_secs_f64() < 5.0, "refused up front");
     }
-    let a = cuboid(DVec3::splat(-0.5), DVec3::splat(0.5));
-    let b = cuboid(DVec3::new(-0.1, -0.2, -0.3), DVec3::new(0.9, 0.8, 0.7));
-    let n = a.vertices.len() as u32;
-    let both = TriMesh {
-        vertices: [a.vertices.clone(), b.vertices.clone()].concat(),
-        triangles: (a.triangles.iter().copied())
-            .chain(b.triangles.iter().map(|t| t.map(|v| v + n)))
-            .collect(),
-        normals: None,
-    };
+    let mut both = cuboid(DVec3::splat(-0.5), DVec3::splat(0.5));
+    both.append(&cuboid(
+        DVec3::new(-0.1, -0.2, -0.3),
+        DVec3::new(0.9, 0.8, 0.7),
+    ));
     let crossing = write_mesh(dir.path(), "crossing.ply", both);
     let odf = dir.path().join("x.odf");
     assert_fails_with(

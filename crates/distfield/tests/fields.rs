@@ -1456,16 +1456,11 @@ fn further_points_keep_a_corner_and_an_edge_one_point_per_cell_cuts() {
 /// Two cubes overlapping, written as one mesh: closed, but faces of each
 /// cross the other. Their union is a box.
 fn overlapping_cubes(angles: [f64; 3]) -> (TriMesh, TriMesh) {
-    let a = cuboid(DVec3::splat(-0.5), DVec3::splat(0.5));
-    let b = cuboid(DVec3::new(-0.1, -0.5, -0.5), DVec3::new(0.9, 0.5, 0.5));
-    let n = a.vertices.len() as u32;
-    let both = TriMesh {
-        vertices: [a.vertices.clone(), b.vertices.clone()].concat(),
-        triangles: (a.triangles.iter().copied())
-            .chain(b.triangles.iter().map(|t| t.map(|v| v + n)))
-            .collect(),
-        normals: None,
-    };
+    let mut both = cuboid(DVec3::splat(-0.5), DVec3::splat(0.5));
+    both.append(&cuboid(
+        DVec3::new(-0.1, -0.5, -0.5),
+        DVec3::new(0.9, 0.5, 0.5),
+    ));
     let union = cuboid(DVec3::splat(-0.5), DVec3::new(0.9, 0.5, 0.5));
     (rotate(&both, angles), rotate(&union, angles))
 }

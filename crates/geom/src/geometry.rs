@@ -76,6 +76,21 @@ impl TriMesh {
         self.triangles[t].map(|i| self.vertices[i as usize])
     }
 
+    /// Add `other`'s vertices and triangles (renumbered) to this mesh;
+    /// vertex normals are kept only if both meshes have them.
+    pub fn append(&mut self, other: &TriMesh) {
+        let offset = self.vertices.len() as u32;
+        self.vertices.extend(&other.vertices);
+        (self.triangles).extend(other.triangles.iter().map(|t| t.map(|i| i + offset)));
+        self.normals = match (self.normals.take(), &other.normals) {
+            (Some(mut mine), Some(theirs)) => {
+                mine.extend(theirs);
+                Some(mine)
+            }
+            _ => None,
+        };
+    }
+
     /// Total surface area.
     pub fn area(&self) -> f64 {
         (0..self.triangles.len())
@@ -242,6 +257,35 @@ impl Geometry {
 mod tests {
     use super::*;
     use crate::shapes::icosphere;
+
+    #[test]
+    fn an_appended_mesh_keeps_its_triangles_and_drops_unmatched_normals() {
+        let a = icosphere(DVec3::ZERO, 1.0, 2);
+        let b = icosphere(DVec3::new(3.0, 0.0, 0.0), 0.5, 1);
+        let mut both = a.clone();
+        both.append(&b);
+        assert_eq!(both.vertices.len(), a.vertices.len() + b.vertices.len());
+        assert_eq!(both.triangles.len(), a.triangles.len() + b.triangles.len());
+        let last = both.triangles.len() - 1;
+        assert_eq!(both.corners(last), b.corners(b.triangles.len() - 1));
+        assert!((both.area() - a.area() - b.area()).abs() < 1e-12);
+        let with_normals = |m: &TriMesh| TriMesh {
+            normals: Some(m.vertices.clone()),
+            ..m.clone()
+        };
+        let mut one_side = with_normals(&a);
+        one_side.append(&TriMesh {
+            normals: None,
+            ..b.clone()
+        });
+        assert!(one_side.normals.is_none());
+        let mut two_sides = with_normals(&a);
+        two_sides.append(&with_normals(&b));
+        assert_eq!(
+            two_sides.normals.map(|n| n.len()),
+            Some(both.vertices.len())
+        );
+    }
 
     #[test]
     fn specks_are_removed_and_the_rest_kept_whole() {

@@ -463,11 +463,8 @@ mod tests {
 
     /// `a` and `b` as one mesh of two pieces.
     fn both(a: &TriMesh, b: &TriMesh) -> TriMesh {
-        let offset = a.vertices.len() as u32;
         let mut mesh = a.clone();
-        mesh.vertices.extend(&b.vertices);
-        let moved = b.triangles.iter().map(|t| t.map(|i| i + offset));
-        mesh.triangles.extend(moved);
+        mesh.append(b);
         mesh
     }
 
