@@ -147,6 +147,9 @@ fn extend_to_tips(
     core: f64,
     oriented: f64,
 ) -> Vec<bool> {
+    if tips.is_empty() {
+        return vec![false; mesh.vertices.len()];
+    }
     let bvh = TriangleBvh::new(mesh);
     let vertex_tree = KdTree::new(&mesh.vertices);
     let fans = vertex_faces(&mesh.triangles, mesh.vertices.len());
@@ -234,6 +237,9 @@ fn pull_towards(
     core: f64,
     radius: f64,
 ) -> bool {
+    if targets.is_empty() {
+        return false;
+    }
     let bvh = TriangleBvh::new(mesh);
     let normals = area_weighted_normals(&mesh.vertices, &mesh.triangles);
     let vertex_tree = KdTree::new(&mesh.vertices);
