@@ -1049,7 +1049,8 @@ fn flip_to_join(mesh: &mut TriMesh, feature: &HashSet<u32>) -> usize {
 
 /// Collapse every edge shorter than `shortest` whose collapse keeps the
 /// mesh a closed manifold (the link condition: the two ends share no
-/// neighbour but the two opposite corners), keeping the end in `keep`
+/// neighbour but the two opposite corners, each of which keeps three
+/// triangles at least), keeping the end in `keep`
 /// (a feature point) or else the lower index, and drop the vertices left
 /// unused. Returns the number of edges collapsed.
 fn collapse_short_edges(mesh: &mut TriMesh, keep: &HashSet<u32>, shortest: f64) -> usize {
@@ -1141,7 +1142,10 @@ fn collapse(
         .iter()
         .map(|&t| third(mesh.triangles[t], stay, gone))
         .collect();
-    if common != opposite || opposite.len() != 2 {
+    // Each opposite corner loses a triangle: one left with three would
+    // leave two triangles back to back (a tetrahedron collapsing).
+    let degree = |v: u32| around[v as usize].iter().filter(|&&t| alive[t]).count();
+    if common != opposite || opposite.len() != 2 || opposite.iter().any(|&v| degree(v) <= 3) {
         return false;
     }
     for &t in &on_edge {
@@ -1199,6 +1203,57 @@ fn third<T: Copy + PartialEq>(t: [T; 3], a: T, b: T) -> T {
 mod tests {
     use super::*;
     use surfrecon_geom::metrics::topology;
+
+    /// The unit octahedron: vertices ±x, ±y, ±z.
+    fn octahedron() -> TriMesh {
+        let vertices = vec![
+            DVec3::X,
+            DVec3::NEG_X,
+            DVec3::Y,
+            DVec3::NEG_Y,
+            DVec3::Z,
+            DVec3::NEG_Z,
+        ];
+        let mut triangles = Vec::new();
+        for (x, y) in [(0, 2), (2, 1), (1, 3), (3, 0)] {
+            triangles.push([x, y, 4]);
+            triangles.push([y, x, 5]);
+        }
+        TriMesh {
+            vertices,
+            triangles,
+            normals: None,
+        }
+    }
+
+    /// An octahedron whose edge from +x to +y is split 1e-4 from +x: the
+    /// short edge collapses back (the feature vertex stays), and a
+    /// tetrahedron, whose collapse would leave two triangles back to
+    /// back, keeps its short edge.
+    #[test]
+    fn short_edges_collapse_where_the_mesh_stays_a_closed_manifold() {
+        let mut mesh = octahedron();
+        let split = mesh.vertices.len() as u32;
+        mesh.vertices.push(DVec3::X.lerp(DVec3::Y, 1e-4));
+        mesh.triangles
+            .retain(|t| !(t.contains(&0) && t.contains(&2)));
+        mesh.triangles
+            .extend([[0, split, 4], [split, 2, 4], [split, 0, 5], [2, split, 5]]);
+        let keep = HashSet::from([split]);
+        assert_eq!(collapse_short_edges(&mut mesh, &keep, 0.01), 1);
+        assert_eq!((mesh.vertices.len(), mesh.triangles.len()), (6, 8));
+        assert!(mesh.vertices.contains(&DVec3::X.lerp(DVec3::Y, 1e-4)));
+        let t = topology(&mesh);
+        assert!(t.watertight && t.vertex_manifold && t.euler == 2, "{t:?}");
+
+        let mut tetrahedron = TriMesh {
+            vertices: vec![DVec3::ZERO, DVec3::X * 1e-4, DVec3::Y, DVec3::Z],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+            normals: None,
+        };
+        assert_eq!(collapse_short_edges(&mut tetrahedron, &keep, 0.01), 0);
+        assert_eq!(tetrahedron.triangles.len(), 4);
+    }
 
     /// Three nodes a side, the centre inside: an octahedron of six
     /// crossings, one triangle of them in each of the eight cells.
