@@ -282,6 +282,13 @@ impl OffsetField {
     pub fn extract(&self) -> (TriMesh, ExtractReport) {
         extract(self, &BTreeMap::new())
     }
+
+    /// The surface before extraction's last steps (see
+    /// [`crate::extract::raw_surface`]), which sculpting decides on.
+    pub(crate) fn raw_surface(&self) -> TriMesh {
+        let none = BTreeMap::new();
+        crate::extract::raw_surface(self, &none, &none, &BTreeMap::new())
+    }
 }
 
 impl SampledField for OffsetField {

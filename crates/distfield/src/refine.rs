@@ -865,7 +865,7 @@ impl Place {
     /// place (by the triangles' centroids).
     fn surface(&self, local: &UnifiedField) -> (Vec<[DVec3; 3]>, Vec<[DVec3; 3]>) {
         let h = local.spec.spacing;
-        let (mesh, _) = local.extract();
+        let mesh = local.raw_surface();
         let lo = DVec3::from_array(local.spec.position(local.spec.unlinear(self.cell)));
         let within = |t: &[DVec3; 3], reach: f64| {
             let m = (t[0] + t[1] + t[2]) / 3.0;
@@ -953,7 +953,7 @@ fn places_above(
     limit: f64,
 ) -> Vec<usize> {
     let spec = field.spec;
-    let (surface, _) = field.extract();
+    let surface = field.raw_surface();
     let mut by_cell: HashMap<usize, Vec<[DVec3; 3]>> = HashMap::new();
     for t in 0..surface.triangles.len() {
         let tri = surface.corners(t);

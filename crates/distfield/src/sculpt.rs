@@ -384,7 +384,7 @@ pub fn sculpt_udf(
     tool: &Tool,
     threshold: f64,
 ) -> Result<SculptReport, DistFieldError> {
-    let surface = field.extract().0;
+    let surface = field.raw_surface();
     let combined = Combined::new(&surface, tool, operation)?;
     let features = Features::detect(&surface, DEFAULT_FEATURE_ANGLE_DEG);
     let mut corners = new_corners(&surface, &features, tool);
@@ -1577,7 +1577,7 @@ pub fn sculpt_odf(
     operation: Operation,
     tool: &Tool,
 ) -> Result<SculptReport, DistFieldError> {
-    let surface = field.extract().0;
+    let surface = field.raw_surface();
     let combined = Combined::new(&surface, tool, operation)?;
     let spec = field.spec;
     let h = spec.spacing;

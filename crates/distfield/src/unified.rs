@@ -479,7 +479,7 @@ pub(crate) fn surface_near(field: &UnifiedField, cell: usize, reach: f64) -> Vec
 /// `lo` on (the triangles near the block's border may differ from the
 /// whole field's).
 pub(crate) fn local_surface(field: &UnifiedField, lo: [usize; 3], side: usize) -> Vec<[DVec3; 3]> {
-    let (mesh, _) = crop(field, lo, side).extract();
+    let mesh = crop(field, lo, side).raw_surface();
     (0..mesh.triangles.len()).map(|t| mesh.corners(t)).collect()
 }
 
@@ -775,10 +775,13 @@ impl UnifiedField {
 
     /// Feature points by their cell (see [`owner_cell`]).
     pub fn feature_points(&self) -> BTreeMap<usize, DVec3> {
+        let far = FAR_FROM_OWNER * self.spec.spacing;
         self.extras
             .iter()
             .filter_map(|(&n, e)| match *e {
-                Extra::FeaturePoint(p) => owner_cell(&self.spec, n as usize, p).map(|c| (c, p)),
+                Extra::FeaturePoint(p) => owner_cell(&self.spec, n as usize, p)
+                    .filter(|&c| outside_cell(&self.spec, c, p) <= far)
+                    .map(|c| (c, p)),
                 _ => None,
             })
             .collect()
@@ -798,6 +801,15 @@ impl UnifiedField {
         let first = self.feature_points();
         let more = self.more_points();
         crate::extract::extract_points(self, &first, &self.second_points(&first), &more)
+    }
+
+    /// The surface before extraction's last steps (see
+    /// [`crate::extract::raw_surface`]): what construction and sculpting
+    /// score and decide on, in crops many times over.
+    pub(crate) fn raw_surface(&self) -> TriMesh {
+        let first = self.feature_points();
+        let more = self.more_points();
+        crate::extract::raw_surface(self, &first, &self.second_points(&first), &more)
     }
 
     /// [`Self::cell_points`] by cell as extraction takes them.
@@ -826,6 +838,21 @@ impl UnifiedField {
 /// counts as floating ([`UnifiedField::floats`]); samples moved onto the
 /// surface hold ±1e-9 h or 0.
 const FLOAT_OFF_SURFACE: f64 = 1e-6;
+
+/// How far (in spacings) a stored feature point may lie outside the cell
+/// it belongs to ([`owner_cell`]) and still be fanned. Construction's lie
+/// within 0.28 h (fandisk); a few sculpted points lay 0.7-0.9 h away
+/// (two cells from the sheet they were meant for), and their fans
+/// crossed the neighbours' triangles (fandisk − sphere: 8 of its 18
+/// crossing pairs).
+const FAR_FROM_OWNER: f64 = 0.5;
+
+/// Distance from `p` to the box of `cell`.
+fn outside_cell(spec: &GridSpec<3>, cell: usize, p: DVec3) -> f64 {
+    let lo = DVec3::from_array(spec.position(spec.unlinear(cell)));
+    let hi = lo + DVec3::splat(spec.spacing);
+    (lo - p).max(p - hi).max(DVec3::ZERO).length()
+}
 
 impl SampledField for UnifiedField {
     fn spec(&self) -> &GridSpec<3> {

@@ -118,6 +118,18 @@ fn assert_closed_manifold(mesh: &TriMesh, euler: i64) {
     assert_eq!((t.components, t.euler), (1, euler), "{t:?}");
 }
 
+/// No two triangles of `mesh` cross (exact test). Before session 35 a
+/// sample on the surface left its crossings' cluster of vertices 0.001 h
+/// apart, whose slivers pierced their neighbours at sharp edges.
+fn assert_no_crossings(mesh: &TriMesh, what: &str) {
+    let pairs = surfrecon_geom::intersections::self_intersections(mesh);
+    assert!(
+        pairs.is_empty(),
+        "{what}: {} crossing triangle pairs",
+        pairs.len()
+    );
+}
+
 fn check_corners_kept(shape: TriMesh, cells: usize) {
     let size = GridSize::Resolution(cells);
     let (udf, report) = udf_of(&shape, size);
@@ -576,6 +588,8 @@ fn fandisk_fields_are_closed_and_closer_than_the_regular_field() {
     }
     for (name, mesh) in [("udf", &udf_mesh), ("odf", &odf_mesh)] {
         assert_closed_manifold(mesh, 2);
+        // 4 pairs each before session 35.
+        assert_no_crossings(mesh, name);
         let (max, mean) = error(mesh);
         eprintln!(
             "{name}: max {} h, mean {} h (regular {} / {})",
@@ -1009,6 +1023,53 @@ fn sculpting_an_odf_of_fandisk_keeps_the_new_edge() {
     );
     assert!(worst < 0.45, "the new edge is cut by {worst} h");
     assert!(off < 0.25, "the surface leaves the result by {off} h");
+}
+
+/// Fandisk minus the second sphere of BENCHMARKS.md's sculpting cases on
+/// the offset field: samples put on the new edge lie on the surface, and
+/// their crossings' clusters crossed the triangles beside them (8 pairs
+/// before session 35).
+#[test]
+fn sculpting_an_odf_of_fandisk_makes_no_crossing_triangles() {
+    use surfrecon_distfield::sculpt::{sculpt_odf, Operation, Tool};
+    let shape = fandisk();
+    let (mut odf, _) = odf_of(&shape, GridSize::Resolution(64));
+    let tool = Tool::Sphere {
+        centre: DVec3::new(3.9, 13.6, -1.9),
+        radius: 1.3,
+    };
+    sculpt_odf(&mut odf, Operation::Subtract, &tool).unwrap();
+    let (mesh, report) = odf.extract();
+    assert_closed_manifold(&mesh, 2);
+    assert!(report.collapsed > 0, "{report:?}");
+    assert_no_crossings(&mesh, "fandisk - sphere (3.9, 13.6, -1.9; r 1.3)");
+}
+
+/// Fandisk minus a sphere on the unified field, on the grid of `surfrecon
+/// distance --resolution 64`: 18 crossing triangle pairs before session
+/// 35 (4 where samples on the surface left clusters of crossings, 13 at
+/// fans around sculpted points stored two cells from their cells); 1
+/// left, two fans back to back around a point stored at two samples.
+#[test]
+fn sculpting_fandisk_leaves_no_fans_around_far_points() {
+    use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
+    let shape = fandisk();
+    let (mut udf, _) = build_udf(&shape, &UdfOptions::default()).unwrap();
+    let tool = Tool::Sphere {
+        centre: DVec3::new(2.5, 15.5, -1.3),
+        radius: 1.0,
+    };
+    sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
+    let h = udf.spec.spacing;
+    for (&cell, &p) in &udf.feature_points() {
+        let lo = DVec3::from_array(udf.spec.position(udf.spec.unlinear(cell)));
+        let off = (lo - p).max(p - lo - DVec3::splat(h)).max(DVec3::ZERO);
+        assert!(off.length() <= 0.5 * h, "cell {cell} fans around {p}");
+    }
+    let (mesh, _) = udf.extract();
+    assert_closed_manifold(&mesh, 2);
+    let pairs = surfrecon_geom::intersections::self_intersections(&mesh);
+    assert!(pairs.len() <= 1, "{} crossing triangle pairs", pairs.len());
 }
 
 /// The turned box minus a cylinder (BENCHMARKS.md's named case) on the

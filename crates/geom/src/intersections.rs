@@ -65,6 +65,79 @@ pub fn self_intersections(mesh: &TriMesh) -> Vec<[u32; 2]> {
     pairs
 }
 
+/// The pairs of [`self_intersections`] that hold one of `faces` (any
+/// order, repeats allowed): after a few vertices moved, only their faces
+/// need the test again. Each of `faces` is tested against every face whose
+/// box meets its own, found through a grid over `faces`' boxes alone, so
+/// the cost is one pass over the mesh's faces plus the tests near `faces`.
+pub fn intersections_of(mesh: &TriMesh, faces: &[u32]) -> Vec<[u32; 2]> {
+    if faces.is_empty() {
+        return Vec::new();
+    }
+    let corners = |f: u32| mesh.corners(f as usize);
+    // In the order `self_intersections` tests them (lower face first).
+    let meet_by_position = |f: u32, g: u32| positions_meet(&corners(f), &corners(g));
+    let boxes: Vec<Aabb> = faces
+        .iter()
+        .map(|&f| Aabb::from_points(&corners(f)))
+        .collect();
+    let extent = boxes.iter().fold(Aabb::EMPTY, |b, f| b.union(*f));
+    // Cells as large as the largest box: each of `faces` covers at most
+    // two cells per axis.
+    let size = boxes
+        .iter()
+        .map(|b| b.size().max_element())
+        .fold(f64::MIN_POSITIVE, f64::max);
+    let grid = Grid {
+        origin: extent.min,
+        size,
+    };
+    let mut cells: std::collections::HashMap<u64, Vec<u32>> = std::collections::HashMap::new();
+    for (k, b) in boxes.iter().enumerate() {
+        for key in grid.keys(b, &extent) {
+            cells.entry(key).or_default().push(k as u32);
+        }
+    }
+    let mut pairs: Vec<[u32; 2]> = (0..mesh.triangles.len() as u32)
+        .into_par_iter()
+        .flat_map_iter(|g| {
+            let pg = corners(g);
+            let bg = Aabb::from_points(&pg);
+            let mut found = Vec::new();
+            if !bg.overlaps(&extent) {
+                return found;
+            }
+            for key in grid.keys(&bg, &extent) {
+                for &k in cells.get(&key).map_or(&[][..], |v| v.as_slice()) {
+                    let (f, bf) = (faces[k as usize], &boxes[k as usize]);
+                    // Each overlapping pair once per face of `faces`: in
+                    // the cell holding the low corner of the overlap.
+                    if f != g
+                        && bf.overlaps(&bg)
+                        && grid.key(bf.min.max(bg.min)) == key
+                        && meet_by_position(f.min(g), f.max(g))
+                    {
+                        found.push([f.min(g), f.max(g)]);
+                    }
+                }
+            }
+            found
+        })
+        .collect();
+    pairs.par_sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+/// [`faces_meet`] with corners shared where their positions are exactly
+/// equal, as welding numbers them.
+fn positions_meet(pf: &[DVec3; 3], pg: &[DVec3; 3]) -> bool {
+    let all = [pf[0], pf[1], pf[2], pg[0], pg[1], pg[2]];
+    let bits = |p: DVec3| p.to_array().map(f64::to_bits);
+    let id = |i: usize| (0..=i).find(|&j| bits(all[j]) == bits(all[i])).unwrap() as u32;
+    faces_meet([0, 1, 2].map(id), pf, [3, 4, 5].map(id), pg)
+}
+
 /// The faces' corners by welded vertex number and position.
 struct Faces {
     corners: Vec<[u32; 3]>,
@@ -310,6 +383,17 @@ impl Grid {
         (x << (2 * CELL_BITS)) | (y << CELL_BITS) | z
     }
 
+    /// Keys of the cells `b` covers within `extent` (boxes overlapping).
+    fn keys(&self, b: &Aabb, extent: &Aabb) -> impl Iterator<Item = u64> {
+        let lo = self.cell(b.min.max(extent.min));
+        let hi = self.cell(b.max.min(extent.max));
+        (lo[0]..=hi[0]).flat_map(move |x| {
+            (lo[1]..=hi[1]).flat_map(move |y| {
+                (lo[2]..=hi[2]).map(move |z| (x << (2 * CELL_BITS)) | (y << CELL_BITS) | z)
+            })
+        })
+    }
+
     fn cell_count(&self, b: &Aabb) -> usize {
         let (lo, hi) = (self.cell(b.min), self.cell(b.max));
         (0..3).map(|a| (hi[a] - lo[a] + 1) as usize).product()
@@ -499,5 +583,33 @@ mod tests {
         }
         assert!(all.len() > 20, "{}", all.len());
         assert_eq!(self_intersections(&m), all);
+    }
+
+    /// The pairs found for a set of faces are exactly those of the whole
+    /// mesh that hold one of them, shared corners included: a sphere with
+    /// some vertices thrown about (faces fold over their neighbours), one
+    /// vertex moved onto another's position (welded by position).
+    #[test]
+    fn the_pairs_of_some_faces_are_those_of_the_whole_mesh() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let mut m = icosphere(DVec3::ZERO, 1.0, 3);
+        for v in (0..m.vertices.len()).step_by(9) {
+            let d = DVec3::new(rng.random(), rng.random(), rng.random()) - 0.5;
+            m.vertices[v] += d * 0.6;
+        }
+        m.vertices[5] = m.vertices[40];
+        let all = self_intersections(&m);
+        assert!(all.len() > 50, "{}", all.len());
+        let every = |step: usize| (0..m.triangles.len() as u32).step_by(step).collect();
+        let subsets: Vec<Vec<u32>> = vec![every(1), every(3), every(17), vec![all[0][1]]];
+        for faces in subsets {
+            let want: Vec<[u32; 2]> = (all.iter())
+                .filter(|p| p.iter().any(|f| faces.contains(f)))
+                .copied()
+                .collect();
+            assert!(!want.is_empty());
+            assert_eq!(intersections_of(&m, &faces), want, "{} faces", faces.len());
+        }
+        assert!(intersections_of(&m, &[]).is_empty());
     }
 }

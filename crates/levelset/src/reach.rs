@@ -72,7 +72,7 @@ pub fn reach_far_points(
 ) -> usize {
     let far = FAR_CELLS * spacing;
     let tree = KdTree::new(points);
-    let distances = distances_to(mesh, points);
+    let distances = distances_beyond(mesh, points, far);
     let sampled = SampledSurface {
         points,
         tree: &tree,
@@ -97,7 +97,7 @@ pub fn reach_far_points(
         .filter(|&(&i, &t)| !t && pullable(distances[i]) && sampled.on_missed_surface(points[i], i))
         .map(|(&i, _)| points[i])
         .collect();
-    let dropped_distances = distances_to(mesh, dropped);
+    let dropped_distances = distances_beyond(mesh, dropped, far);
     tips.extend(
         (dropped.iter().zip(&dropped_distances))
             .filter(|&(&p, &d)| tip_reachable(d) && sampled.tips_a_line(p, None))
@@ -147,6 +147,9 @@ fn extend_to_tips(
     core: f64,
     oriented: f64,
 ) -> Vec<bool> {
+    if tips.is_empty() {
+        return vec![false; mesh.vertices.len()];
+    }
     let bvh = TriangleBvh::new(mesh);
     let vertex_tree = KdTree::new(&mesh.vertices);
     let fans = vertex_faces(&mesh.triangles, mesh.vertices.len());
@@ -195,6 +198,24 @@ fn turned_over(old: DVec3, new: DVec3) -> bool {
     new.dot(old) < -0.2 * new.length() * old.length()
 }
 
+/// Distance from each point to the mesh where it exceeds `far`, else a
+/// value of at most `far` (the distance to the nearest vertex, when that
+/// is within `far`): the reach asks only which data lie farther than
+/// `far`, and after snapping most data lie on a vertex, which a k-d tree
+/// finds several times faster than the closest triangle.
+fn distances_beyond(mesh: &TriMesh, points: &[DVec3], far: f64) -> Vec<f64> {
+    let vertex_tree = KdTree::new(&mesh.vertices);
+    let mut distances: Vec<f64> = (points.par_iter())
+        .map(|&p| vertex_tree.nearest(p).map_or(f64::INFINITY, |n| n.distance))
+        .collect();
+    let beyond: Vec<usize> = (0..points.len()).filter(|&i| distances[i] > far).collect();
+    let exact = distances_to(mesh, &beyond.iter().map(|&i| points[i]).collect::<Vec<_>>());
+    for (i, d) in beyond.into_iter().zip(exact) {
+        distances[i] = d;
+    }
+    distances
+}
+
 /// Exact distance from each point to the mesh.
 fn distances_to(mesh: &TriMesh, points: &[DVec3]) -> Vec<f64> {
     let bvh = TriangleBvh::new(mesh);
@@ -216,6 +237,9 @@ fn pull_towards(
     core: f64,
     radius: f64,
 ) -> bool {
+    if targets.is_empty() {
+        return false;
+    }
     let bvh = TriangleBvh::new(mesh);
     let normals = area_weighted_normals(&mesh.vertices, &mesh.triangles);
     let vertex_tree = KdTree::new(&mesh.vertices);

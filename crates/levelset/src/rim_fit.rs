@@ -137,12 +137,16 @@ fn accumulate(
     target: f64,
     w: f64,
 ) {
+    // The gradients' rows are mostly zeros: skipping their products adds
+    // nothing but +0 (sums of products never come to −0 from +0).
     for i in 0..10 {
         if row[i] == 0.0 {
             continue;
         }
         for j in 0..10 {
-            ata[i][j] += w * row[i] * row[j];
+            if row[j] != 0.0 {
+                ata[i][j] += w * row[i] * row[j];
+            }
         }
         atb[i] += w * row[i] * target;
     }

@@ -76,6 +76,7 @@ fn feature_surface(args: &Args, ctx: &Context) -> anyhow::Result<()> {
     summary["fans_refused"] = report.fans_refused.into();
     summary["flips"] = report.flips.into();
     summary["merged"] = report.merged.into();
+    summary["collapsed"] = report.collapsed.into();
     let format = io::Format::from_path(&args.output)?;
     if !format.stores_triangles() {
         bail!(
