@@ -209,19 +209,20 @@ fn project_onto_quadrics(points: &[DVec3], tree: &KdTree, dim: usize) -> Vec<DVe
 /// neighbour of the other); removing the clear ones first exposes the
 /// rest, so the tests repeat until nothing more goes.
 fn remove_outliers(points: &[DVec3], dim: usize) -> Vec<DVec3> {
-    let first_test = if noise_level(points, &KdTree::new(points), dim).is_some() {
+    let tree = KdTree::new(points);
+    let first_test = if noise_level(points, &tree, dim).is_some() {
         SurfaceTest::Sparse
     } else {
         SurfaceTest::Loose
     };
-    let mut kept = points.to_vec();
-    for round in 0..OUTLIER_PASSES {
-        let before = kept.len();
-        let test = if round == 0 { first_test } else { SurfaceTest::Off };
-        kept = drop_outliers(&kept, dim, test);
+    let mut before = points.len();
+    let mut kept = drop_outliers(points, &tree, dim, first_test);
+    for _ in 1..OUTLIER_PASSES {
         if before - kept.len() <= before / OUTLIER_PASS_SHARE || kept.len() < MIN_POINTS {
             break;
         }
+        before = kept.len();
+        kept = drop_outliers(&kept, &KdTree::new(&kept), dim, SurfaceTest::Off);
     }
     kept
 }
@@ -258,9 +259,10 @@ enum SurfaceTest {
 }
 
 /// One round of outlier removal: isolated points by density, then the
-/// points `test` names that lie off their neighbours' surface.
-fn drop_outliers(points: &[DVec3], dim: usize, test: SurfaceTest) -> Vec<DVec3> {
-    let density = NeighbourTable::build(points, &KdTree::new(points), DENSITY_NEIGHBOURS);
+/// points `test` names that lie off their neighbours' surface. `tree`
+/// indexes `points`.
+fn drop_outliers(points: &[DVec3], tree: &KdTree, dim: usize, test: SurfaceTest) -> Vec<DVec3> {
+    let density = NeighbourTable::build(points, tree, DENSITY_NEIGHBOURS);
     let verdicts = density_verdicts(&density);
     let kept: Vec<(DVec3, Density)> = points
         .iter()
@@ -424,7 +426,14 @@ fn drop_off_surface(points: &[(DVec3, Density)], dim: usize, test: SurfaceTest) 
             if !tested {
                 return true;
             }
-            let found = tree.knn(p, if loose { 2 * NEIGHBOURS + 1 } else { NEIGHBOURS + 1 });
+            let found = tree.knn(
+                p,
+                if loose {
+                    2 * NEIGHBOURS + 1
+                } else {
+                    NEIGHBOURS + 1
+                },
+            );
             let neighbours = found
                 .iter()
                 .filter(|n| n.index != i && !(loose && points[n.index].1 == Density::Sparse))
@@ -1131,7 +1140,7 @@ mod tests {
                 .filter(|p| ((p.x.hypot(p.y) - 1.0).hypot(p.z) - 0.35).abs() > 0.15)
                 .count()
         };
-        let one_round = drop_outliers(&pts, 3, SurfaceTest::Loose);
+        let one_round = drop_outliers(&pts, &KdTree::new(&pts), 3, SurfaceTest::Loose);
         let (cleaned, _) = clean_points(&pts, 3);
         let (left_once, left) = (off(&one_round), off(&cleaned));
         eprintln!(
