@@ -1230,28 +1230,7 @@ fn third<T: Copy + PartialEq>(t: [T; 3], a: T, b: T) -> T {
 mod tests {
     use super::*;
     use surfrecon_geom::metrics::topology;
-
-    /// The unit octahedron: vertices ±x, ±y, ±z.
-    fn octahedron() -> TriMesh {
-        let vertices = vec![
-            DVec3::X,
-            DVec3::NEG_X,
-            DVec3::Y,
-            DVec3::NEG_Y,
-            DVec3::Z,
-            DVec3::NEG_Z,
-        ];
-        let mut triangles = Vec::new();
-        for (x, y) in [(0, 2), (2, 1), (1, 3), (3, 0)] {
-            triangles.push([x, y, 4]);
-            triangles.push([y, x, 5]);
-        }
-        TriMesh {
-            vertices,
-            triangles,
-            normals: None,
-        }
-    }
+    use surfrecon_geom::shapes::octahedron;
 
     /// An octahedron whose edge from +x to +y is split 1e-4 from +x: the
     /// short edge collapses back (the feature vertex stays), and a

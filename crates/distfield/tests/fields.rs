@@ -5,7 +5,7 @@ use surfrecon_distfield::grid_for;
 use surfrecon_distfield::query::{deviation, lattice_points, MeshQuery};
 use surfrecon_distfield::unified::{build_udf, Extra, UdfOptions, UnifiedField};
 use surfrecon_geom::metrics::topology;
-use surfrecon_geom::shapes::cuboid;
+use surfrecon_geom::shapes::{cuboid, octahedron};
 use surfrecon_geom::{DVec3, TriMesh};
 use surfrecon_grid::{marching::marching_cubes, sdf::signed_distance, GridSize};
 
@@ -17,27 +17,6 @@ fn rotate(mesh: &TriMesh, angles: [f64; 3]) -> TriMesh {
     TriMesh {
         vertices: mesh.vertices.iter().map(|&v| r * v).collect(),
         ..mesh.clone()
-    }
-}
-
-fn octahedron() -> TriMesh {
-    let vertices = vec![
-        DVec3::X,
-        DVec3::NEG_X,
-        DVec3::Y,
-        DVec3::NEG_Y,
-        DVec3::Z,
-        DVec3::NEG_Z,
-    ];
-    let mut triangles = Vec::new();
-    for &(x, y) in &[(0u32, 2u32), (2, 1), (1, 3), (3, 0)] {
-        triangles.push([x, y, 4]);
-        triangles.push([y, x, 5]);
-    }
-    TriMesh {
-        vertices,
-        triangles,
-        normals: None,
     }
 }
 

@@ -139,6 +139,28 @@ pub fn cuboid(min: DVec3, max: DVec3) -> TriMesh {
     }
 }
 
+/// The octahedron with vertices ±x, ±y, ±z (in that order), outward
+/// winding: the simplest closed mesh whose every vertex is a sharp corner.
+pub fn octahedron() -> TriMesh {
+    let vertices = vec![
+        DVec3::X,
+        DVec3::NEG_X,
+        DVec3::Y,
+        DVec3::NEG_Y,
+        DVec3::Z,
+        DVec3::NEG_Z,
+    ];
+    let triangles = [(0, 2), (2, 1), (1, 3), (3, 0)]
+        .into_iter()
+        .flat_map(|(x, y)| [[x, y, 4], [y, x, 5]])
+        .collect();
+    TriMesh {
+        vertices,
+        triangles,
+        normals: None,
+    }
+}
+
 /// `n` points drawn uniformly by area from the mesh surface (seeded, so the
 /// same call gives the same points), with the faces' unit normals.
 /// Degenerate (zero-area) triangles are never drawn; an empty or zero-area
@@ -211,5 +233,30 @@ mod tests {
         for (p, n) in pc.positions.iter().zip(pc.normals.unwrap()) {
             assert!((*p - DVec3::splat(0.5)).dot(n) > 0.49);
         }
+    }
+
+    #[test]
+    fn octahedron_is_closed_and_wound_outward() {
+        let mesh = octahedron();
+        assert!((mesh.area() - 4.0 * 3f64.sqrt()).abs() < 1e-12);
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+            assert!(
+                (b - a).cross(c - a).dot(a + b + c) > 0.0,
+                "{t:?} faces inward"
+            );
+        }
+        let mut edges: Vec<(u32, u32)> = mesh
+            .triangles
+            .iter()
+            .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        // Each directed edge once, and its reverse too: closed, consistently wound.
+        assert_eq!(edges.len(), 24);
+        assert!(edges
+            .iter()
+            .all(|&(a, b)| edges.binary_search(&(b, a)).is_ok()));
     }
 }
