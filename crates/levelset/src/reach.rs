@@ -15,7 +15,7 @@
 use crate::refine::{collapsed, undo_crossing_moves, undo_degenerating_moves};
 use rayon::prelude::*;
 use surfrecon_geom::fairing::area_weighted_normals;
-use surfrecon_geom::metrics::{vertex_faces, TriangleBvh};
+use surfrecon_geom::metrics::{vertex_faces, TriangleBvh, VertexFaces};
 use surfrecon_geom::normals::symmetric_eigen3;
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::{DVec3, TriMesh};
@@ -137,9 +137,11 @@ pub fn reach_far_points(
 /// `oriented` area point anywhere and are not asked). The fan becomes the
 /// cone's last stretch, as thin as the cone there; pulling the whole end
 /// along with a falloff would stretch its many tiny triangles until some
-/// turned over. The farthest tip takes a vertex first (the samples before
-/// it on the same cone then lie along the new fan). Returns which vertices
-/// moved onto a tip.
+/// turned over. Where no vertex can go alone (an end lopsided off the
+/// tip's axis, whose fan would turn over), the foremost that can goes with
+/// its ring carried part of the way ([`RING_CARRIED`]). The farthest tip
+/// takes a vertex first (the samples before it on the same cone then lie
+/// along the new fan). Returns which vertices moved for a tip.
 fn extend_to_tips(
     mesh: &mut TriMesh,
     tips: &[DVec3],
@@ -168,28 +170,75 @@ fn extend_to_tips(
             .filter(|&v| !taken[v])
             .collect();
         candidates.sort_by(|a, b| ahead(b).total_cmp(&ahead(a)));
-        let movable = |v: usize| {
-            fans.of(v).iter().all(|&t| {
-                let area = |at: DVec3| {
-                    let [a, b, c] = mesh.triangles[t as usize].map(|i| {
-                        if i as usize == v {
-                            at
-                        } else {
-                            mesh.vertices[i as usize]
-                        }
-                    });
-                    (b - a).cross(c - a)
-                };
-                let (old, new) = (area(mesh.vertices[v]), area(p));
-                !collapsed(old, new) && (old.length() < oriented || !turned_over(old, new))
+        candidates.dedup();
+        let keeps_fans =
+            |moves: &[(usize, DVec3)]| fans_keep_their_sides(mesh, &fans, moves, oriented);
+        let alone = candidates
+            .iter()
+            .map(|&v| vec![(v, p)])
+            .find(|m| keeps_fans(m));
+        let carried = |v: usize| {
+            let ring: Vec<usize> = ring_of(mesh, &fans, v).filter(|&r| !taken[r]).collect();
+            RING_CARRIED.iter().find_map(|&share| {
+                let shift = share * (p - mesh.vertices[v]);
+                let moves: Vec<_> = std::iter::once((v, p))
+                    .chain(ring.iter().map(|&r| (r, mesh.vertices[r] + shift)))
+                    .collect();
+                keeps_fans(&moves).then_some(moves)
             })
         };
-        if let Some(v) = candidates.into_iter().find(|&v| movable(v)) {
-            mesh.vertices[v] = p;
+        let moves = alone.or_else(|| candidates.iter().find_map(|&v| carried(v)));
+        for (v, to) in moves.into_iter().flatten() {
+            mesh.vertices[v] = to;
             taken[v] = true;
         }
     }
     taken
+}
+
+/// The shares of a tip's move that the ring of its vertex goes along,
+/// tried in turn, when no vertex can go alone: at the whole move the fan
+/// only translates, and the faces beyond the ring stretch instead.
+const RING_CARRIED: [f64; 3] = [0.5, 0.75, 1.0];
+
+/// The other vertices of the faces around `v`.
+fn ring_of<'a>(
+    mesh: &'a TriMesh,
+    fans: &'a VertexFaces,
+    v: usize,
+) -> impl Iterator<Item = usize> + 'a {
+    let mut ring: Vec<usize> = (fans.of(v).iter())
+        .flat_map(|&t| mesh.triangles[t as usize].map(|i| i as usize))
+        .filter(|&r| r != v)
+        .collect();
+    ring.sort_unstable();
+    ring.dedup();
+    ring.into_iter()
+}
+
+/// Whether moving the vertices as `moves` says leaves every face around
+/// them uncollapsed and not turned over (faces of less than `oriented`
+/// area point anywhere and are not asked).
+fn fans_keep_their_sides(
+    mesh: &TriMesh,
+    fans: &VertexFaces,
+    moves: &[(usize, DVec3)],
+    oriented: f64,
+) -> bool {
+    let moved_to = |i: u32| {
+        (moves.iter())
+            .find(|&&(v, _)| v == i as usize)
+            .map_or(mesh.vertices[i as usize], |&(_, to)| to)
+    };
+    let normal = |[a, b, c]: [DVec3; 3]| (b - a).cross(c - a);
+    moves.iter().all(|&(v, _)| {
+        fans.of(v).iter().all(|&t| {
+            let corners = mesh.triangles[t as usize];
+            let old = normal(corners.map(|i| mesh.vertices[i as usize]));
+            let new = normal(corners.map(moved_to));
+            !collapsed(old, new) && (old.length() < oriented || !turned_over(old, new))
+        })
+    })
 }
 
 /// Turned by more than about 100° (a cone's end cap, pulled out into its
@@ -453,6 +502,61 @@ mod tests {
             .collect();
         at.sort_unstable();
         assert!(at.windows(2).all(|w| w[0] != w[1]));
+    }
+
+    /// The faces around a cone's end as the level set left them on a
+    /// harness input, and the cone's tip sample, grid spacing and far
+    /// distance, from tests/data/lopsided_cone_end.obj.
+    fn lopsided_cone_end() -> (TriMesh, DVec3, f64, f64) {
+        let text = include_str!("../tests/data/lopsided_cone_end.obj");
+        let numbers = |line: &str| -> Vec<f64> {
+            line.split_whitespace()
+                .filter_map(|w| w.parse().ok())
+                .collect()
+        };
+        let mut mesh = TriMesh {
+            vertices: vec![],
+            triangles: vec![],
+            normals: None,
+        };
+        let mut tip = vec![];
+        for line in text.lines() {
+            let values = numbers(line);
+            match line.split_whitespace().next() {
+                Some("v") => mesh.vertices.push(DVec3::from_slice(&values)),
+                Some("f") => mesh.triangles.push([0, 1, 2].map(|k| values[k] as u32 - 1)),
+                Some("#") if line.starts_with("# tip") => tip = values,
+                _ => {}
+            }
+        }
+        (mesh, DVec3::from_slice(&tip), tip[3], tip[4])
+    }
+
+    #[test]
+    fn a_tip_no_vertex_can_take_alone_is_reached_with_a_ring_carried_along() {
+        let (mesh, tip, spacing, far) = lopsided_cone_end();
+        let fans = vertex_faces(&mesh.triangles, mesh.vertices.len());
+        let oriented = DEGENERATE_AREA_CELLS * spacing * spacing;
+        let core = TIP_VERTEX_CELLS * spacing;
+        // None of the vertices near the tip's closest point can go alone.
+        let closest = TriangleBvh::new(&mesh).closest(tip).unwrap().point;
+        let alone = |v: usize| fans_keep_their_sides(&mesh, &fans, &[(v, tip)], oriented);
+        let near = (0..mesh.vertices.len()).filter(|&v| mesh.vertices[v].distance(closest) <= core);
+        assert!(!near.clone().any(alone) && near.count() > 1);
+        let mut moved = mesh.clone();
+        extend_to_tips(
+            &mut moved,
+            &[tip],
+            far,
+            TIP_VERTEX_CELLS * spacing,
+            oriented,
+        );
+        assert!(moved.vertices.contains(&tip), "the tip not reached");
+        let moves: Vec<(usize, DVec3)> = (0..mesh.vertices.len())
+            .filter(|&v| moved.vertices[v] != mesh.vertices[v])
+            .map(|v| (v, moved.vertices[v]))
+            .collect();
+        assert!(fans_keep_their_sides(&mesh, &fans, &moves, oriented));
     }
 
     #[test]
