@@ -10,7 +10,7 @@
 //! qualifies). Waves are sorted, so the result does not depend on the
 //! thread count.
 
-use crate::bridges::join_and_reach_thin_parts;
+use crate::bridges::{fill_pinholes, join_and_reach_thin_parts};
 use crate::cells::{FastMap, FastSet};
 use crate::error::{Result, SvmError};
 use crate::model::SvmModel;
@@ -117,12 +117,20 @@ pub fn mesh_model(
     )?;
     let mut values = follow_surface(model, seeds, &spec)?;
     let (cells_visited, nodes_evaluated) = (values.cells_visited, values.nodes.len());
+    let seed_tree = KdTree::new(seeds);
+    let pinches_filled = if std::env::var("SVM_NOPINCH").is_ok() {
+        0
+    } else {
+        fill_pinholes(&spec, &mut values.nodes)
+    };
+    if std::env::var("SVM_DEBUG").is_ok() {
+        eprintln!("pinches filled {pinches_filled}");
+    }
     let (thin_joins, thin_samples_reached) =
         join_and_reach_thin_parts(model, &spec, seeds, opts.data_noise, &mut values.nodes);
     let background = 2.0 * spec.spacing;
     let nodes = outside_on_the_rim(values.nodes, spec.dims, background);
     let grid = BlockGrid::from_nodes(spec, background, nodes)?;
-    let seed_tree = KdTree::new(seeds);
     let near_data = |p: &DVec3| {
         seed_tree
             .nearest(*p)
