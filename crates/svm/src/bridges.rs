@@ -20,6 +20,10 @@
 //! (a fin's rim, a cone's tip): [`join_and_reach_thin_parts`] then sets
 //! the nodes next to its samples inside, where f shows the part just
 //! behind them.
+//!
+//! The other way round, f can leave a sheet about a cell thick barely open
+//! across a node or few (a fin entering a body at an acute angle):
+//! [`fill_pinholes`] closes such holes, which the grid cannot show either.
 
 use crate::cells::{FastMap, FastSet};
 use crate::mesh::Implicit;
