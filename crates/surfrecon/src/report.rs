@@ -290,6 +290,9 @@ pub struct SvmMeshReport {
     /// Mesh grid nodes set inside so that samples on parts thinner than a
     /// cell (a fin's rim, a cone's tip) are reached.
     pub thin_samples_reached: usize,
+    /// Mesh grid nodes set inside to close pinholes the fitted function
+    /// leaves through a sheet (barely open across it, a node or few wide).
+    pub pinholes_filled: usize,
     /// Vertices moved onto the points' local fit (points used as measured).
     pub snapped: usize,
     /// Of the others, beside sharp edges, onto the nearest point's plane.

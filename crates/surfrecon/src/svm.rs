@@ -137,6 +137,7 @@ pub(crate) fn run(
             specks_removed: m.specks_removed,
             thin_joins: m.thin_joins,
             thin_samples_reached: m.thin_samples_reached,
+            pinholes_filled: m.pinholes_filled,
             snapped: refined.map_or(0, |r| r.snapped),
             snapped_to_planes: refined.map_or(0, |r| r.snapped_to_planes),
             reached_far_points: reached,

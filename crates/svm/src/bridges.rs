@@ -20,6 +20,10 @@
 //! (a fin's rim, a cone's tip): [`join_and_reach_thin_parts`] then sets
 //! the nodes next to its samples inside, where f shows the part just
 //! behind them.
+//!
+//! The other way round, f can leave a sheet about a cell thick barely open
+//! across a node or few (a fin entering a body at an acute angle):
+//! [`fill_pinholes`] closes such holes, which the grid cannot show either.
 
 use crate::cells::{FastMap, FastSet};
 use crate::mesh::Implicit;
@@ -166,6 +170,99 @@ pub fn bridge_thin_parts(
         joins += 1;
     }
     joins
+}
+
+/// A node where f is positive by less than this many cells may lie in a
+/// sheet f leaves pinched open (see [`fill_pinholes`]).
+const PINCH_CELLS: f64 = 0.25;
+
+/// Nodes a pinhole may span at most (in the sheet's plane).
+const PINHOLE_NODES: usize = 4;
+
+/// Holes through a sheet narrower than the grid can show, where f all but
+/// closes: where a sheet about a cell thick meets a body at an acute angle
+/// (harness spikes: the fin's thin end where it enters the sphere), the
+/// fit's inside can fall just short of the sheet's middle, f dipping
+/// between its faces to barely above 0 (+0.0001 over a node or two, the
+/// cell 0.024), and marching cubes opens a hole through the sheet there: a
+/// handle the shape does not have. Such a pinhole is a face-connected
+/// set of at most [`PINHOLE_NODES`] nodes in one grid plane across an
+/// axis, each positive by less than [`PINCH_CELLS`] and lower than both
+/// its neighbours along that axis (a dip through the sheet), ringed in
+/// that plane by inside nodes. Its nodes are set inside as a join's are,
+/// as a speck of f (a piece a cell or two wide) is dropped. A gap between
+/// two surfaces is no dip (f rises towards its middle), and a wider hole
+/// or one where f stays clearly positive is kept. Returns the number of
+/// nodes filled.
+pub fn fill_pinholes(spec: &GridSpec<3>, nodes: &mut Vec<([usize; 3], f64)>) -> usize {
+    let mut band = Band::new(nodes, spec.dims);
+    let depth = PINCH_CELLS * spec.spacing;
+    let mut filled: Vec<[i64; 3]> = Vec::new();
+    for axis in 0..3 {
+        let dips: FastSet = (0..band.nodes.len())
+            .filter(|&i| dips_across(&band, i, axis, depth))
+            .map(|i| pack(band.nodes[i].0.map(|c| c as i64)))
+            .collect();
+        let mut seen = FastSet::default();
+        for i in 0..band.nodes.len() {
+            let start = band.nodes[i].0.map(|c| c as i64);
+            if !dips.contains(&pack(start)) || !seen.insert(pack(start)) {
+                continue;
+            }
+            if let Some(hole) = ringed_pinhole(&band, &dips, &mut seen, start, axis) {
+                filled.extend(hole);
+            }
+        }
+    }
+    for &n in &filled {
+        band.set_inside(n, BRIDGE_DEPTH * spec.spacing);
+    }
+    filled.len()
+}
+
+/// Whether node `i` is positive by less than `depth` and lower than both
+/// its neighbours along `axis`.
+fn dips_across(band: &Band, i: usize, axis: usize, depth: f64) -> bool {
+    let (n, v) = band.nodes[i];
+    if !(0.0..depth).contains(&v) {
+        return false;
+    }
+    [-1, 1].iter().all(|&d| {
+        let mut m = n.map(|c| c as i64);
+        m[axis] += d;
+        band.value(m).is_some_and(|w| w > v)
+    })
+}
+
+/// The face-connected set of `dips` in the plane across `axis` through
+/// `start` (marked in `seen`), if it has at most [`PINHOLE_NODES`] nodes
+/// and every other in-plane neighbour of it is inside.
+fn ringed_pinhole(
+    band: &Band,
+    dips: &FastSet,
+    seen: &mut FastSet,
+    start: [i64; 3],
+    axis: usize,
+) -> Option<Vec<[i64; 3]>> {
+    let in_plane: Vec<[i64; 3]> = FACES.iter().filter(|d| d[axis] == 0).copied().collect();
+    let mut hole = vec![start];
+    let mut ringed = true;
+    let mut k = 0;
+    while k < hole.len() {
+        let n = hole[k];
+        k += 1;
+        for d in &in_plane {
+            let m = [n[0] + d[0], n[1] + d[1], n[2] + d[2]];
+            if dips.contains(&pack(m)) {
+                if seen.insert(pack(m)) {
+                    hole.push(m);
+                }
+            } else if !band.value(m).is_some_and(|w| w < 0.0) {
+                ringed = false;
+            }
+        }
+    }
+    (ringed && hole.len() <= PINHOLE_NODES).then_some(hole)
 }
 
 /// How far behind a sample (against ∇f), in cells, f must be negative
