@@ -586,24 +586,31 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_sheet_thinner_than_a_cell_between_node_layers_is_reached() {
+    /// Mesh options at `resolution` without margin over the cube of
+    /// half-width `half` about the origin, and its grid.
+    fn cube_grid(resolution: usize, half: f64) -> (MeshOptions, Aabb, GridSpec<3>) {
         let opts = MeshOptions {
-            resolution: 96,
+            resolution,
             margin: 0.0,
             ..Default::default()
         };
         let bounds = Aabb {
-            min: DVec3::splat(-1.0),
-            max: DVec3::splat(1.0),
+            min: DVec3::splat(-half),
+            max: DVec3::splat(half),
         };
         let spec = GridSpec::<3>::from_bounds(
             bounds.min.to_array(),
             bounds.max.to_array(),
-            GridSize::Resolution(opts.resolution),
+            GridSize::Resolution(resolution),
             1,
         )
         .unwrap();
+        (opts, bounds, spec)
+    }
+
+    #[test]
+    fn a_sheet_thinner_than_a_cell_between_node_layers_is_reached() {
+        let (opts, bounds, spec) = cube_grid(96, 1.0);
         let h = spec.spacing;
         // Half-way between the node layers next to y = 0.
         let middle = (spec.to_grid([0.0; 3])[1].floor() + 0.5) * h + spec.origin[1];
@@ -682,22 +689,7 @@ mod tests {
     /// The Euler characteristic of `plate` meshed on a grid whose node
     /// layer and node column run through the disc's mid-plane and axis.
     fn euler_of_holed_plate(lift_cells: f64) -> (i64, MeshReport) {
-        let opts = MeshOptions {
-            resolution: 80,
-            margin: 0.0,
-            ..Default::default()
-        };
-        let bounds = Aabb {
-            min: DVec3::splat(-0.8),
-            max: DVec3::splat(0.8),
-        };
-        let spec = GridSpec::<3>::from_bounds(
-            bounds.min.to_array(),
-            bounds.max.to_array(),
-            GridSize::Resolution(opts.resolution),
-            1,
-        )
-        .unwrap();
+        let (opts, bounds, spec) = cube_grid(80, 0.8);
         let node = spec.position(spec.to_grid([0.0; 3]).map(|c| c.round() as usize));
         assert!(node[0].abs() < 1e-9 && node[2].abs() < 1e-9, "{node:?}");
         let plate = HoledPlate {
