@@ -975,9 +975,10 @@ fn sphere_edge_points(exact: &MeshQuery, centre: DVec3, radius: f64, h: f64) -> 
 /// `surfrecon distance --kind odf`): the samples put on the new circular
 /// edge and fitted around it keep it, and the surface stays near the
 /// exact result. Main before session 34 cut the edge by up to 0.80 h
-/// (mean 0.21 h), about the regular field's 0.85 h; now 0.40 h at most,
-/// at one corner where the sphere meets an old ridge and a third line
-/// (no sample can reach a corner near a cell's centre), mean 0.01 h.
+/// (mean 0.21 h), about the regular field's 0.85 h; session 34 0.40 h at
+/// most, at one corner where the sphere meets an old ridge and a third
+/// line, near a cell's centre (its sample could not reach it alone),
+/// mean 0.01 h; session 36 0.29 h (its neighbours shifted with it).
 #[test]
 fn sculpting_an_odf_of_fandisk_keeps_the_new_edge() {
     use surfrecon_distfield::sculpt::{sculpt_odf, Operation, Tool};
@@ -1008,8 +1009,8 @@ fn sculpting_an_odf_of_fandisk_keeps_the_new_edge() {
         within > 0.95 && mean < 0.03,
         "{within} of the edge within 0.15 h, mean {mean} h"
     );
-    assert!(worst < 0.45, "the new edge is cut by {worst} h");
-    assert!(off < 0.25, "the surface leaves the result by {off} h");
+    assert!(worst < 0.32, "the new edge is cut by {worst} h");
+    assert!(off < 0.17, "the surface leaves the result by {off} h");
 }
 
 /// Fandisk minus the second sphere of BENCHMARKS.md's sculpting cases on
