@@ -44,6 +44,13 @@ const FAN_SLACK: f64 = 0.5;
 /// shortest edges on fandisk are 0.03 h and longer but for a few.
 const WELD: f64 = 0.01;
 
+/// Feature vertices joined by an edge shorter than this many cells are
+/// merged after extraction. Two points of one feature line a few
+/// hundredths of a cell apart (fandisk − second sphere: 0.08 h, in two
+/// neighbouring cells) make slivers between them whose flips join the
+/// line across each other (3 crossing pairs there).
+const CLOSE: f64 = 0.1;
+
 /// A field sampled once per grid node, as extraction reads it.
 pub trait SampledField: Sync {
     fn spec(&self) -> &GridSpec<3>;
@@ -72,8 +79,12 @@ pub struct ExtractReport {
     /// Cells beside a sharp edge whose patch joined the fan of the
     /// neighbour the edge runs through.
     pub merged: usize,
-    /// Edges shorter than [`WELD`] collapsed (see [`collapse_short_edges`]).
+    /// Edges shorter than [`WELD`], or than [`CLOSE`] between two feature
+    /// vertices, collapsed (see [`collapse_short_edges`]).
     pub collapsed: usize,
+    /// Feature vertices made one with another at the same place (see
+    /// [`join_shared_points`]).
+    pub joined: usize,
 }
 
 /// The zero set of `field` as a closed triangle mesh. `features` maps a
@@ -110,8 +121,9 @@ pub fn extract_points(
     more: &BTreeMap<usize, Vec<DVec3>>,
 ) -> (TriMesh, ExtractReport) {
     let (mut mesh, mut report, feature_vertices) = assemble(field, features, seconds, more);
-    let shortest = WELD * field.spec().spacing;
-    report.collapsed = collapse_short_edges(&mut mesh, &feature_vertices, shortest);
+    let h = field.spec().spacing;
+    report.joined = join_shared_points(&mut mesh, &feature_vertices);
+    report.collapsed = collapse_short_edges(&mut mesh, &feature_vertices, WELD * h, CLOSE * h);
     (mesh, report)
 }
 
@@ -1074,13 +1086,20 @@ fn flip_to_join(mesh: &mut TriMesh, feature: &HashSet<u32>) -> usize {
     flips
 }
 
-/// Collapse every edge shorter than `shortest` whose collapse keeps the
-/// mesh a closed manifold (the link condition: the two ends share no
+/// Collapse every edge shorter than `shortest`, or than
+/// `shortest_between_kept` with both ends in `keep`, whose collapse keeps
+/// the mesh a closed manifold (the link condition: the two ends share no
 /// neighbour but the two opposite corners, each of which keeps three
-/// triangles at least), keeping the end in `keep`
-/// (a feature point) or else the lower index, and drop the vertices left
-/// unused. Returns the number of edges collapsed.
-fn collapse_short_edges(mesh: &mut TriMesh, keep: &HashSet<u32>, shortest: f64) -> usize {
+/// triangles at least; beyond `shortest`, also no moved triangle turned
+/// over), keeping the end in `keep` (a feature point) or else the lower
+/// index, and drop the vertices left unused. Returns the number of edges
+/// collapsed.
+fn collapse_short_edges(
+    mesh: &mut TriMesh,
+    keep: &HashSet<u32>,
+    shortest: f64,
+    shortest_between_kept: f64,
+) -> usize {
     let mut around: Vec<Vec<usize>> = vec![Vec::new(); mesh.vertices.len()];
     for (i, t) in mesh.triangles.iter().enumerate() {
         for &v in t {
@@ -1101,17 +1120,23 @@ fn collapse_short_edges(mesh: &mut TriMesh, keep: &HashSet<u32>, shortest: f64) 
                     b,
                 )
             })
-            .filter(|&(d, _, _)| d < shortest)
+            .filter(|&(d, a, b)| {
+                d < shortest
+                    || (d < shortest_between_kept && keep.contains(&a) && keep.contains(&b))
+            })
             .collect();
         short.sort_by(|x, y| x.0.total_cmp(&y.0).then((x.1, x.2).cmp(&(y.1, y.2))));
         let before = collapsed;
-        for (_, a, b) in short {
+        for (d, a, b) in short {
             let (stay, gone) = if keep.contains(&b) && !keep.contains(&a) {
                 (b, a)
             } else {
                 (a, b)
             };
-            if collapse(mesh, &mut around, &mut alive, stay, gone) {
+            // Beyond the weld the moved triangles must keep their facing.
+            let turns =
+                d >= shortest && turns_a_triangle(mesh, &around[gone as usize], &alive, stay, gone);
+            if !turns && collapse(mesh, &mut around, &mut alive, stay, gone) {
                 collapsed += 1;
             }
         }
@@ -1128,6 +1153,124 @@ fn collapse_short_edges(mesh: &mut TriMesh, keep: &HashSet<u32>, shortest: f64) 
     mesh.triangles = triangles;
     drop_unused_vertices(mesh);
     collapsed
+}
+
+/// Make feature vertices at the same place one vertex. A feature point
+/// stored at two samples is fanned by both their cells (fandisk − sphere:
+/// two face neighbours around one point of the new edge), and the two
+/// fans put a triangle each, back to back, on the crossings of the face
+/// between the cells: a crossing pair. Joined, those pairs are dropped
+/// and the two fans become one around the point; where the mesh would
+/// not stay a closed manifold around it, the vertices stay apart.
+/// Returns how many vertices were joined into another.
+fn join_shared_points(mesh: &mut TriMesh, feature: &HashSet<u32>) -> usize {
+    let mut by_place: BTreeMap<[u64; 3], Vec<u32>> = BTreeMap::new();
+    for &v in feature {
+        let place = mesh.vertices[v as usize].to_array().map(f64::to_bits);
+        by_place.entry(place).or_default().push(v);
+    }
+    let mut joined = 0;
+    for mut group in by_place.into_values().filter(|g| g.len() > 1) {
+        group.sort_unstable();
+        for &gone in &group[1..] {
+            let before = mesh.triangles.clone();
+            if join_vertex(mesh, group[0], gone) {
+                joined += 1;
+            } else {
+                mesh.triangles = before;
+            }
+        }
+    }
+    joined
+}
+
+/// Replace vertex `gone` by `stay`, drop the pairs of triangles on the
+/// same corners facing opposite ways, and tell whether the mesh stays a
+/// closed manifold around `stay`: no triangle with a repeated corner,
+/// every edge at it used once each way, and its link one loop.
+fn join_vertex(mesh: &mut TriMesh, stay: u32, gone: u32) -> bool {
+    for t in &mut mesh.triangles {
+        for v in t.iter_mut().filter(|v| **v == gone) {
+            *v = stay;
+        }
+    }
+    let at: Vec<usize> = (0..mesh.triangles.len())
+        .filter(|&i| mesh.triangles[i].contains(&stay))
+        .collect();
+    let mut by_corners: BTreeMap<[u32; 3], Vec<usize>> = BTreeMap::new();
+    for &i in &at {
+        let mut key = mesh.triangles[i];
+        key.sort_unstable();
+        by_corners.entry(key).or_default().push(i);
+    }
+    let mut dropped: BTreeSet<usize> = BTreeSet::new();
+    for pair in by_corners.values().filter(|p| p.len() == 2) {
+        let [s, t] = [pair[0], pair[1]].map(|i| from_lowest(mesh.triangles[i]));
+        if (s[1], s[2]) == (t[2], t[1]) {
+            dropped.extend(pair.iter().copied());
+        }
+    }
+    let kept: Vec<[u32; 3]> = (at.iter())
+        .filter(|i| !dropped.contains(i))
+        .map(|&i| mesh.triangles[i])
+        .collect();
+    let mut next: BTreeMap<u32, u32> = BTreeMap::new();
+    for t in &kept {
+        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+            return false;
+        }
+        let k = t
+            .iter()
+            .position(|&v| v == stay)
+            .expect("a triangle at stay");
+        if next.insert(t[(k + 1) % 3], t[(k + 2) % 3]).is_some() {
+            return false;
+        }
+    }
+    let Some((&start, _)) = next.iter().next() else {
+        return false;
+    };
+    let (mut v, mut steps) = (start, 0);
+    loop {
+        match next.get(&v) {
+            Some(&w) => v = w,
+            None => return false,
+        }
+        steps += 1;
+        if v == start {
+            break;
+        }
+    }
+    if steps != next.len() {
+        return false;
+    }
+    let mut k = 0;
+    mesh.triangles.retain(|_| {
+        k += 1;
+        !dropped.contains(&(k - 1))
+    });
+    true
+}
+
+/// Whether moving vertex `gone` onto `stay` turns one of the live
+/// triangles `at_gone` that do not hold both away from its old facing
+/// (normals more than 90° apart).
+fn turns_a_triangle(
+    mesh: &TriMesh,
+    at_gone: &[usize],
+    alive: &[bool],
+    stay: u32,
+    gone: u32,
+) -> bool {
+    let pos = |v: u32| mesh.vertices[v as usize];
+    at_gone
+        .iter()
+        .filter(|&&t| alive[t] && !mesh.triangles[t].contains(&stay))
+        .any(|&t| {
+            let before = mesh.triangles[t].map(pos);
+            let after = mesh.triangles[t].map(|v| pos(if v == gone { stay } else { v }));
+            triangle_normal(before).dot(triangle_normal(after)) <= 0.0
+        })
 }
 
 /// Merge vertex `gone` into `stay` if they share an edge of two live
@@ -1220,6 +1363,12 @@ fn rotate_to_edge(t: [u32; 3], a: u32, b: u32) -> (u32, u32, u32) {
     (t[(k + 1) % 3], t[(k + 2) % 3], t[k])
 }
 
+/// Triangle `t` rotated to start at its lowest corner (same orientation).
+fn from_lowest(t: [u32; 3]) -> [u32; 3] {
+    let k = (0..3).min_by_key(|&k| t[k]).expect("three corners");
+    [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
+}
+
 fn third<T: Copy + PartialEq>(t: [T; 3], a: T, b: T) -> T {
     *t.iter()
         .find(|&&v| v != a && v != b)
@@ -1246,7 +1395,7 @@ mod tests {
         mesh.triangles
             .extend([[0, split, 4], [split, 2, 4], [split, 0, 5], [2, split, 5]]);
         let keep = HashSet::from([split]);
-        assert_eq!(collapse_short_edges(&mut mesh, &keep, 0.01), 1);
+        assert_eq!(collapse_short_edges(&mut mesh, &keep, 0.01, 0.01), 1);
         assert_eq!((mesh.vertices.len(), mesh.triangles.len()), (6, 8));
         assert!(mesh.vertices.contains(&DVec3::X.lerp(DVec3::Y, 1e-4)));
         let t = topology(&mesh);
@@ -1257,8 +1406,53 @@ mod tests {
             triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
             normals: None,
         };
-        assert_eq!(collapse_short_edges(&mut tetrahedron, &keep, 0.01), 0);
+        assert_eq!(collapse_short_edges(&mut tetrahedron, &keep, 0.01, 0.01), 0);
         assert_eq!(tetrahedron.triangles.len(), 4);
+    }
+
+    /// An octahedron whose top is two vertices at one place, each with a
+    /// fan over half the top closed by a triangle on the diagonal, the
+    /// two back to back (two cells' fans around one point stored at two
+    /// samples): joined, the octahedron comes back. Two octahedra whose
+    /// tips touch stay apart (joined, the tip's link would be two loops).
+    #[test]
+    fn feature_vertices_at_one_place_join_where_the_mesh_stays_a_manifold() {
+        let mut mesh = octahedron();
+        let twin = mesh.vertices.len() as u32;
+        mesh.vertices.push(DVec3::Z);
+        mesh.triangles.retain(|t| !t.contains(&4));
+        mesh.triangles.extend([
+            [0, 2, 4],
+            [2, 1, 4],
+            [1, 0, 4],
+            [1, 3, twin],
+            [3, 0, twin],
+            [0, 1, twin],
+        ]);
+        let t = topology(&mesh);
+        assert!(t.watertight && t.vertex_manifold && t.euler == 2, "{t:?}");
+        assert_eq!(join_shared_points(&mut mesh, &HashSet::from([4, twin])), 1);
+        let mut faces: Vec<[u32; 3]> = mesh.triangles.iter().map(|&t| from_lowest(t)).collect();
+        let mut expected: Vec<[u32; 3]> = octahedron()
+            .triangles
+            .into_iter()
+            .map(from_lowest)
+            .collect();
+        faces.sort_unstable();
+        expected.sort_unstable();
+        assert_eq!(faces, expected);
+
+        let mut pair = octahedron();
+        let upper = octahedron();
+        pair.vertices
+            .extend(upper.vertices.iter().map(|&v| v + 2.0 * DVec3::Z));
+        pair.triangles
+            .extend(upper.triangles.iter().map(|t| t.map(|v| v + 6)));
+        let before = pair.triangles.clone();
+        // Vertex 4 (+z) of the lower and 11 (-z) of the upper meet at z = 1.
+        assert_eq!(pair.vertices[4], pair.vertices[11]);
+        assert_eq!(join_shared_points(&mut pair, &HashSet::from([4, 11])), 0);
+        assert_eq!(pair.triangles, before);
     }
 
     /// Three nodes a side, the centre inside: an octahedron of six

@@ -309,7 +309,7 @@ pub(crate) fn node_position(spec: &GridSpec<3>, node: usize) -> DVec3 {
 
 /// Smallest triple product of a cell corner's edges, in h³, for a cell to
 /// count as convex (regular cells have 1).
-const MIN_CORNER_VOLUME: f64 = 0.1;
+pub(crate) const MIN_CORNER_VOLUME: f64 = 0.1;
 /// Most a probe adds to the energy (h²); a probe in a cell with no
 /// crossing yet adds this plus its squared distance to the nearest
 /// sample, which draws a sample onto it until the surface crosses the cell.
@@ -1250,17 +1250,39 @@ pub(crate) fn stays_convex(
     p: DVec3,
     position: impl Fn(usize) -> DVec3,
 ) -> bool {
-    let h3 = spec.spacing.powi(3);
-    cells_around(spec, node).all(|cell| {
+    let least = MIN_CORNER_VOLUME * spec.spacing.powi(3);
+    corner_volumes(spec, node, p, &position).all(|v| v > least)
+}
+
+/// The smallest triple product of the edges at any corner of the cells
+/// around `node`, with `node` at `p` (h³ on a regular grid).
+pub(crate) fn least_corner_volume(
+    spec: &GridSpec<3>,
+    node: usize,
+    p: DVec3,
+    position: impl Fn(usize) -> DVec3,
+) -> f64 {
+    corner_volumes(spec, node, p, &position).fold(f64::INFINITY, f64::min)
+}
+
+/// The triple products of the edges at each corner of the cells around
+/// `node` (signed so that a convex cell's are positive), `node` at `p`.
+fn corner_volumes<'s>(
+    spec: &'s GridSpec<3>,
+    node: usize,
+    p: DVec3,
+    position: &'s impl Fn(usize) -> DVec3,
+) -> impl Iterator<Item = f64> + 's {
+    cells_around(spec, node).flat_map(move |cell| {
         let pos = corner_nodes(spec, cell).map(|n| if n == node { p } else { position(n) });
-        (0..8).all(|c: usize| {
+        (0..8).map(move |c: usize| {
             let e = [1, 2, 4].map(|bit| pos[c ^ bit] - pos[c]);
             let sign = if c.count_ones().is_multiple_of(2) {
                 1.0
             } else {
                 -1.0
             };
-            sign * e[0].cross(e[1]).dot(e[2]) > MIN_CORNER_VOLUME * h3
+            sign * e[0].cross(e[1]).dot(e[2])
         })
     })
 }

@@ -975,9 +975,10 @@ fn sphere_edge_points(exact: &MeshQuery, centre: DVec3, radius: f64, h: f64) -> 
 /// `surfrecon distance --kind odf`): the samples put on the new circular
 /// edge and fitted around it keep it, and the surface stays near the
 /// exact result. Main before session 34 cut the edge by up to 0.80 h
-/// (mean 0.21 h), about the regular field's 0.85 h; now 0.40 h at most,
-/// at one corner where the sphere meets an old ridge and a third line
-/// (no sample can reach a corner near a cell's centre), mean 0.01 h.
+/// (mean 0.21 h), about the regular field's 0.85 h; session 34 0.40 h at
+/// most, at one corner where the sphere meets an old ridge and a third
+/// line, near a cell's centre (its sample could not reach it alone),
+/// mean 0.01 h; session 36 0.29 h (its neighbours shifted with it).
 #[test]
 fn sculpting_an_odf_of_fandisk_keeps_the_new_edge() {
     use surfrecon_distfield::sculpt::{sculpt_odf, Operation, Tool};
@@ -1008,8 +1009,8 @@ fn sculpting_an_odf_of_fandisk_keeps_the_new_edge() {
         within > 0.95 && mean < 0.03,
         "{within} of the edge within 0.15 h, mean {mean} h"
     );
-    assert!(worst < 0.45, "the new edge is cut by {worst} h");
-    assert!(off < 0.25, "the surface leaves the result by {off} h");
+    assert!(worst < 0.32, "the new edge is cut by {worst} h");
+    assert!(off < 0.17, "the surface leaves the result by {off} h");
 }
 
 /// Fandisk minus the second sphere of BENCHMARKS.md's sculpting cases on
@@ -1035,8 +1036,9 @@ fn sculpting_an_odf_of_fandisk_makes_no_crossing_triangles() {
 /// Fandisk minus a sphere on the unified field, on the grid of `surfrecon
 /// distance --resolution 64`: 18 crossing triangle pairs before session
 /// 35 (4 where samples on the surface left clusters of crossings, 13 at
-/// fans around sculpted points stored two cells from their cells); 1
-/// left, two fans back to back around a point stored at two samples.
+/// fans around sculpted points stored two cells from their cells); the
+/// last one, two fans back to back around a point stored at two samples,
+/// gone since session 36 (the two vertices joined).
 #[test]
 fn sculpting_fandisk_leaves_no_fans_around_far_points() {
     use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
@@ -1053,10 +1055,29 @@ fn sculpting_fandisk_leaves_no_fans_around_far_points() {
         let off = (lo - p).max(p - lo - DVec3::splat(h)).max(DVec3::ZERO);
         assert!(off.length() <= 0.5 * h, "cell {cell} fans around {p}");
     }
+    let (mesh, report) = udf.extract();
+    assert_closed_manifold(&mesh, 2);
+    assert!(report.joined > 0, "{report:?}");
+    assert_no_crossings(&mesh, "fandisk - sphere (2.5, 15.5, -1.3; r 1), unified");
+}
+
+/// Fandisk minus the second sphere on the unified field (`surfrecon
+/// distance --resolution 64`): two points of the new edge 0.08 h apart in
+/// neighbouring cells, whose slivers' flips crossed each other (3 pairs
+/// before session 36); the two are merged now.
+#[test]
+fn sculpting_fandisk_merges_feature_points_a_sliver_apart() {
+    use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
+    let shape = fandisk();
+    let (mut udf, _) = build_udf(&shape, &UdfOptions::default()).unwrap();
+    let tool = Tool::Sphere {
+        centre: DVec3::new(3.9, 13.6, -1.9),
+        radius: 1.3,
+    };
+    sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
     let (mesh, _) = udf.extract();
     assert_closed_manifold(&mesh, 2);
-    let pairs = surfrecon_geom::intersections::self_intersections(&mesh);
-    assert!(pairs.len() <= 1, "{} crossing triangle pairs", pairs.len());
+    assert_no_crossings(&mesh, "fandisk - sphere (3.9, 13.6, -1.9; r 1.3), unified");
 }
 
 /// The turned box minus a cylinder (BENCHMARKS.md's named case) on the

@@ -77,6 +77,7 @@ fn feature_surface(args: &Args, ctx: &Context) -> anyhow::Result<()> {
     summary["flips"] = report.flips.into();
     summary["merged"] = report.merged.into();
     summary["collapsed"] = report.collapsed.into();
+    summary["joined"] = report.joined.into();
     let format = io::Format::from_path(&args.output)?;
     if !format.stores_triangles() {
         bail!(

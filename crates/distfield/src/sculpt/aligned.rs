@@ -8,9 +8,10 @@ use super::{bisect, kept_pieces, result_points, Combined, Tool};
 use crate::extract::corner_nodes;
 use crate::features::{cell_of, clip_to_cells, CellFeatures};
 use crate::offset::{
-    add_cells_beside, cells_around, keeps_topology, line_targets, node_position, on_outer_layer,
-    on_surface_values, repair_samples, solid_fraction, stays_convex, AlignTarget, MeshPoints,
-    OffsetField, Search, Truth, Weights, DEFAULT_ITERATIONS,
+    add_cells_beside, cells_around, keeps_topology, least_corner_volume, line_targets,
+    node_position, on_outer_layer, on_surface_values, repair_samples, solid_fraction, stays_convex,
+    AlignTarget, MeshPoints, OffsetField, Search, Truth, Weights, DEFAULT_ITERATIONS,
+    MIN_CORNER_VOLUME,
 };
 use crate::refine::block;
 use rayon::prelude::*;
@@ -101,6 +102,9 @@ pub(super) fn align_to_new_edge(
             None if target.corner && make_room(field, combined, node, target.point, &moved) => {
                 target.point
             }
+            None if target.corner && shift_block(field, combined, node, target.point) => {
+                target.point
+            }
             None => continue,
         };
         let outside_first = solid_fraction(p, 0.25 * h, |q| combined.signed_distance(q)) < 0.5;
@@ -169,6 +173,71 @@ fn make_room(
         }
     }
     false
+}
+
+/// Fractions of a corner sample's move that [`shift_block`] tries for
+/// its neighbours, smallest first.
+const SHIFTS: [f64; 3] = [0.25, 0.5, 0.75];
+
+/// Let sample `node` reach corner `p` by shifting its 26 neighbours part
+/// of the way with it (each as far as its own box allows), the smallest
+/// fraction of [`SHIFTS`] that keeps every cell around them convex. A
+/// corner near a cell's centre lies in one sample's box only, and that
+/// sample alone cannot reach it (its corner of that cell turns inside
+/// out: fandisk − sphere's corner where the new edge meets the old 91°
+/// edge); the shifted neighbours carry the grid along. They take the
+/// result's distance at their new places (the search and repair that
+/// follow fit them again), each where that keeps the surface's topology;
+/// else nothing moves. Returns whether `node` may go to `p` now.
+fn shift_block(field: &mut OffsetField, combined: &Combined, node: usize, p: DVec3) -> bool {
+    let spec = field.spec;
+    let h = spec.spacing;
+    let reach = 0.5 * h * (1.0 - 1e-9);
+    let least = MIN_CORNER_VOLUME * h.powi(3);
+    let neighbours: Vec<usize> = cells_around(&spec, node)
+        .flat_map(|c| corner_nodes(&spec, c))
+        .filter(|&m| m != node && !on_outer_layer(&spec, m))
+        .collect::<BTreeSet<usize>>()
+        .into_iter()
+        .collect();
+    let shift = p - node_position(&spec, node);
+    let shifted = |f: f64| -> BTreeMap<usize, DVec3> {
+        (neighbours.iter())
+            .map(|&m| {
+                let home = node_position(&spec, m);
+                let q = field.position_of(m) + shift * f;
+                let box_ = DVec3::splat(reach);
+                (m, home + (q - home).clamp(-box_, box_))
+            })
+            .collect()
+    };
+    let convex = |moves: &BTreeMap<usize, DVec3>| {
+        let position = |k: usize| match moves.get(&k) {
+            _ if k == node => p,
+            Some(&q) => q,
+            None => field.position_of(k),
+        };
+        (moves.iter())
+            .map(|(&k, &q)| least_corner_volume(&spec, k, q, position))
+            .fold(least_corner_volume(&spec, node, p, position), f64::min)
+            > least
+    };
+    let Some(moves) = SHIFTS.iter().map(|&f| shifted(f)).find(|m| convex(m)) else {
+        return false;
+    };
+    let saved = field.clone();
+    for (&m, &q) in &moves {
+        let value = on_surface_values(combined.signed_distance(q), h)
+            .into_iter()
+            .find_map(|v| keeps_topology(&spec, m, v, |k| field.values[k]));
+        let Some(value) = value else {
+            *field = saved;
+            return false;
+        };
+        field.values[m] = value;
+        field.moved.insert(m as u32, q);
+    }
+    true
 }
 
 /// Where on its piece of the new edge a sample may go, best first: the
