@@ -406,7 +406,9 @@ impl<const D: usize> NarrowBand<D> {
         let strides = BlockGrid::<D>::window_strides();
         let len = BlockGrid::<D>::WINDOW_LEN;
         // Each block's results go straight to their place in the output.
-        let mut out = vec![placeholder; self.active.len()];
+        // Filled in parallel: a serial fill of 1.3M entries (40 MB for
+        // tuples) cost the calling thread about 30 ms per call.
+        let mut out: Vec<T> = rayon::iter::repeat_n(placeholder, self.active.len()).collect();
         let mut parts = Vec::with_capacity(self.runs.len());
         let mut rest = &mut out[..];
         for (_, range) in &self.runs {

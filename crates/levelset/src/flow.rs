@@ -563,11 +563,12 @@ fn stable_step<const D: usize>(
                 .sum();
             Some((a * grad_l1, c, a))
         })
-        .into_iter()
+        .into_par_iter()
         .flatten()
         .collect();
-    let max_adv = per_node.iter().map(|x| x.0).fold(0.0, f64::max);
-    let max_diff = per_node.iter().map(|x| x.1).fold(0.0, f64::max);
+    // Maxima are the same in any order (f64::max skips NaN).
+    let max_adv = per_node.par_iter().map(|x| x.0).reduce(|| 0.0, f64::max);
+    let max_diff = per_node.par_iter().map(|x| x.1).reduce(|| 0.0, f64::max);
     let mean_adv = det_sum(&per_node, |x| x.2) / per_node.len().max(1) as f64;
     let mut dt = h;
     if max_adv > 0.0 {
@@ -619,7 +620,7 @@ fn zero_set_snapshot<const D: usize>(band: &NarrowBand<D>, d: &BandDistance<D>) 
     let supported = |n: [usize; D]| d.get(n).is_some_and(|v| v <= SUPPORTED_CELLS * h);
     let next_to_zero = || {
         band.active
-            .iter()
+            .par_iter()
             .map(|&k| (band.node(k), band.value(k)))
             .filter(|&(_, v)| v.abs() <= h)
     };
