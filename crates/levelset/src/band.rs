@@ -534,6 +534,37 @@ pub(crate) fn is_inner<const D: usize>(spec: &GridSpec<D>, idx: [usize; D]) -> b
     (0..D).all(|a| idx[a] >= BORDER && idx[a] + BORDER < spec.dims[a])
 }
 
+/// The `Some` results of `f` over `items`, in order, computed in
+/// parallel into one vector allocated by the calling thread: `f` runs
+/// twice per item (to count, then to fill). Rayon's `filter`/`flatten`
+/// collect into per-thread vectors, which glibc keeps in per-thread
+/// arenas after they are freed (+140 MB peak at Dragon scale).
+pub(crate) fn par_filter_map<I: Sync, T: Clone + Send>(
+    items: &[I],
+    placeholder: T,
+    f: impl Fn(&I) -> Option<T> + Sync,
+) -> Vec<T> {
+    const CHUNK: usize = 16384;
+    let counts: Vec<usize> = items
+        .par_chunks(CHUNK)
+        .map(|c| c.iter().filter(|i| f(i).is_some()).count())
+        .collect();
+    let mut out = vec![placeholder; counts.iter().sum()];
+    let mut parts = Vec::with_capacity(counts.len());
+    let mut rest = &mut out[..];
+    for &n in &counts {
+        let (part, tail) = rest.split_at_mut(n);
+        parts.push(part);
+        rest = tail;
+    }
+    items.par_chunks(CHUNK).zip(parts).for_each(|(c, part)| {
+        for (o, v) in part.iter_mut().zip(c.iter().filter_map(&f)) {
+            *o = v;
+        }
+    });
+    out
+}
+
 /// Sum of `f` over `items`, in fixed-size chunks summed in order, so the
 /// result does not depend on the number of threads.
 pub(crate) fn det_sum<T: Sync>(items: &[T], f: impl Fn(&T) -> f64 + Sync) -> f64 {
