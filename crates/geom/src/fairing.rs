@@ -14,6 +14,7 @@
 //! vertices, starting from their current positions.
 
 use crate::{DVec3, TriMesh};
+use rayon::prelude::*;
 
 /// Conjugate-gradient limits for [`fair`].
 #[derive(Clone, Copy, Debug)]
@@ -138,7 +139,7 @@ impl Graph {
                 pairs.push((b, a));
             }
         }
-        pairs.sort_unstable();
+        pairs.par_sort_unstable();
         pairs.dedup();
         let mut offsets = vec![0usize; mesh.vertices.len() + 1];
         for &(a, _) in &pairs {
@@ -170,7 +171,7 @@ impl Graph {
             .flat_map(|&v| self.neighbours(v).iter().map(|&w| w as usize))
             .chain(set.iter().copied())
             .collect();
-        ring.sort_unstable();
+        ring.par_sort_unstable();
         ring.dedup();
         ring
     }

@@ -406,7 +406,9 @@ impl<const D: usize> NarrowBand<D> {
         let strides = BlockGrid::<D>::window_strides();
         let len = BlockGrid::<D>::WINDOW_LEN;
         // Each block's results go straight to their place in the output.
-        let mut out = vec![placeholder; self.active.len()];
+        // Filled in parallel: a serial fill of 1.3M entries (40 MB for
+        // tuples) cost the calling thread about 30 ms per call.
+        let mut out: Vec<T> = rayon::iter::repeat_n(placeholder, self.active.len()).collect();
         let mut parts = Vec::with_capacity(self.runs.len());
         let mut rest = &mut out[..];
         for (_, range) in &self.runs {
@@ -530,6 +532,37 @@ fn dense_sign_change<const D: usize>(phi: &[f64], l: usize, strides: &[usize; D]
 #[inline]
 pub(crate) fn is_inner<const D: usize>(spec: &GridSpec<D>, idx: [usize; D]) -> bool {
     (0..D).all(|a| idx[a] >= BORDER && idx[a] + BORDER < spec.dims[a])
+}
+
+/// The `Some` results of `f` over `items`, in order, computed in
+/// parallel into one vector allocated by the calling thread: `f` runs
+/// twice per item (to count, then to fill). Rayon's `filter`/`flatten`
+/// collect into per-thread vectors, which glibc keeps in per-thread
+/// arenas after they are freed (+140 MB peak at Dragon scale).
+pub(crate) fn par_filter_map<I: Sync, T: Clone + Send>(
+    items: &[I],
+    placeholder: T,
+    f: impl Fn(&I) -> Option<T> + Sync,
+) -> Vec<T> {
+    const CHUNK: usize = 16384;
+    let counts: Vec<usize> = items
+        .par_chunks(CHUNK)
+        .map(|c| c.iter().filter(|i| f(i).is_some()).count())
+        .collect();
+    let mut out = vec![placeholder; counts.iter().sum()];
+    let mut parts = Vec::with_capacity(counts.len());
+    let mut rest = &mut out[..];
+    for &n in &counts {
+        let (part, tail) = rest.split_at_mut(n);
+        parts.push(part);
+        rest = tail;
+    }
+    items.par_chunks(CHUNK).zip(parts).for_each(|(c, part)| {
+        for (o, v) in part.iter_mut().zip(c.iter().filter_map(&f)) {
+            *o = v;
+        }
+    });
+    out
 }
 
 /// Sum of `f` over `items`, in fixed-size chunks summed in order, so the

@@ -19,7 +19,7 @@
 //! step changes the surface's topology.
 
 use crate::anchors::{DataCells, TangentSides};
-use crate::band::{det_sum, inside, BandDistance, NarrowBand, Stencil};
+use crate::band::{det_sum, inside, par_filter_map, BandDistance, NarrowBand, Stencil};
 #[cfg(doc)]
 use crate::convection::advection_term;
 use crate::convection::upwind_advection;
@@ -550,24 +550,22 @@ fn stable_step<const D: usize>(
 ) -> (f64, f64) {
     let h = band.spec().spacing;
     let near = 2.5 * h;
-    let per_node: Vec<(f64, f64, f64)> = band
-        .map_active(false, Some(d.grid()), |s| {
-            if s.phi[s.at].abs() >= near {
-                return None;
-            }
-            let (a, c) = coef.at(s.d[s.at]);
-            let grad_l1: f64 = s
-                .strides
-                .iter()
-                .map(|&st| (s.d[s.at + st] - s.d[s.at - st]).abs() * 0.5 / h)
-                .sum();
-            Some((a * grad_l1, c, a))
-        })
-        .into_iter()
-        .flatten()
-        .collect();
-    let max_adv = per_node.iter().map(|x| x.0).fold(0.0, f64::max);
-    let max_diff = per_node.iter().map(|x| x.1).fold(0.0, f64::max);
+    let per_node = band.map_active(false, Some(d.grid()), |s| {
+        if s.phi[s.at].abs() >= near {
+            return None;
+        }
+        let (a, c) = coef.at(s.d[s.at]);
+        let grad_l1: f64 = s
+            .strides
+            .iter()
+            .map(|&st| (s.d[s.at + st] - s.d[s.at - st]).abs() * 0.5 / h)
+            .sum();
+        Some((a * grad_l1, c, a))
+    });
+    let per_node = par_filter_map(&per_node, (0.0, 0.0, 0.0), |x| *x);
+    // Maxima are the same in any order (f64::max skips NaN).
+    let max_adv = per_node.par_iter().map(|x| x.0).reduce(|| 0.0, f64::max);
+    let max_diff = per_node.par_iter().map(|x| x.1).reduce(|| 0.0, f64::max);
     let mean_adv = det_sum(&per_node, |x| x.2) / per_node.len().max(1) as f64;
     let mut dt = h;
     if max_adv > 0.0 {
@@ -617,17 +615,15 @@ const SUPPORTED_CELLS: f64 = 2.0;
 fn zero_set_snapshot<const D: usize>(band: &NarrowBand<D>, d: &BandDistance<D>) -> Snapshot<D> {
     let h = band.spec().spacing;
     let supported = |n: [usize; D]| d.get(n).is_some_and(|v| v <= SUPPORTED_CELLS * h);
-    let next_to_zero = || {
-        band.active
-            .iter()
-            .map(|&k| (band.node(k), band.value(k)))
-            .filter(|&(_, v)| v.abs() <= h)
-    };
-    let near: Snapshot<D> = next_to_zero().filter(|&(n, _)| supported(n)).collect();
+    let next_to_zero = |k: u32| Some((band.node(k), band.value(k))).filter(|&(_, v)| v.abs() <= h);
+    let placeholder = ([0; D], 0.0);
+    let near: Snapshot<D> = par_filter_map(&band.active, placeholder, |&k| {
+        next_to_zero(k).filter(|&(n, _)| supported(n))
+    });
     if near.is_empty() {
         // No data near the surface at all (e.g. a single point): judge
         // the whole zero set.
-        return next_to_zero().collect();
+        return par_filter_map(&band.active, placeholder, |&k| next_to_zero(k));
     }
     near
 }

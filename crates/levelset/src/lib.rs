@@ -22,6 +22,7 @@ pub mod cleaning;
 pub mod convection;
 pub mod error;
 pub mod flow;
+mod hashing;
 mod holes;
 pub mod multires;
 mod nesting;

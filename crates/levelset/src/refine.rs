@@ -251,12 +251,7 @@ pub(crate) fn undo_degenerating_moves(
             .filter(|t| degenerate(normal(before, t), normal(vertices, t)))
             .flat_map_iter(|t| t.iter().copied().filter(|&i| moved(i)))
             .collect();
-        let mut at = std::collections::HashMap::with_capacity(vertices.len());
-        for (i, v) in vertices.iter().enumerate() {
-            if let Some(j) = at.insert(v.to_array().map(f64::to_bits), i as u32) {
-                undo.extend([i as u32, j].into_iter().filter(|&k| moved(k)));
-            }
-        }
+        undo.extend(coincident(vertices).filter(|&i| moved(i)));
         if undo.is_empty() {
             return (0..before.len() as u32).filter(|&i| moved(i)).count();
         }
@@ -264,6 +259,25 @@ pub(crate) fn undo_degenerating_moves(
             mesh.vertices[i as usize] = before[i as usize];
         }
     }
+}
+
+/// The vertices that share their position (bit for bit) with another
+/// vertex, each once: runs of equal positions after a parallel sort (a
+/// serial hash map of all positions took 0.1 s per call on 300k vertices).
+fn coincident(vertices: &[DVec3]) -> impl Iterator<Item = u32> {
+    let mut keyed: Vec<([u64; 3], u32)> = (vertices.par_iter().enumerate())
+        .map(|(i, v)| (v.to_array().map(f64::to_bits), i as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    let shared = |i: usize| {
+        (i > 0 && keyed[i - 1].0 == keyed[i].0)
+            || (i + 1 < keyed.len() && keyed[i + 1].0 == keyed[i].0)
+    };
+    let found: Vec<u32> = (0..keyed.len())
+        .filter(|&i| shared(i))
+        .map(|i| keyed[i].1)
+        .collect();
+    found.into_iter()
 }
 
 /// Rounds of [`undo_crossing_moves`] that put back one vertex per crossing

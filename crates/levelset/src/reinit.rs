@@ -47,26 +47,31 @@ pub fn reinitialize<const D: usize>(band: &mut NarrowBand<D>) {
     for layer in 1..max_layers {
         let candidates = next_layer(band, &frontier, base, base + layer);
         let b = &*band;
-        let first: Vec<f64> = candidates
+        // Each node's first value with its side, so the serial loops
+        // below only write φ (reading it there, in layer order, missed the
+        // cache at every node).
+        let first: Vec<(f64, bool)> = candidates
             .par_iter()
-            .map(|&k| godunov_from_layers(b, k, h, base, base + layer))
+            .map(|&k| {
+                let v = godunov_from_layers(b, k, h, base, base + layer);
+                (v, inside(b.value(k)))
+            })
             .collect();
+        let signed = |(v, was_inside): (f64, bool)| if was_inside { -v } else { v };
+        for (&k, &f) in candidates.iter().zip(&first) {
+            band.set(k, signed(f));
+        }
         // A second (Jacobi) pass lets nodes of this layer lean on each other,
         // which the first pass could not: values only decrease towards the
         // true distance, and the order of nodes does not matter.
-        let mut values = first.clone();
-        for (&k, &v) in candidates.iter().zip(&first) {
-            let old = band.value(k);
-            band.set(k, if inside(old) { -v } else { v });
-        }
         let b = &*band;
-        values.par_iter_mut().zip(&candidates).for_each(|(v, &k)| {
-            let again = godunov_from_layers(b, k, h, base, base + layer + 1);
-            *v = v.min(again);
-        });
+        let values: Vec<f64> = (first.par_iter().zip(&candidates))
+            .map(|(&(v, _), &k)| v.min(godunov_from_layers(b, k, h, base, base + layer + 1)))
+            .collect();
         frontier.clear();
-        for (&k, &v) in candidates.iter().zip(&values) {
-            let s = if inside(band.value(k)) { -1.0 } else { 1.0 };
+        for ((&k, &v), &f) in candidates.iter().zip(&values).zip(&first) {
+            // The side of the value set above.
+            let s = if inside(signed(f)) { -1.0 } else { 1.0 };
             if v < w {
                 band.set(k, s * v);
                 accepted.push(k);

@@ -83,9 +83,16 @@ impl Quadric {
                 normal
             };
             let (value, gradient) = monomials(q);
-            accumulate(&mut ata, &mut atb, &value, 0.0, w);
+            accumulate(&mut ata, &mut atb, &value, &ALL, 0.0, w);
             for (axis, row) in gradient.iter().enumerate() {
-                accumulate(&mut ata, &mut atb, row, normal[axis], w);
+                accumulate(
+                    &mut ata,
+                    &mut atb,
+                    row,
+                    &GRADIENT_NONZERO[axis],
+                    normal[axis],
+                    w,
+                );
             }
             rows.push((q, normal, w));
         }
@@ -129,26 +136,30 @@ impl Quadric {
     }
 }
 
-/// Add `w`·(row, target) to the normal equations.
-fn accumulate(
+/// Every monomial, and per axis the monomials whose derivative along it
+/// is not identically zero (see [`monomials`]).
+const ALL: [usize; 10] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9];
+const GRADIENT_NONZERO: [[usize; 4]; 3] = [[1, 4, 7, 9], [2, 5, 7, 8], [3, 6, 8, 9]];
+
+/// Add `w`·(row, target) to the normal equations, over the entries
+/// `nonzero` of `row` (the others are zero). A zero entry among them adds
+/// a product ±0, which leaves every sum as it is (the sums start at +0
+/// and never come to −0), so skipping the known zeros instead of testing
+/// each entry gives the same sums, bit for bit, with straight loops.
+fn accumulate<const N: usize>(
     ata: &mut [[f64; 10]; 10],
     atb: &mut [f64; 10],
     row: &[f64; 10],
+    nonzero: &[usize; N],
     target: f64,
     w: f64,
 ) {
-    // The gradients' rows are mostly zeros: skipping their products adds
-    // nothing but +0 (sums of products never come to −0 from +0).
-    for i in 0..10 {
-        if row[i] == 0.0 {
-            continue;
+    for &i in nonzero {
+        let wi = w * row[i];
+        for &j in nonzero {
+            ata[i][j] += wi * row[j];
         }
-        for j in 0..10 {
-            if row[j] != 0.0 {
-                ata[i][j] += w * row[i] * row[j];
-            }
-        }
-        atb[i] += w * row[i] * target;
+        atb[i] += wi * target;
     }
 }
 
