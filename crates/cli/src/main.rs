@@ -61,7 +61,6 @@ enum Command {
 }
 
 fn main() {
-    keep_freed_memory();
     // Sculpting steps apply in command-line order, which only the raw
     // matches record.
     let matches = Cli::command().get_matches();
@@ -93,28 +92,3 @@ fn main() {
         std::process::exit(1);
     }
 }
-
-/// glibc hands blocks above its mmap threshold (128 KiB, adapting up to
-/// 32 MiB) back to the system when they are freed, and trims the heap's
-/// free top beyond twice that: the next buffer of the same size then
-/// faults in fresh zeroed pages. The level-set evolution allocates and
-/// frees buffers of 5–40 MB per step (band lists, per-node results), so
-/// this took ~0.7 s of the calling thread's time at Dragon scale (437k
-/// points). Keeping freed memory for reuse costs nothing in peak use.
-#[cfg(all(target_os = "linux", target_env = "gnu"))]
-fn keep_freed_memory() {
-    extern "C" {
-        fn mallopt(param: i32, value: i32) -> i32;
-    }
-    const M_TRIM_THRESHOLD: i32 = -1;
-    const M_MMAP_THRESHOLD: i32 = -3;
-    // SAFETY: mallopt only sets allocator parameters (glibc's documented
-    // ones, within their ranges); nothing else runs yet.
-    unsafe {
-        mallopt(M_MMAP_THRESHOLD, 32 << 20);
-        mallopt(M_TRIM_THRESHOLD, 1 << 30);
-    }
-}
-
-#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-fn keep_freed_memory() {}

@@ -159,7 +159,7 @@ pub fn clean_points_with_normals(
 /// does not project keeps the others' coordinates exactly).
 pub fn dropped_points(raw: &[DVec3], kept: &[DVec3]) -> Vec<DVec3> {
     let bits = |p: &DVec3| p.to_array().map(f64::to_bits);
-    let kept: crate::hashing::FastSet<_> = kept.iter().map(bits).collect();
+    let kept: rustc_hash::FxHashSet<_> = kept.iter().map(bits).collect();
     raw.iter()
         .filter(|p| !kept.contains(&bits(p)))
         .copied()

@@ -22,7 +22,6 @@ pub mod cleaning;
 pub mod convection;
 pub mod error;
 pub mod flow;
-mod hashing;
 mod holes;
 pub mod multires;
 mod nesting;

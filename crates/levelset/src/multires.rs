@@ -7,10 +7,10 @@
 
 use crate::band::{inside, is_inner, NarrowBand};
 use crate::error::Result;
-use crate::hashing::FastMap;
 use crate::reinit::reinitialize;
 use crate::tagging::{fast_tag_with, Tag, TagStore};
 use rayon::prelude::*;
+use rustc_hash::FxHashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use surfrecon_geom::spatial::KdTree;
 use surfrecon_geom::DVec3;
@@ -335,7 +335,7 @@ fn distances_to_points<const D: usize>(
     spec: &GridSpec<D>,
     nodes: &[usize],
     points: &[DVec3],
-) -> FastMap<usize, f64> {
+) -> FxHashMap<usize, f64> {
     let tree = KdTree::new(points);
     nodes
         .par_iter()
@@ -398,7 +398,7 @@ fn nodes_near<const D: usize>(
 /// Tags of a region's nodes; every other node keeps the side `other`
 /// gives it, frozen (inside nodes there are final boundary nodes).
 struct LocalTags<F> {
-    tags: FastMap<usize, Tag>,
+    tags: FxHashMap<usize, Tag>,
     other: F,
 }
 

@@ -1119,7 +1119,7 @@ fn evolve_level<const D: usize>(
 /// in input order): coarse levels need no more, and dense scans have many
 /// points per coarse cell. Distances change by at most √3·cell/2.
 fn thinned(input: &Input, cell: f64) -> Input {
-    let mut seen = crate::hashing::FastSet::default();
+    let mut seen = rustc_hash::FxHashSet::default();
     seen.reserve(input.points.len());
     let kept: Vec<usize> = (0..input.points.len())
         .filter(|&i| seen.insert((input.points[i] / cell).floor().as_i64vec3().to_array()))
