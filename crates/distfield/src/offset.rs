@@ -1250,8 +1250,7 @@ pub(crate) fn stays_convex(
     p: DVec3,
     position: impl Fn(usize) -> DVec3,
 ) -> bool {
-    let least = MIN_CORNER_VOLUME * spec.spacing.powi(3);
-    corner_volumes(spec, node, p, &position).all(|v| v > least)
+    least_corner_volume(spec, node, p, position) > MIN_CORNER_VOLUME * spec.spacing.powi(3)
 }
 
 /// The smallest triple product of the edges at any corner of the cells

@@ -1033,6 +1033,21 @@ fn sculpting_an_odf_of_fandisk_makes_no_crossing_triangles() {
     assert_no_crossings(&mesh, "fandisk - sphere (3.9, 13.6, -1.9; r 1.3)");
 }
 
+/// Fandisk's unified field at the default size (`surfrecon distance
+/// --resolution 64`) with a sphere subtracted.
+fn fandisk_udf_minus_sphere(centre: DVec3, radius: f64) -> UnifiedField {
+    use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
+    let (mut udf, _) = build_udf(&fandisk(), &UdfOptions::default()).unwrap();
+    sculpt_udf(
+        &mut udf,
+        Operation::Subtract,
+        &Tool::Sphere { centre, radius },
+        0.1,
+    )
+    .unwrap();
+    udf
+}
+
 /// Fandisk minus a sphere on the unified field, on the grid of `surfrecon
 /// distance --resolution 64`: 18 crossing triangle pairs before session
 /// 35 (4 where samples on the surface left clusters of crossings, 13 at
@@ -1041,14 +1056,7 @@ fn sculpting_an_odf_of_fandisk_makes_no_crossing_triangles() {
 /// gone since session 36 (the two vertices joined).
 #[test]
 fn sculpting_fandisk_leaves_no_fans_around_far_points() {
-    use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
-    let shape = fandisk();
-    let (mut udf, _) = build_udf(&shape, &UdfOptions::default()).unwrap();
-    let tool = Tool::Sphere {
-        centre: DVec3::new(2.5, 15.5, -1.3),
-        radius: 1.0,
-    };
-    sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
+    let udf = fandisk_udf_minus_sphere(DVec3::new(2.5, 15.5, -1.3), 1.0);
     let h = udf.spec.spacing;
     for (&cell, &p) in &udf.feature_points() {
         let lo = DVec3::from_array(udf.spec.position(udf.spec.unlinear(cell)));
@@ -1067,14 +1075,7 @@ fn sculpting_fandisk_leaves_no_fans_around_far_points() {
 /// before session 36); the two are merged now.
 #[test]
 fn sculpting_fandisk_merges_feature_points_a_sliver_apart() {
-    use surfrecon_distfield::sculpt::{sculpt_udf, Operation, Tool};
-    let shape = fandisk();
-    let (mut udf, _) = build_udf(&shape, &UdfOptions::default()).unwrap();
-    let tool = Tool::Sphere {
-        centre: DVec3::new(3.9, 13.6, -1.9),
-        radius: 1.3,
-    };
-    sculpt_udf(&mut udf, Operation::Subtract, &tool, 0.1).unwrap();
+    let udf = fandisk_udf_minus_sphere(DVec3::new(3.9, 13.6, -1.9), 1.3);
     let (mesh, _) = udf.extract();
     assert_closed_manifold(&mesh, 2);
     assert_no_crossings(&mesh, "fandisk - sphere (3.9, 13.6, -1.9; r 1.3), unified");
