@@ -22,7 +22,10 @@
 //! Both steps are data-parallel over the points and their results do not
 //! depend on the thread count.
 
+use crate::reach::sampling_gap;
 use rayon::prelude::*;
+use rustc_hash::FxHashMap;
+use surfrecon_geom::disjoint_sets::DisjointSets;
 use surfrecon_geom::linalg::HeightField;
 use surfrecon_geom::normals::symmetric_eigen3;
 use surfrecon_geom::spatial::{KdTree, Neighbour};
@@ -98,6 +101,15 @@ const MAX_GUIDED_NEIGHBOURS: usize = 96;
 /// the point's last position (the first neighbourhood is centred on the
 /// noisy point and leans to its side).
 const GUIDED_PASSES: usize = 3;
+/// Clumps of at most this many points, with no other datum within
+/// [`CLUMP_GAPS`] sampling gaps, are tested as a whole
+/// ([`drop_stray_clumps`]).
+const CLUMP_POINTS: usize = DENSITY_NEIGHBOURS;
+const CLUMP_GAPS: f64 = 3.0;
+/// A clump is off its neighbours' surface when its offset from their
+/// centre leaves their tangent plane by more than about 30° (this sine):
+/// a cone's last samples continue along it, a stray clump sits above it.
+const CLUMP_OFF_PLANE: f64 = 0.5;
 /// Neighbours whose normals turn more than this from the point's
 /// (cosine) are on another sheet or across a sharp edge, and left out.
 const GUIDED_AGREEMENT: f64 = 0.5;
@@ -224,7 +236,75 @@ fn remove_outliers(points: &[DVec3], dim: usize) -> Vec<DVec3> {
         before = kept.len();
         kept = drop_outliers(&kept, &KdTree::new(&kept), dim, SurfaceTest::Off);
     }
-    kept
+    drop_stray_clumps(kept, dim)
+}
+
+/// The points without the clumps of a few that lie apart from all other
+/// data and off the surface those span. Outliers in a clump pass the
+/// density test, each being a typical neighbour of the others (5% uniform
+/// outliers around a torus: a clump of 4 points 5 gaps off the surface,
+/// which the level set reached with a spike 4.6% of the diagonal long). A
+/// clump that continues the data (a thin cone's last samples, a sparse
+/// stretch of surface) stays. Only in 3D.
+fn drop_stray_clumps(points: Vec<DVec3>, dim: usize) -> Vec<DVec3> {
+    if dim != 3 || points.len() < MIN_POINTS {
+        return points;
+    }
+    let tree = KdTree::new(&points);
+    let link = CLUMP_GAPS * sampling_gap(&points, &tree);
+    let stray: Vec<usize> = (small_clumps(&points, &tree, link).par_iter())
+        .filter(|clump| off_their_surface(&points, &tree, clump))
+        .flatten()
+        .copied()
+        .collect();
+    let mut keep = vec![true; points.len()];
+    stray.iter().for_each(|&i| keep[i] = false);
+    (points.into_iter().zip(keep))
+        .filter_map(|(p, k)| k.then_some(p))
+        .collect()
+}
+
+/// The pieces of at most [`CLUMP_POINTS`] points that chains of steps no
+/// longer than `link` join. Links to each point's [`CLUMP_POINTS`] nearest
+/// suffice: a point with a datum within `link` that is not among them has
+/// that many nearer, all in its piece.
+fn small_clumps(points: &[DVec3], tree: &KdTree, link: f64) -> Vec<Vec<usize>> {
+    let table = NeighbourTable::build(points, tree, CLUMP_POINTS);
+    let mut sets = DisjointSets::new(points.len());
+    for i in 0..points.len() {
+        for &j in table.row(i) {
+            if points[i].distance(points[j as usize]) <= link {
+                sets.union(i, j as usize);
+            }
+        }
+    }
+    let roots: Vec<usize> = (0..points.len()).map(|i| sets.find(i)).collect();
+    let mut sizes = vec![0usize; points.len()];
+    roots.iter().for_each(|&r| sizes[r] += 1);
+    let mut clumps: FxHashMap<usize, Vec<usize>> = FxHashMap::default();
+    for (i, &r) in roots.iter().enumerate() {
+        if sizes[r] <= CLUMP_POINTS {
+            clumps.entry(r).or_default().push(i);
+        }
+    }
+    clumps.into_values().collect()
+}
+
+/// Whether `clump` lies off the tangent plane of its [`NEIGHBOURS`]
+/// nearest other points ([`CLUMP_OFF_PLANE`]).
+fn off_their_surface(points: &[DVec3], tree: &KdTree, clump: &[usize]) -> bool {
+    let centroid = clump.iter().map(|&i| points[i]).sum::<DVec3>() / clump.len() as f64;
+    let others: Vec<DVec3> = (tree.knn(centroid, NEIGHBOURS + clump.len()).into_iter())
+        .filter(|n| !clump.contains(&n.index))
+        .take(NEIGHBOURS)
+        .map(|n| points[n.index])
+        .collect();
+    let centre = others.iter().sum::<DVec3>() / others.len() as f64;
+    let Some([normal, ..]) = principal_frame(others.iter().copied(), centre, 3) else {
+        return false;
+    };
+    let offset = centroid - centre;
+    offset.dot(normal).abs() > CLUMP_OFF_PLANE * offset.length()
 }
 
 /// `stats.projected` and `stats.rms_shift` from the points before and
@@ -1198,6 +1278,21 @@ mod tests {
         assert_eq!(stats.outliers, 2);
         assert_eq!(cleaned.len(), 900);
         assert!(cleaned.iter().all(|p| p.z.abs() < 1e-9));
+    }
+
+    #[test]
+    fn a_stray_clump_goes_and_a_clump_continuing_the_data_stays() {
+        let mut pts = plane_points(30);
+        // Four points a spacing apart, 4.5 spacings above the plane: each
+        // is a typical neighbour of the others for the density tests.
+        let stray = [(15.0, 15.0), (15.9, 15.2), (15.3, 15.9), (16.1, 16.0)];
+        pts.extend(stray.map(|(x, y)| DVec3::new(x, y, 4.5)));
+        // The same in the plane beyond its edge: a patch of surface.
+        pts.extend(stray.map(|(x, y)| DVec3::new(x + 19.0, y, 0.0)));
+        let (cleaned, stats) = clean_points(&pts, 3);
+        assert_eq!(stats.outliers, 4);
+        assert!(cleaned.iter().all(|p| p.z == 0.0));
+        assert_eq!(cleaned.len(), 904);
     }
 
     #[test]
