@@ -54,6 +54,9 @@ pub struct RefineStats {
     /// Vertices moved onto the tangent plane of their nearest data point
     /// (where the fit did not take them: beside sharp edges).
     pub snapped_to_planes: usize,
+    /// Of those, vertices then moved onto the line where their plane meets
+    /// a neighbour's across a sharp edge.
+    pub snapped_to_edges: usize,
     /// Vertices of faired gap patches.
     pub faired: usize,
     /// Largest distance a faired vertex moved (world units).
@@ -120,8 +123,12 @@ pub fn refine_surface(
             .map(|(&supported, &fitted)| supported && !fitted)
             .collect();
         let before = mesh.vertices.clone();
-        project_onto_nearest_planes(&mut mesh.vertices, points, &tree, &beside_edges, spacing);
+        let planes =
+            project_onto_nearest_planes(&mut mesh.vertices, points, &tree, &beside_edges, spacing);
         stats.snapped_to_planes = undo_degenerating_moves(mesh, &before, folded);
+        let before = mesh.vertices.clone();
+        onto_edges_of_planes(mesh, &planes, &before, spacing);
+        stats.snapped_to_edges = undo_degenerating_moves(mesh, &before, folded);
     }
     // Snaps onto the fit can land two vertices on one point too, or flatten
     // a triangle to nothing (between sparse slices): undone, as the planes'
@@ -207,24 +214,85 @@ fn project_onto_nearest_planes(
     tree: &KdTree,
     which: &[bool],
     spacing: f64,
-) {
+) -> Vec<Option<Plane>> {
     if points.len() < PLANE_NEIGHBOURS {
-        return;
+        return vec![None; vertices.len()];
     }
     vertices
         .par_iter_mut()
         .zip(which)
-        .filter(|(_, &w)| w)
-        .for_each(|(v, _)| {
-            if let Some(near) = tree.nearest(*v) {
-                let p = points[near.index];
-                let n = normal_beside_edges(points, tree, near.index, PLANE_NEIGHBOURS);
-                let foot = *v - n * n.dot(*v - p);
-                if foot.distance(*v) <= spacing {
-                    *v = foot;
+        .map(|(v, &w)| {
+            let near = tree.nearest(*v).filter(|_| w)?;
+            let p = points[near.index];
+            let n = normal_beside_edges(points, tree, near.index, PLANE_NEIGHBOURS);
+            let foot = *v - n * n.dot(*v - p);
+            (foot.distance(*v) <= spacing).then(|| {
+                *v = foot;
+                Plane {
+                    point: p,
+                    normal: n,
                 }
-            }
-        });
+            })
+        })
+        .collect()
+}
+
+/// A face's plane beside a sharp edge.
+#[derive(Clone, Copy, Debug)]
+struct Plane {
+    point: DVec3,
+    normal: DVec3,
+}
+
+/// Planes whose normals' cosine is below this meet at a sharp edge.
+const EDGE_COSINE: f64 = 0.87;
+
+/// Move each vertex on a plane, whose ring holds vertices on one other
+/// plane across a sharp edge, onto the two planes' line where it is nearer
+/// that line than those neighbours and within half a cell: the triangles
+/// across the edge otherwise cut it off by up to a cell.
+fn onto_edges_of_planes(mesh: &mut TriMesh, planes: &[Option<Plane>], at: &[DVec3], spacing: f64) {
+    let faces = surfrecon_geom::metrics::vertex_faces(&mesh.triangles, at.len());
+    let triangles = &mesh.triangles;
+    let moves: Vec<(usize, DVec3)> = (0..at.len())
+        .into_par_iter()
+        .filter_map(|v| {
+            let own = planes[v].filter(|_| at[v] == mesh.vertices[v])?;
+            let ring = (faces.of(v).iter()).flat_map(|&f| triangles[f as usize]);
+            let across: Vec<usize> = ring
+                .filter(|&w| w as usize != v)
+                .map(|w| w as usize)
+                .filter(|&w| {
+                    planes[w].is_some_and(|q| q.normal.dot(own.normal).abs() < EDGE_COSINE)
+                })
+                .collect();
+            let other = planes[*across.first()?]?;
+            let on_line = |x: DVec3| closest_on_line(own, other, x);
+            let target = on_line(at[v])?;
+            let gap = target.distance(at[v]);
+            let nearest_across = across.iter().all(|&w| {
+                planes[w].is_some_and(|q| q.normal.dot(other.normal).abs() >= EDGE_COSINE)
+                    && on_line(at[w]).is_some_and(|t| t.distance(at[w]) > gap)
+            });
+            (nearest_across && gap <= 0.5 * spacing).then_some((v, target))
+        })
+        .collect();
+    for (v, target) in moves {
+        mesh.vertices[v] = target;
+    }
+}
+
+/// The point of the line where planes `a` and `b` meet nearest to `x`.
+fn closest_on_line(a: Plane, b: Plane, x: DVec3) -> Option<DVec3> {
+    let c = a.normal.dot(b.normal);
+    let det = 1.0 - c * c;
+    if det < 1e-6 {
+        return None;
+    }
+    let (ra, rb) = (a.normal.dot(x - a.point), b.normal.dot(x - b.point));
+    let s = (ra - c * rb) / det;
+    let t = (rb - c * ra) / det;
+    Some(x - a.normal * s - b.normal * t)
 }
 
 /// Put back every moved vertex (one differing from `before`) of a

@@ -128,6 +128,7 @@ fn report(
         refine: RefineReport {
             snapped: r.refine.snapped,
             snapped_to_planes: r.refine.snapped_to_planes,
+            snapped_to_edges: r.refine.snapped_to_edges,
             faired: r.refine.faired,
             max_fairing_shift: r.refine.max_fairing_shift,
             fitted_to_rim: r.refine.fitted_to_rim,

@@ -163,6 +163,8 @@ pub struct EvolveReport {
 pub struct RefineReport {
     pub snapped: usize,
     pub snapped_to_planes: usize,
+    /// Of those, onto the line where two faces' planes meet (sharp edges).
+    pub snapped_to_edges: usize,
     pub faired: usize,
     pub max_fairing_shift: f64,
     /// Faired vertices moved onto the quadric the rim's data continue.
@@ -297,6 +299,8 @@ pub struct SvmMeshReport {
     pub snapped: usize,
     /// Of the others, beside sharp edges, onto the nearest point's plane.
     pub snapped_to_planes: usize,
+    /// Of those, onto the line where two faces' planes meet.
+    pub snapped_to_edges: usize,
     /// Points farther than half a cell from the surface pulled onto: thin
     /// parts' tips the fit ends short of, and surface it misses.
     pub reached_far_points: usize,

@@ -140,6 +140,7 @@ pub(crate) fn run(
             pinholes_filled: m.pinholes_filled,
             snapped: refined.map_or(0, |r| r.snapped),
             snapped_to_planes: refined.map_or(0, |r| r.snapped_to_planes),
+            snapped_to_edges: refined.map_or(0, |r| r.snapped_to_edges),
             reached_far_points: reached,
             uncrossed: refined.map_or(0, |r| r.uncrossed),
             vertices: mesh.vertices.len(),
