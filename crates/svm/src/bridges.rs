@@ -191,8 +191,9 @@ const PINHOLE_NODES: usize = 4;
 /// its neighbours along that axis (a dip through the sheet) or than one
 /// with the other inside and outside beyond (the sheet's inside stepping
 /// to the next node layer there: spikes' fin at 0.25 % noise, 0.015 thick
-/// where f barely closes), ringed in that plane by inside nodes. Its nodes are set inside as a join's are,
-/// as a speck of f (a piece a cell or two wide) is dropped. A gap between
+/// where f barely closes), ringed in that plane by inside nodes. Its
+/// nodes are set inside as a join's are, as a speck of f (a piece a cell
+/// or two wide) is dropped. A gap between
 /// two surfaces is no dip (f rises towards its middle), and a wider hole
 /// or one where f stays clearly positive is kept. Returns the number of
 /// nodes filled.
