@@ -188,9 +188,12 @@ const PINHOLE_NODES: usize = 4;
 /// handle the shape does not have. Such a pinhole is a face-connected
 /// set of at most [`PINHOLE_NODES`] nodes in one grid plane across an
 /// axis, each positive by less than [`PINCH_CELLS`] and lower than both
-/// its neighbours along that axis (a dip through the sheet), ringed in
-/// that plane by inside nodes. Its nodes are set inside as a join's are,
-/// as a speck of f (a piece a cell or two wide) is dropped. A gap between
+/// its neighbours along that axis (a dip through the sheet) or than one
+/// with the other inside and outside beyond (the sheet's inside stepping
+/// to the next node layer there: spikes' fin at 0.25 % noise, 0.015 thick
+/// where f barely closes), ringed in that plane by inside nodes. Its
+/// nodes are set inside as a join's are, as a speck of f (a piece a cell
+/// or two wide) is dropped. A gap between
 /// two surfaces is no dip (f rises towards its middle), and a wider hole
 /// or one where f stays clearly positive is kept. Returns the number of
 /// nodes filled.
@@ -220,18 +223,32 @@ pub fn fill_pinholes(spec: &GridSpec<3>, nodes: &mut Vec<([usize; 3], f64)>) -> 
     filled.len()
 }
 
-/// Whether node `i` is positive by less than `depth` and lower than both
-/// its neighbours along `axis`.
+/// Whether node `i` is positive by less than `depth` and lies in a sheet
+/// f leaves pinched open along `axis`: lower than both its neighbours
+/// along it (the sheet's middle layer dips), or a step: lower than one of
+/// them, the other inside with outside beyond it (a sheet thinner than a
+/// cell crossing between two node layers: its inside steps from one layer
+/// to the next, and where the step's node falls just short of 0 the two
+/// layers' inside nodes touch only across a cell's diagonal, which
+/// marching cubes opens into a hole). Inside two nodes deep is a thick
+/// body's face, whose dimples are no holes; both neighbours inside is a
+/// gap between two surfaces.
 fn dips_across(band: &Band, i: usize, axis: usize, depth: f64) -> bool {
     let (n, v) = band.nodes[i];
     if !(0.0..depth).contains(&v) {
         return false;
     }
-    [-1, 1].iter().all(|&d| {
+    let along = |d: i64| {
         let mut m = n.map(|c| c as i64);
         m[axis] += d;
-        band.value(m).is_some_and(|w| w > v)
-    })
+        band.value(m)
+    };
+    let higher = |d: i64| along(d).is_some_and(|w| w > v);
+    let one_node_thick =
+        |d: i64| along(d).is_some_and(|w| w < 0.0) && along(2 * d).is_some_and(|w| w > 0.0);
+    (higher(-1) && higher(1))
+        || (higher(-1) && one_node_thick(1))
+        || (higher(1) && one_node_thick(-1))
 }
 
 /// The face-connected set of `dips` in the plane across `axis` through
