@@ -1743,12 +1743,16 @@ pub fn sculpt_odf(
     let mut segments = aligned::new_edge_segments(&surface, tool);
     segments.extend(further::tool_edge_segments(&combined, h));
     let (changed, _, mut report) = combine(field, |f| &mut f.values, operation, tool);
-    report.thin = fill_thin_walls_odf(field, &combined, &changed).len();
+    let walls = fill_thin_walls_odf(field, &combined, &changed);
+    report.thin = walls.len();
     let aligned = aligned::align_to_new_edge(field, &combined, &segments, &corners);
     report.edge_points = aligned.offered;
     report.kept = aligned.moved.len();
     let cells = aligned::result_cells(field, &combined, &segments, &corners, &old_features);
-    let pinned = aligned::pinned_samples(field, &combined, &cells, &aligned.moved);
+    // The fit's moves would take the wall's samples onto its faces, where
+    // they keep its side but not its thickness: they stay.
+    let mut pinned = aligned::pinned_samples(field, &combined, &cells, &aligned.moved);
+    pinned.extend(walls);
     report.fitted = aligned::fit_around_new_edge(field, &combined, &surface, &cells, &pinned);
     Ok(report)
 }
