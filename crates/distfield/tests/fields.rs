@@ -1160,7 +1160,9 @@ fn sculpting_fandisk_cuts_a_hole_under_a_pocket_without_a_handle() {
 /// kept that (its moves keep the topology), and the surface had a hole
 /// through the wall (genus 1; 0.478 / 0.527 h both ways from the exact
 /// result). Samples now move into the wall, also where the other sample
-/// of their edge sits on the concave edge (the wall's far face).
+/// of their edge sits on the concave edge (the wall's far face), and the
+/// fit leaves them there (moved but not pinned: cap 0.244 h, surface
+/// 0.250 h off; pinned: 0.100 h, 0.139 h).
 #[test]
 fn sculpting_an_odf_of_fandisk_keeps_a_wall_thinner_than_a_cell() {
     use surfrecon_distfield::sculpt::{sculpt_odf, Operation, Tool};
@@ -1180,8 +1182,8 @@ fn sculpting_an_odf_of_fandisk_keeps_a_wall_thinner_than_a_cell() {
         .map(|p| exact.signed_distance(p).max(-tool.signed_distance(p)).abs() / h)
         .fold(0.0, f64::max);
     eprintln!("ODF: cap {cap} h from the surface, surface {off} h off the result");
-    assert!(cap < 0.35, "the cap lies {cap} h from the surface");
-    assert!(off < 0.3, "the surface leaves the result by {off} h");
+    assert!(cap < 0.15, "the cap lies {cap} h from the surface");
+    assert!(off < 0.15, "the surface leaves the result by {off} h");
 }
 
 /// Sculpting itself offers the points one point per cell cannot keep:
