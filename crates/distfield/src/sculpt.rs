@@ -172,7 +172,7 @@ pub struct SculptReport {
     /// exact result changed ([`crate::refine`]).
     pub repaired: usize,
     /// Samples moved into a wall or gap of the result thinner than a
-    /// cell that lay between them and a neighbour (UDF).
+    /// cell that lay between them and a neighbour.
     pub thin: usize,
     /// Samples whose magnitude was raised so that a face with samples of
     /// alternating sign joins the pair the exact result joins (UDF).
@@ -1297,18 +1297,7 @@ fn fill_thin_walls(field: &mut UnifiedField, combined: &Combined, changed: &[usi
     let spec = field.spec;
     let h = spec.spacing;
     let strides = spec.strides();
-    let mut edges: BTreeSet<(usize, usize)> = BTreeSet::new();
-    for &n in changed {
-        let idx = spec.unlinear(n);
-        for axis in 0..3 {
-            if idx[axis] > 0 {
-                edges.insert((n - strides[axis], axis));
-            }
-            if idx[axis] + 1 < spec.dims[axis] {
-                edges.insert((n, axis));
-            }
-        }
-    }
+    let edges = edges_at_samples(&spec, changed);
     let found: Vec<(f64, usize, DVec3)> = edges
         .par_iter()
         .filter_map(|&(n, axis)| {
@@ -1336,12 +1325,8 @@ fn fill_thin_walls(field: &mut UnifiedField, combined: &Combined, changed: &[usi
     found.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     let mut moved = Vec::new();
     for (_, node, p) in found {
-        let reach = (p - node_position(&spec, node)).abs().max_element();
         let value = combined.signed_distance(p);
-        if on_outer_layer(&spec, node)
-            || reach >= 0.5 * h
-            || !is_wall(combined, p, value, h)
-            || !stays_convex(&spec, node, p, |m| field.position(m))
+        if !may_fill(&spec, combined, node, p, value, |m| field.position(m))
             // A feature point it holds goes to another sample of its cell.
             || !crate::refine::hand_over(field, node)
         {
@@ -1352,6 +1337,162 @@ fn fill_thin_walls(field: &mut UnifiedField, combined: &Combined, changed: &[usi
         moved.push(node);
     }
     moved
+}
+
+/// The grid edges (lower sample, axis) touching any of `samples`.
+fn edges_at_samples(spec: &GridSpec<3>, samples: &[usize]) -> BTreeSet<(usize, usize)> {
+    let strides = spec.strides();
+    let mut edges = BTreeSet::new();
+    for &n in samples {
+        let idx = spec.unlinear(n);
+        for axis in 0..3 {
+            if idx[axis] > 0 {
+                edges.insert((n - strides[axis], axis));
+            }
+            if idx[axis] + 1 < spec.dims[axis] {
+                edges.insert((n, axis));
+            }
+        }
+    }
+    edges
+}
+
+/// [`fill_thin_walls`] for an offset field, whose samples may sit on the
+/// surface: a grid edge passes through a wall when its samples lie on one
+/// side with the result crossing twice between them, or when one sample
+/// lies on the surface (within [`ON_SURFACE`]) and the result crosses
+/// well before it (a cap below an object's concave edge, whose sample is
+/// the wall's far face: interpolation puts the edge's only crossing at
+/// that sample and the near face is lost). A sample off the surface
+/// moves to the wall's deepest point within its box and takes the
+/// result's distance there, deepest walls first. Without this the fit
+/// that follows keeps whatever sides min/max gave the samples (its moves
+/// keep the topology): the wall between fandisk's face and a cylinder's
+/// cap a fraction of a cell below it stayed pierced.
+fn fill_thin_walls_odf(
+    field: &mut OffsetField,
+    combined: &Combined,
+    changed: &[usize],
+) -> Vec<usize> {
+    let spec = field.spec;
+    let strides = spec.strides();
+    let edges = edges_at_samples(&spec, changed);
+    let mut found: Vec<(f64, usize, DVec3)> = edges
+        .par_iter()
+        .flat_map_iter(|&(n, axis)| odf_wall_places(field, combined, n, n + strides[axis]))
+        .collect();
+    found.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+    let mut moved = Vec::new();
+    for (_, node, p) in found {
+        let value = combined.signed_distance(p);
+        if moved.contains(&node)
+            || !may_fill(&spec, combined, node, p, value, |m| field.position_of(m))
+        {
+            continue;
+        }
+        field.values[node] = value;
+        field.moved.insert(node as u32, p);
+        moved.push(node);
+    }
+    moved
+}
+
+/// A sample this many spacings or nearer the surface counts as on it.
+const ON_SURFACE: f64 = 0.01;
+
+/// Where the samples of grid edge `n`-`m` could go into a wall the edge
+/// passes through (see [`fill_thin_walls_odf`]): for each sample off the
+/// surface, the wall's deepest point within its box, with its depth.
+fn odf_wall_places(
+    field: &OffsetField,
+    combined: &Combined,
+    n: usize,
+    m: usize,
+) -> Vec<(f64, usize, DVec3)> {
+    let spec = &field.spec;
+    let h = spec.spacing;
+    let (a, b) = (field.values[n], field.values[m]);
+    let (pa, pb) = (field.position_of(n), field.position_of(m));
+    let on_surface = |v: f64| v.abs() < ON_SURFACE * h;
+    let length = pa.distance(pb);
+    let changes = || sign_changes(combined, pa, pb, h);
+    // The wall as distances from `pa`, and the side it is not on.
+    let wall = if (a < 0.0) == (b < 0.0) {
+        if a.abs() + b.abs() >= h {
+            return Vec::new();
+        }
+        match changes()[..] {
+            [t0, t1, ..] => (t0, t1, a < 0.0),
+            _ => return Vec::new(),
+        }
+    } else if on_surface(b) && !on_surface(a) && a.abs() < h {
+        match changes().first() {
+            Some(&t0) if length - t0 >= 2.0 * WALL_DEPTH * h => (t0, length, a < 0.0),
+            _ => return Vec::new(),
+        }
+    } else if on_surface(a) && !on_surface(b) && b.abs() < h {
+        match changes().last() {
+            Some(&t1) if t1 >= 2.0 * WALL_DEPTH * h => (0.0, t1, b < 0.0),
+            _ => return Vec::new(),
+        }
+    } else {
+        return Vec::new();
+    };
+    let (t0, t1, inside) = wall;
+    let half = 0.5 * h * (1.0 - 1e-6);
+    let along = (pb - pa) / length;
+    [(n, a), (m, b)]
+        .into_iter()
+        .filter(|&(_, v)| !on_surface(v))
+        .filter_map(|(k, _)| {
+            // The part of the wall inside the sample's box.
+            let home = node_position(spec, k);
+            let (lo, hi) = box_span(pa - home, along, half);
+            let (lo, hi) = (t0.max(lo), t1.min(hi));
+            (lo < hi)
+                .then(|| deepest_between(combined, pa, pb, lo, hi, inside))?
+                .map(|(depth, p)| (depth, k, p))
+        })
+        .collect()
+}
+
+/// The distances along a ray from `start` (relative to a box's centre)
+/// in unit `direction` between which it lies in the box of half-width
+/// `half`.
+fn box_span(start: DVec3, direction: DVec3, half: f64) -> (f64, f64) {
+    (0..3).fold((f64::NEG_INFINITY, f64::INFINITY), |(lo, hi), k| {
+        if direction[k] == 0.0 {
+            return if start[k].abs() <= half {
+                (lo, hi)
+            } else {
+                (f64::INFINITY, f64::NEG_INFINITY)
+            };
+        }
+        let (s, t) = (
+            (-half - start[k]) / direction[k],
+            (half - start[k]) / direction[k],
+        );
+        (lo.max(s.min(t)), hi.min(s.max(t)))
+    })
+}
+
+/// Whether sample `node` may move into the wall at `p` (at distance
+/// `value` from the result): not on the outer layer, within its box, a
+/// wall by [`is_wall`], and its cells stay convex.
+fn may_fill(
+    spec: &GridSpec<3>,
+    combined: &Combined,
+    node: usize,
+    p: DVec3,
+    value: f64,
+    position: impl Fn(usize) -> DVec3,
+) -> bool {
+    let h = spec.spacing;
+    let reach = (p - node_position(spec, node)).abs().max_element();
+    !on_outer_layer(spec, node)
+        && reach < 0.5 * h
+        && is_wall(combined, p, value, h)
+        && stays_convex(spec, node, p, position)
 }
 
 /// Whether the thin place around `p` (at distance `value` from the
@@ -1414,6 +1555,19 @@ fn deepest_across(
     let [t0, t1, ..] = changes[..] else {
         return None;
     };
+    deepest_between(combined, a, b, t0, t1, inside)
+}
+
+/// The deepest point of the other side than `inside` sampled on
+/// `a`-`b` between distances `t0` and `t1` from `a`, and its depth.
+fn deepest_between(
+    combined: &Combined,
+    a: DVec3,
+    b: DVec3,
+    t0: f64,
+    t1: f64,
+    inside: bool,
+) -> Option<(f64, DVec3)> {
     let length = a.distance(b);
     (0..=16)
         .map(|k| a.lerp(b, (t0 + (t1 - t0) * k as f64 / 16.0) / length))
@@ -1567,8 +1721,9 @@ fn settle_ambiguous_faces(
     raised
 }
 
-/// Sculpt an offset field: combine at the samples' positions, put the
-/// samples whose boxes the new edge (and the new corners) pass through
+/// Sculpt an offset field: combine at the samples' positions, move
+/// samples into walls thinner than a cell ([`fill_thin_walls_odf`]), put
+/// the samples whose boxes the new edge (and the new corners) pass through
 /// onto it ([`aligned::align_to_new_edge`]), then fit the samples around
 /// them to the exact result ([`aligned::fit_around_new_edge`]), as
 /// construction aligns and fits samples to a mesh's features.
@@ -1587,12 +1742,17 @@ pub fn sculpt_odf(
     corners.extend(further::tool_corners(tool, &combined.object, h));
     let mut segments = aligned::new_edge_segments(&surface, tool);
     segments.extend(further::tool_edge_segments(&combined, h));
-    let (_, _, mut report) = combine(field, |f| &mut f.values, operation, tool);
+    let (changed, _, mut report) = combine(field, |f| &mut f.values, operation, tool);
+    let walls = fill_thin_walls_odf(field, &combined, &changed);
+    report.thin = walls.len();
     let aligned = aligned::align_to_new_edge(field, &combined, &segments, &corners);
     report.edge_points = aligned.offered;
     report.kept = aligned.moved.len();
     let cells = aligned::result_cells(field, &combined, &segments, &corners, &old_features);
-    let pinned = aligned::pinned_samples(field, &combined, &cells, &aligned.moved);
+    // The fit's moves would take the wall's samples onto its faces, where
+    // they keep its side but not its thickness: they stay.
+    let mut pinned = aligned::pinned_samples(field, &combined, &cells, &aligned.moved);
+    pinned.extend(walls);
     report.fitted = aligned::fit_around_new_edge(field, &combined, &surface, &cells, &pinned);
     Ok(report)
 }
