@@ -20,9 +20,12 @@
 //! whichever face is nearest, so the part stays solid.
 
 use crate::band::NarrowBand;
+use crate::holes::AREA_NEIGHBOURS;
 use crate::multires::interpolate_with;
 use rayon::prelude::*;
-use surfrecon_geom::normals::estimate_normals;
+use rustc_hash::FxHashMap;
+use std::sync::Mutex;
+use surfrecon_geom::normals::{estimate_normals, estimate_normals_and_spacing};
 use surfrecon_geom::spatial::{KdTree, Neighbour};
 use surfrecon_geom::DVec3;
 use surfrecon_grid::GridSpec;
@@ -112,6 +115,10 @@ pub struct PointPlanes {
     points: Vec<DVec3>,
     /// Unit normals of the plane fits (unoriented).
     planes: Vec<DVec3>,
+    /// Each point's mean distance to its nearest others, which sets its
+    /// share of the area ([`crate::holes::tangent_disks`]); from the plane
+    /// fits' neighbour search, or empty (then searched when needed).
+    spacing: Vec<f64>,
     tree: KdTree,
 }
 
@@ -122,9 +129,17 @@ impl PointPlanes {
         if dim != 3 || points.is_empty() {
             return None;
         }
+        // One neighbour search gives the planes and the spacing, the same
+        // values bit for bit as two searches (with a full row of neighbours).
+        let (planes, spacing) = if points.len() > NORMAL_NEIGHBOURS {
+            estimate_normals_and_spacing(points, NORMAL_NEIGHBOURS, AREA_NEIGHBOURS)
+        } else {
+            (estimate_normals(points, NORMAL_NEIGHBOURS), Vec::new())
+        };
         Some(PointPlanes {
             points: points.to_vec(),
-            planes: estimate_normals(points, NORMAL_NEIGHBOURS),
+            planes,
+            spacing,
             tree: KdTree::new(points),
         })
     }
@@ -132,7 +147,16 @@ impl PointPlanes {
     /// One small triangle per point in its tangent plane, of its share of
     /// the area (see [`crate::holes::tangent_disks`]).
     pub fn surfels(&self) -> Vec<[DVec3; 3]> {
-        crate::holes::tangent_disks(&self.points, &self.planes, &self.tree)
+        self.disks(&self.planes)
+    }
+
+    /// The points' tangent disks in the planes of `normals`.
+    fn disks(&self, normals: &[DVec3]) -> Vec<[DVec3; 3]> {
+        if self.spacing.len() == self.points.len() {
+            crate::holes::disks_of_spacing(&self.points, normals, &self.spacing)
+        } else {
+            crate::holes::tangent_disks(&self.points, normals, &self.tree)
+        }
     }
 
     /// The points with the corners of their tangent disks (see
@@ -142,7 +166,7 @@ impl PointPlanes {
     /// fitted plane (the fits anchor thin parts better than the given
     /// normals: spikes CD 0.164 against 0.185‰).
     pub fn densified(&self, normals: &[DVec3], with_disk: &[bool]) -> Self {
-        let corners = crate::holes::tangent_disks(&self.points, normals, &self.tree);
+        let corners = self.disks(normals);
         let points: Vec<DVec3> = self
             .points
             .iter()
@@ -153,6 +177,7 @@ impl PointPlanes {
         PointPlanes {
             points,
             planes: with_corners(&self.planes, with_disk),
+            spacing: Vec::new(),
             tree,
         }
     }
@@ -224,6 +249,10 @@ pub struct TangentSides<'a> {
     /// nodes farther than `beside` from the nearest point's normal line.
     reach: f64,
     beside: f64,
+    /// Answers of [`TangentSides::allows`] given so far, by the node's
+    /// position and side: the flow's zero set jitters by a node at the
+    /// data, and the same nodes ask again every step.
+    answers: Mutex<FxHashMap<([u64; 3], bool), bool>>,
 }
 
 impl<'a> TangentSides<'a> {
@@ -263,7 +292,29 @@ impl<'a> TangentSides<'a> {
             h,
             reach,
             beside,
+            answers: Mutex::new(FxHashMap::default()),
         }
+    }
+
+    /// [`TangentSides::allows`] for every `(position, to_inside)` query,
+    /// the answers not given before computed in parallel (the test reads
+    /// only the position and fixed data, so a kept answer is the answer).
+    pub fn allows_all(&self, queries: &[(DVec3, bool)]) -> Vec<bool> {
+        let key = |&(p, to_inside): &(DVec3, bool)| (p.to_array().map(f64::to_bits), to_inside);
+        let mut answers = self.answers.lock().unwrap_or_else(|e| e.into_inner());
+        let known: Vec<Option<bool>> = queries
+            .iter()
+            .map(|q| answers.get(&key(q)).copied())
+            .collect();
+        let all: Vec<bool> = (queries.par_iter().zip(&known))
+            .map(|(&(p, to_inside), known)| known.unwrap_or_else(|| self.allows(p, to_inside)))
+            .collect();
+        for ((q, known), &answer) in queries.iter().zip(&known).zip(&all) {
+            if known.is_none() {
+                answers.insert(key(q), answer);
+            }
+        }
+        all
     }
 
     /// Whether a node at `position` may move to side `to_inside`: always

@@ -290,16 +290,22 @@ impl<const D: usize> Guard<'_, D> {
         self.topology.is_some() || self.anchors.cells.is_some() || self.anchors.sides.is_some()
     }
 
-    /// Whether the tangent planes let `node` move to side `to_inside`.
-    /// The test reads only the node's position, nothing the evolution
-    /// changes, so a step's crossings are all tested at once, in parallel.
-    fn sides_allow(&self, spec: &GridSpec<D>, node: [usize; D], to_inside: bool) -> bool {
+    /// Whether the tangent planes let each node of `moves` move to its
+    /// side (true: inside). The test reads only the node's position,
+    /// nothing the evolution changes, so a step's crossings are all tested
+    /// at once (and answers repeat, see [`TangentSides::allows_all`]).
+    fn sides_allow(&self, spec: &GridSpec<D>, moves: &[([usize; D], bool)]) -> Vec<bool> {
         let Some(sides) = self.anchors.sides else {
-            return true;
+            return vec![true; moves.len()];
         };
-        let p = spec.position(node);
-        let p = DVec3::from_array(std::array::from_fn(|a| if a < D { p[a] } else { 0.0 }));
-        sides.allows(p, to_inside)
+        let queries: Vec<(DVec3, bool)> = (moves.iter())
+            .map(|&(node, to_inside)| {
+                let p = spec.position(node);
+                let p = DVec3::from_array(std::array::from_fn(|a| if a < D { p[a] } else { 0.0 }));
+                (p, to_inside)
+            })
+            .collect();
+        sides.allows_all(&queries)
     }
 
     /// Whether the data cells and the topology let `node` change side now
@@ -332,11 +338,10 @@ impl<const D: usize> Guard<'_, D> {
 fn apply<const D: usize>(band: &mut NarrowBand<D>, updates: Vec<f64>, guard: &Guard<D>) {
     let guarded = guard.is_active();
     let crossings = band.add_active(&updates, |old, new| guarded && inside(new) != inside(old));
-    let b = &*band;
-    let sides: Vec<bool> = crossings
-        .par_iter()
-        .map(|&(k, new)| guard.sides_allow(b.spec(), b.node(k), inside(new)))
+    let moves: Vec<([usize; D], bool)> = (crossings.iter())
+        .map(|&(k, new)| (band.node(k), inside(new)))
         .collect();
+    let sides = guard.sides_allow(band.spec(), &moves);
     for (&(k, new), sides_allow) in crossings.iter().zip(sides) {
         if sides_allow && guard.grid_allows(band, band.node(k), inside(new)) {
             band.set(k, new);

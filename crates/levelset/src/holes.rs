@@ -20,7 +20,7 @@ use surfrecon_grid::sdf::WindingTree;
 use surfrecon_grid::Field;
 
 /// Neighbours whose mean distance sets a point's share of the area.
-const AREA_NEIGHBOURS: usize = 6;
+pub(crate) const AREA_NEIGHBOURS: usize = 6;
 
 /// Share of the sampled candidates that must be inside for the flood to
 /// count as got in (and the full field to be computed).
@@ -94,12 +94,25 @@ fn oriented_disks(input: &Input) -> TriMesh {
 /// distance to its nearest neighbours in `tree`, built over `points`): the
 /// point's share of the surface it samples.
 pub(crate) fn tangent_disks(points: &[DVec3], normals: &[DVec3], tree: &KdTree) -> Vec<[DVec3; 3]> {
-    points
+    let spacing: Vec<f64> = points
         .par_iter()
-        .zip(normals)
-        .map(|(&p, &n)| {
+        .map(|&p| {
             let near = tree.knn(p, AREA_NEIGHBOURS + 1);
-            let spacing = near.iter().map(|x| x.distance).sum::<f64>() / AREA_NEIGHBOURS as f64;
+            near.iter().map(|x| x.distance).sum::<f64>() / AREA_NEIGHBOURS as f64
+        })
+        .collect();
+    disks_of_spacing(points, normals, &spacing)
+}
+
+/// [`tangent_disks`] with each point's spacing given (its mean distance to
+/// its [`AREA_NEIGHBOURS`] nearest other points).
+pub(crate) fn disks_of_spacing(
+    points: &[DVec3],
+    normals: &[DVec3],
+    spacing: &[f64],
+) -> Vec<[DVec3; 3]> {
+    (points.par_iter().zip(normals).zip(spacing))
+        .map(|((&p, &n), &spacing)| {
             // Equilateral triangle of area spacing²: circumradius r with
             // (3√3/4) r² = spacing².
             let r = spacing * (4.0 / (3.0 * 3f64.sqrt())).sqrt();

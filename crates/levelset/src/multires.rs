@@ -350,9 +350,11 @@ fn distances_to_points<const D: usize>(
 
 /// Linear indices (sorted) of the nodes within `radius` of any of
 /// `centres` that satisfy `keep`. Balls around neighbouring points overlap
-/// many times over (45k buried points at 8 cells: 10⁸ visits), so the
-/// nodes are marked in one bit per grid node, in parallel over the
-/// centres, and read back in order: no hashing and no sort.
+/// many times over (45k buried points at 8 cells: 10⁸ visits), so each
+/// ball is marked row by row (a run of bits per row along axis 0) in one
+/// bit per grid node, in parallel over the centres, and the marks are read
+/// back in order, `keep` tested once per marked node: no hashing and no
+/// sort.
 fn nodes_near<const D: usize>(
     spec: &GridSpec<D>,
     centres: &[[f64; D]],
@@ -366,16 +368,17 @@ fn nodes_near<const D: usize>(
         let Some((lo, hi)) = spec.node_box((*p, *p), radius) else {
             return;
         };
-        for_each_in_box(lo, hi, |&idx| {
-            let l = spec.linear(idx);
-            let (word, bit) = (&words[l / 64], 1u64 << (l % 64));
-            if word.load(Ordering::Relaxed) & bit != 0 {
-                return;
-            }
+        let in_ball = |idx: [usize; D]| {
             let x = spec.position(idx);
             let r2: f64 = (0..D).map(|a| (x[a] - p[a]).powi(2)).sum();
-            if r2 <= radius * radius && keep(idx) {
-                word.fetch_or(bit, Ordering::Relaxed);
+            r2 <= radius * radius
+        };
+        let mut row_lo = lo;
+        row_lo[0] = hi[0];
+        for_each_in_box(row_lo, hi, |&row| {
+            if let Some((a, b)) = ball_row(spec, p, radius, lo[0], hi[0], row, in_ball) {
+                let start = spec.linear(row.map_first(a));
+                set_bits(&words, start, start + (b - a));
             }
         });
     });
@@ -392,7 +395,78 @@ fn nodes_near<const D: usize>(
                 })
             })
         })
+        .filter(|&l| keep(spec.unlinear(l)))
         .collect()
+}
+
+/// Node `idx` with its axis-0 index replaced.
+trait MapFirst {
+    fn map_first(self, first: usize) -> Self;
+}
+
+impl<const D: usize> MapFirst for [usize; D] {
+    fn map_first(mut self, first: usize) -> Self {
+        self[0] = first;
+        self
+    }
+}
+
+/// The first and last axis-0 index in `lo..=hi` of the row through `row`
+/// (its other indices) whose nodes `in_ball` holds, or `None`. Along a row
+/// the test grows with the distance from the centre's axis-0 coordinate,
+/// so its nodes form one run; the run's ends are estimated from the
+/// radius and then settled by `in_ball` itself, so the run is exactly
+/// the nodes `in_ball` holds.
+fn ball_row<const D: usize>(
+    spec: &GridSpec<D>,
+    centre: &[f64; D],
+    radius: f64,
+    lo: usize,
+    hi: usize,
+    row: [usize; D],
+    in_ball: impl Fn([usize; D]) -> bool,
+) -> Option<(usize, usize)> {
+    let x = spec.position(row);
+    let across: f64 = (1..D).map(|a| (x[a] - centre[a]).powi(2)).sum();
+    let g = (centre[0] - spec.origin[0]) / spec.spacing;
+    let reach = (radius * radius - across).max(0.0).sqrt() / spec.spacing;
+    let at = |i: usize| in_ball(row.map_first(i));
+    let nearest = (g.round().max(0.0) as usize).clamp(lo, hi);
+    let (mut a, mut b) = (
+        ((g - reach).ceil().max(0.0) as usize).clamp(lo, hi),
+        ((g + reach).floor().max(0.0) as usize).clamp(lo, hi),
+    );
+    // The run, if any, holds the node nearest the centre or one beside it.
+    a = a.min(nearest.saturating_sub(1).max(lo));
+    b = b.max((nearest + 1).min(hi));
+    while a > lo && at(a - 1) {
+        a -= 1;
+    }
+    while b < hi && at(b + 1) {
+        b += 1;
+    }
+    while a <= b && !at(a) {
+        a += 1;
+    }
+    while b >= a && !at(b) {
+        if b == 0 {
+            return None;
+        }
+        b -= 1;
+    }
+    (a <= b).then_some((a, b))
+}
+
+/// Set bits `first..=last` of `words`.
+fn set_bits(words: &[AtomicU64], first: usize, last: usize) {
+    let (first_word, last_word) = (first / 64, last / 64);
+    for (w, word) in words[first_word..=last_word].iter().enumerate() {
+        let w = first_word + w;
+        let from = if w == first_word { first % 64 } else { 0 };
+        let to = if w == last_word { last % 64 } else { 63 };
+        let mask = (u64::MAX >> (63 - to)) & (u64::MAX << from);
+        word.fetch_or(mask, Ordering::Relaxed);
+    }
 }
 
 /// Tags of a region's nodes; every other node keeps the side `other`
@@ -417,6 +491,53 @@ impl<F: Fn(usize) -> Tag> TagStore for LocalTags<F> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn nodes_near_match_a_node_by_node_search() {
+        let spec = GridSpec::<3> {
+            origin: [-0.37, 0.11, -1.3],
+            spacing: 0.05,
+            dims: [70, 67, 65],
+        };
+        // Centres anywhere, on nodes, and near the grid's faces (balls cut
+        // off by the border).
+        let mut centres: Vec<[f64; 3]> = (0..200)
+            .map(|i| {
+                let t = i as f64;
+                let c = |f: f64, a: usize| {
+                    spec.origin[a] + (f * t).sin().abs() * spec.spacing * spec.dims[a] as f64
+                };
+                [c(1.3, 0), c(0.7, 1), c(2.9, 2)]
+            })
+            .collect();
+        centres.push(spec.position([10, 20, 30]));
+        centres.push(spec.position([0, 0, 0]));
+        centres.push(spec.position([69, 66, 64]));
+        let keep = |idx: [usize; 3]| !(idx[0] + 2 * idx[1] + idx[2]).is_multiple_of(3);
+        for radius in [0.0, 0.03, 0.05, 0.1234, 0.4] {
+            // Node by node over each ball's box of nodes.
+            let mut expected = std::collections::BTreeSet::new();
+            for p in &centres {
+                let Some((lo, hi)) = spec.node_box((*p, *p), radius) else {
+                    continue;
+                };
+                for_each_in_box(lo, hi, |&idx| {
+                    let x = spec.position(idx);
+                    let r2: f64 = (0..3).map(|a| (x[a] - p[a]).powi(2)).sum();
+                    if r2 <= radius * radius && keep(idx) {
+                        expected.insert(spec.linear(idx));
+                    }
+                });
+            }
+            let expected: Vec<usize> = expected.into_iter().collect();
+            assert!(radius < 0.1 || expected.len() > 1000);
+            assert_eq!(
+                nodes_near(&spec, &centres, radius, keep),
+                expected,
+                "radius {radius}"
+            );
+        }
+    }
 
     #[test]
     fn linear_functions_upsample_exactly() {

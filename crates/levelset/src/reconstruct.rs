@@ -1152,7 +1152,14 @@ fn refined_distance<const D: usize>(
     coarse: Arc<Field<D>>,
     band_cells: f64,
 ) -> Result<BandDistance<D>> {
-    let data = data_set::<D>(input, surfels);
+    let mut data = data_set::<D>(input, surfels);
+    // Each point lies in its own surfel (its centroid), whose reach (its
+    // box grown by the radius) holds the point's ball: with a surfel per
+    // point the points themselves can never be nearer, and are left out
+    // (half the exact distances at 437k points).
+    if surfels.len() == input.points.len() {
+        data.points.clear();
+    }
     data.validate()?;
     let radius = band_cells * spec.spacing;
     let bins = DataBins::new(&data, &spec, radius);
@@ -1240,8 +1247,25 @@ fn exact_block<const D: usize>(
     let r2 = radius * radius;
     let bits = BLOCK.trailing_zeros() as usize;
     for &i in &bins.items[bins.start[b] as usize..bins.start[b + 1] as usize] {
-        let Some((lo, hi)) = spec.node_box(data.datum_bounds(i as usize), radius) else {
+        let bounds = data.datum_bounds(i as usize);
+        let Some((lo, hi)) = spec.node_box(bounds, radius) else {
             continue;
+        };
+        // The datum lies in the ball around its box's centre through the
+        // box's corners: a node farther from that ball than its best datum
+        // so far cannot take this one (surfels: most exact distances).
+        let centre: [f64; D] = std::array::from_fn(|a| 0.5 * (bounds.0[a] + bounds.1[a]));
+        let ball = (0..D)
+            .map(|a| (0.5 * (bounds.1[a] - bounds.0[a])).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let beyond = |p: &[f64; D], best: f64| {
+            let to_centre = (0..D)
+                .map(|a| (p[a] - centre[a]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let gap = (to_centre - ball) * (1.0 - BOUND_SLACK);
+            gap > 0.0 && gap * gap > best * (1.0 + BOUND_SLACK)
         };
         let lo: [usize; D] = std::array::from_fn(|a| lo[a].max(block_lo[a]));
         let hi: [usize; D] = std::array::from_fn(|a| hi[a].min(block_hi[a]));
@@ -1251,12 +1275,15 @@ fn exact_block<const D: usize>(
         let point = data.points.get(i as usize);
         for_each_in_box(lo, hi, |&idx| {
             let p = spec.position(idx);
+            let local = (0..D).fold(0, |l, a| l | ((idx[a] - block_lo[a]) << (bits * a)));
+            if point.is_none() && beyond(&p, best[local].0) {
+                return;
+            }
             let d2 = data.distance_squared(i as usize, &p);
             // Points reach a ball (with slack for rounding, as the grid's band).
             if point.is_some() && d2 > r2 * (1.0 + 1e-12) {
                 return;
             }
-            let local = (0..D).fold(0, |l, a| l | ((idx[a] - block_lo[a]) << (bits * a)));
             let cur = &mut best[local];
             if d2 < cur.0 || (d2 == cur.0 && i < cur.1) {
                 *cur = (d2, i);
@@ -1271,6 +1298,10 @@ fn exact_block<const D: usize>(
         };
     }
 }
+
+/// Relative slack of the bound that skips exact distances in
+/// [`exact_block`]: far above rounding, far below any real gap.
+const BOUND_SLACK: f64 = 1e-9;
 
 fn data_set<const D: usize>(input: &Input, surfels: &[[DVec3; 3]]) -> DataSet<D> {
     let project = |v: &DVec3| -> [f64; D] { std::array::from_fn(|a| v[a]) };

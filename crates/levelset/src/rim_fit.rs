@@ -23,6 +23,14 @@ const KERNEL_REACH: f64 = 3.0;
 /// quadric has 10 coefficients).
 const MIN_DATA: usize = 12;
 
+/// A fit takes every datum within this many kernel widths (weights above
+/// e^−2.25 ≈ 0.1) and at most about [`MAX_OUTER_DATA`] of those beyond,
+/// evenly thinned and weighted up: a kernel over a wide gap of a dense scan
+/// holds tens of thousands of data whose low weights fix ten coefficients
+/// no better.
+const CORE_WIDTHS: f64 = 1.5;
+const MAX_OUTER_DATA: usize = 1024;
+
 /// Re-fits around the moved vertex, and Newton steps onto each fit.
 const FITS: usize = 3;
 const NEWTON_STEPS: usize = 5;
@@ -72,10 +80,26 @@ impl Quadric {
         }
         let mut ata = [[0.0; 10]; 10];
         let mut atb = [0.0; 10];
-        let mut rows = Vec::with_capacity(near.len());
+        // The data in the kernel's core all count; of those beyond, every
+        // `stride`-th in the tree's order (spatially even), weighted up by
+        // `stride` (the sums keep their expected values).
+        let core = CORE_WIDTHS * width;
+        let outer = near.iter().filter(|n| n.distance > core).count();
+        let stride = outer.div_ceil(MAX_OUTER_DATA).max(1);
+        let mut rows = Vec::with_capacity(near.len() - outer + outer.div_ceil(stride));
+        let mut outer_seen = 0;
         for n in &near {
+            let scale = if n.distance > core {
+                outer_seen += 1;
+                if (outer_seen - 1) % stride != 0 {
+                    continue;
+                }
+                stride as f64
+            } else {
+                1.0
+            };
             let q = (data.points[n.index] - centre) / width;
-            let w = (-q.length_squared()).exp();
+            let w = (-q.length_squared()).exp() * scale;
             let normal = data.normals[n.index];
             let normal = if normal.dot(facing) < 0.0 {
                 -normal
