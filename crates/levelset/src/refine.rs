@@ -126,8 +126,10 @@ pub fn refine_surface(
         let planes =
             project_onto_nearest_planes(&mut mesh.vertices, points, &tree, &beside_edges, spacing);
         stats.snapped_to_planes = undo_degenerating_moves(mesh, &before, folded);
+        // A vertex whose plane move was undone may still reach the line
+        // (the same undo judges that move): its plane stays.
         let before = mesh.vertices.clone();
-        onto_edges_of_planes(mesh, &planes, &before, spacing);
+        onto_edges_of_planes(mesh, &planes, spacing);
         stats.snapped_to_edges = undo_degenerating_moves(mesh, &before, folded);
     }
     // Snaps onto the fit can land two vertices on one point too, or flatten
@@ -251,13 +253,13 @@ const EDGE_COSINE: f64 = 0.87;
 /// plane across a sharp edge, onto the two planes' line where it is nearer
 /// that line than those neighbours and within half a cell: the triangles
 /// across the edge otherwise cut it off by up to a cell.
-fn onto_edges_of_planes(mesh: &mut TriMesh, planes: &[Option<Plane>], at: &[DVec3], spacing: f64) {
-    let faces = surfrecon_geom::metrics::vertex_faces(&mesh.triangles, at.len());
-    let triangles = &mesh.triangles;
+fn onto_edges_of_planes(mesh: &mut TriMesh, planes: &[Option<Plane>], spacing: f64) {
+    let (at, triangles) = (&mesh.vertices, &mesh.triangles);
+    let faces = surfrecon_geom::metrics::vertex_faces(triangles, at.len());
     let moves: Vec<(usize, DVec3)> = (0..at.len())
         .into_par_iter()
         .filter_map(|v| {
-            let own = planes[v].filter(|_| at[v] == mesh.vertices[v])?;
+            let own = planes[v]?;
             let ring = (faces.of(v).iter()).flat_map(|&f| triangles[f as usize]);
             let across: Vec<usize> = ring
                 .filter(|&w| w as usize != v)
